@@ -1,0 +1,299 @@
+r"""The NNPhD model: a Lagrangian neural network (LNN) for f_c plus a free MLP (the UAN) for f_n.
+
+LNN (paper Eq. 3):
+
+.. math::  \ddot q = (\nabla_{\dot q}\nabla_{\dot q}^T L)^{-1}\,[\nabla_q L - (\nabla_{\dot q}\nabla_q^T L)\,\dot q]
+
+with :math:`L = L_{NN}(q, \dot q) + \tfrac12 a\,\dot q\cdot\dot q` (the paper's *split trick*, appendix F) and hidden units
+that are half softplus, half quadratic (the *activation trick*).
+
+The derivatives are computed by a hand-written pass over the whole batch at once: one forward pass, one backward
+pass for :math:`g = \partial L/\partial z` (:math:`z = (q, \dot q)`), and n+1 directional (tangent) passes that
+differentiate g along :math:`e_{\dot q_j}` (giving the columns of :math:`\partial^2 L/\partial\dot q^2`) and along
+:math:`(\dot q, 0)` (giving :math:`(\partial^2 L/\partial\dot q\,\partial q)\,\dot q`). All K = n+2 streams (primal and
+n+1 tangents) go through each layer in a single matrix product. :func:`lnn_accel_reference` is the plain
+per-sample ``jax.hessian`` version (as in Cranmer et al.'s LNN code), kept as the reference in tests and benchmarks.
+
+Both paths finish in :func:`euler_lagrange_solve`, which guards the solve against a singular mass matrix with a
+Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is symmetric). For a well-conditioned H
+(smallest singular value σ) the relative change is ≤ (ε/σ)², and for a singular H the output stays bounded by
+|r|/(2ε) instead of becoming inf/NaN.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+Params = dict
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# configuration
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Architecture of an NNPhD model (defaults: the paper's appendix E)."""
+
+    n: int
+    lnn_widths: tuple[int, ...] = (200, 200)
+    lnn_activation: str = "softplus+quadratic"  # half softplus, half quadratic units (activation trick)
+    split_mass: float = 1.0  # a in L = L_NN + a/2 q̇·q̇ (split trick); 0 disables it
+    uan_widths: tuple[int, ...] = (200, 200)
+    uan_activation: str = "leaky_relu"
+    leaky_slope: float = 0.2
+    guard_eps: float = 1e-6  # ε of the guarded (Tikhonov) solve
+    dtype: str = "float64"
+    lnn_out_scale: float = 0.1  # std multiplier of the LNN output layer at init: L_NN small, so L ≈ a/2 q̇² at init
+
+    def __post_init__(self):
+        if self.n < 1:
+            raise ValueError(f"n must be ≥ 1, got {self.n}")
+        if not self.lnn_widths or any(w < 1 for w in self.lnn_widths):
+            raise ValueError(f"lnn_widths must be positive integers, got {self.lnn_widths}")
+        if not self.uan_widths or any(w < 1 for w in self.uan_widths):
+            raise ValueError(f"uan_widths must be positive integers, got {self.uan_widths}")
+        if self.dtype not in ("float32", "float64"):
+            raise ValueError(f"dtype must be 'float32' or 'float64', got {self.dtype!r}")
+        _activation_masks(self.lnn_activation, 2)  # validates the name
+
+    def replace(self, **kw) -> "ModelConfig":
+        return replace(self, **kw)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# activations with their first and second derivatives
+
+
+def _softplus(x):
+    return jax.nn.softplus(x), jax.nn.sigmoid(x), jax.nn.sigmoid(x) * (1.0 - jax.nn.sigmoid(x))
+
+
+def _quadratic(x):
+    return 0.5 * x * x, x, jnp.ones_like(x)
+
+
+def _tanh(x):
+    t = jnp.tanh(x)
+    return t, 1.0 - t * t, -2.0 * t * (1.0 - t * t)
+
+
+_ACTS: dict[str, Callable] = {"softplus": _softplus, "quadratic": _quadratic, "tanh": _tanh}
+LNN_ACTIVATIONS = ("softplus+quadratic", "softplus", "quadratic", "tanh")
+
+
+def _activation_masks(name: str, width: int) -> list[tuple[Callable, np.ndarray]]:
+    """Split a layer of `width` units into groups, one activation each (boolean masks)."""
+    if name == "softplus+quadratic":
+        m = np.arange(width) < (width + 1) // 2
+        return [(_softplus, m), (_quadratic, ~m)]
+    if name in _ACTS:
+        return [(_ACTS[name], np.ones(width, bool))]
+    raise ValueError(f"unknown LNN activation {name!r}; expected one of: {', '.join(LNN_ACTIVATIONS)}")
+
+
+def _act_with_derivs(name: str, a):
+    """σ(a), σ'(a), σ''(a) for a layer pre-activation a (..., width)."""
+    groups = _activation_masks(name, a.shape[-1])
+    if len(groups) == 1:
+        return groups[0][0](a)
+    outs = [fn(a) for fn, _ in groups]
+    masks = [jnp.asarray(m) for _, m in groups]
+    return tuple(sum(jnp.where(m, o[i], 0.0) for m, o in zip(masks, outs)) for i in range(3))
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# initialisation
+
+
+def _init_mlp(key, sizes, dtype, out_scale=1.0):
+    layers = []
+    keys = jax.random.split(key, len(sizes) - 1)
+    for i, (k, fan_in, fan_out) in enumerate(zip(keys, sizes[:-1], sizes[1:])):
+        std = 1.0 / np.sqrt(fan_in)
+        if i == len(sizes) - 2:
+            std *= out_scale
+        w = std * jax.random.normal(k, (fan_in, fan_out), dtype=dtype)
+        layers.append({"w": w, "b": jnp.zeros((fan_out,), dtype)})
+    return layers
+
+
+def init_lnn(key, cfg: ModelConfig) -> list:
+    sizes = (2 * cfg.n, *cfg.lnn_widths, 1)
+    return _init_mlp(key, sizes, jnp.dtype(cfg.dtype), cfg.lnn_out_scale)
+
+
+def init_uan(key, cfg: ModelConfig) -> list:
+    sizes = (2 * cfg.n + 1, *cfg.uan_widths, cfg.n)
+    return _init_mlp(key, sizes, jnp.dtype(cfg.dtype))
+
+
+def init_nnphd(key, cfg: ModelConfig) -> Params:
+    k1, k2 = jax.random.split(key)
+    return {"lnn": init_lnn(k1, cfg), "uan": init_uan(k2, cfg)}
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Euler–Lagrange solve shared by every path
+
+
+def euler_lagrange_solve(grad_q, hess_vv, mixed_qd, eps: float = 1e-6):
+    r"""q̈ = H_vv⁻¹ (∇_q L − (∂²L/∂q̇∂q) q̇), batched over leading axes; guarded (see module doc).
+
+    grad_q: (..., n); hess_vv: (..., n, n); mixed_qd: (..., n) = (∂²L/∂q̇∂q) q̇.
+    """
+    rhs = grad_q - mixed_qd
+    h = 0.5 * (hess_vv + jnp.swapaxes(hess_vv, -1, -2))
+    n = h.shape[-1]
+    eye = jnp.eye(n, dtype=h.dtype)
+    a = h @ h + (eps * eps) * eye
+    b = jnp.einsum("...ij,...j->...i", h, rhs)
+    return jnp.linalg.solve(a, b[..., None])[..., 0]
+
+
+def lagrangian_derivatives(lagrangian: Callable, q, qd):
+    """∇_q L, ∂²L/∂q̇², (∂²L/∂q̇∂q) q̇ of a scalar L(q, q̇) at one sample, by autodiff (jax.hessian)."""
+    n = q.shape[-1]
+    z = jnp.concatenate([q, qd])
+
+    def lz(z):
+        return lagrangian(z[:n], z[n:])
+
+    g = jax.grad(lz)(z)
+    h = jax.hessian(lz)(z)
+    return g[:n], h[n:, n:], h[n:, :n] @ qd
+
+
+def accel_from_lagrangian(lagrangian: Callable, q, qd, eps: float = 1e-6):
+    """Acceleration of a given Lagrangian L(q, q̇) (single sample, autodiff) through :func:`euler_lagrange_solve`."""
+    gq, hvv, mix = lagrangian_derivatives(lagrangian, q, qd)
+    return euler_lagrange_solve(gq, hvv, mix, eps)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# LNN: hand-written derivative pass
+
+
+def lnn_value(lnn: list, q, qd, cfg: ModelConfig):
+    """Lagrangian L(q, q̇) = L_NN + a/2 q̇·q̇ for a batch (B, n) → (B,)."""
+    h = jnp.concatenate([q, qd], axis=-1)
+    for layer in lnn[:-1]:
+        h = _act_with_derivs(cfg.lnn_activation, h @ layer["w"] + layer["b"])[0]
+    out = (h @ lnn[-1]["w"] + lnn[-1]["b"])[..., 0]
+    return out + 0.5 * cfg.split_mass * jnp.sum(qd * qd, axis=-1)
+
+
+def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
+    """(∇_q L, ∂²L/∂q̇², (∂²L/∂q̇∂q) q̇) for a batch q, q̇ of shape (B, n), by the hand-written pass.
+
+    Streams: index 0 is the primal, 1..n the tangents e_{q̇_j}, n+1 the tangent (q̇, 0).
+    """
+    n = q.shape[-1]
+    bsz = q.shape[0]
+    dt = q.dtype
+    z = jnp.concatenate([q, qd], axis=-1)  # (B, 2n)
+    # tangents in z space: (n+1, B, 2n)
+    e_v = jnp.concatenate([jnp.zeros((n, n), dt), jnp.eye(n, dtype=dt)], axis=-1)  # (n, 2n)
+    tan = jnp.concatenate(
+        [jnp.broadcast_to(e_v[:, None, :], (n, bsz, 2 * n)), jnp.concatenate([qd, jnp.zeros_like(qd)], -1)[None]],
+        axis=0,
+    )
+    k = n + 1
+    hidden = lnn[:-1]
+    # forward: primal and tangents through each layer with one matmul per layer
+    x = jnp.concatenate([z[None], tan], axis=0)  # (k+1, B, in)
+    cache = []
+    for layer in hidden:
+        pre = x @ layer["w"]
+        a = pre[0] + layer["b"]
+        adot = pre[1:]  # (k, B, width)
+        s0, s1, s2 = _act_with_derivs(cfg.lnn_activation, a)
+        cache.append((s1, s2, adot))
+        x = jnp.concatenate([s0[None], s1[None] * adot], axis=0)
+    # backward: g_l = ∂L/∂h_l (primal) and its tangents ġ_l, pushed through σ' and W^T together
+    w_out = lnn[-1]["w"][:, 0]
+    g = jnp.broadcast_to(w_out, (bsz, w_out.shape[0]))
+    gdot = jnp.zeros((k,) + g.shape, dt)
+    for layer, (s1, s2, adot) in zip(reversed(hidden), reversed(cache)):
+        delta = g * s1
+        ddelta = gdot * s1[None] + (g * s2)[None] * adot
+        y = jnp.concatenate([delta[None], ddelta], axis=0) @ layer["w"].T  # (k+1, B, in)
+        g, gdot = y[0], y[1:]
+    grad_z = g  # (B, 2n): ∇_z L_NN
+    dgrad = gdot  # (k, B, 2n): directional derivatives of ∇_z L_NN
+    grad_q = grad_z[:, :n]
+    hess_vv = jnp.swapaxes(dgrad[:n, :, n:], 0, 1)  # (B, n_j, n_i) → symmetric anyway
+    hess_vv = hess_vv + cfg.split_mass * jnp.eye(n, dtype=dt)
+    mixed = dgrad[n, :, n:]  # ∂/∂(q̇,0) of ∂L/∂q̇ = (∂²L/∂q̇∂q) q̇
+    return grad_q, hess_vv, mixed
+
+
+def lnn_accel(lnn: list, q, qd, cfg: ModelConfig):
+    """f_c^NN(q, q̇) for a batch (B, n) → (B, n), hand-written derivative pass."""
+    return euler_lagrange_solve(*lnn_derivatives(lnn, q, qd, cfg), cfg.guard_eps)
+
+
+def lnn_accel_reference(lnn: list, q, qd, cfg: ModelConfig):
+    """Same as :func:`lnn_accel` with per-sample ``jax.hessian`` under ``vmap`` (the original LNN approach)."""
+
+    def one(qi, qdi):
+        lag = lambda a, b: lnn_value(lnn, a[None], b[None], cfg)[0]  # noqa: E731
+        return accel_from_lagrangian(lag, qi, qdi, cfg.guard_eps)
+
+    return jax.vmap(one)(q, qd)
+
+
+def lnn_energy(lnn: list, q, qd, cfg: ModelConfig):
+    """H = q̇·∂L/∂q̇ − L for a batch (B, n) → (B,)."""
+
+    def lsum(qd_):
+        return jnp.sum(lnn_value(lnn, q, qd_, cfg))
+
+    dl_dqd = jax.grad(lsum)(qd)
+    return jnp.sum(qd * dl_dqd, axis=-1) - lnn_value(lnn, q, qd, cfg)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# UAN and the black box
+
+
+def mlp_apply(layers: list, x, activation: str = "leaky_relu", slope: float = 0.2):
+    act = {
+        "leaky_relu": lambda a: jax.nn.leaky_relu(a, slope),
+        "tanh": jnp.tanh,
+        "softplus": jax.nn.softplus,
+        "relu": jax.nn.relu,
+    }[activation]
+    for layer in layers[:-1]:
+        x = act(x @ layer["w"] + layer["b"])
+    return x @ layers[-1]["w"] + layers[-1]["b"]
+
+
+def uan_force(uan: list, q, qd, t, cfg: ModelConfig):
+    """f_n^NN(q, q̇, t) for a batch: q, q̇ (B, n), t (B,) → (B, n)."""
+    x = jnp.concatenate([q, qd, t[:, None]], axis=-1)
+    return mlp_apply(uan, x, cfg.uan_activation, cfg.leaky_slope)
+
+
+def nnphd_forces(params: Params, q, qd, t, cfg: ModelConfig):
+    """(f_c^NN, f_n^NN) for a batch."""
+    return lnn_accel(params["lnn"], q, qd, cfg), uan_force(params["uan"], q, qd, t, cfg)
+
+
+@dataclass(frozen=True)
+class Model:
+    """Convenience wrapper: a config and its parameters (a pytree)."""
+
+    cfg: ModelConfig
+    params: Params = field(repr=False)
+
+    @classmethod
+    def init(cls, cfg: ModelConfig, seed: int = 0) -> "Model":
+        return cls(cfg, init_nnphd(jax.random.PRNGKey(seed), cfg))
+
+    def forces(self, q, qd, t):
+        return nnphd_forces(self.params, q, qd, t, self.cfg)

@@ -1,0 +1,255 @@
+r"""Loss, the jitted training loop and the λ-sweep (paper Eq. 5, appendix E).
+
+Loss: :math:`L = L_e + \lambda L_b` with
+:math:`L_e = (\tfrac{1}{Nn}\sum_i \|f_c^{NN}+f_n^{NN}-f\|_p^p)^{1/p}` and
+:math:`L_b = (\tfrac{1}{Nn}\sum_i \|f_n^{NN}\|_p^p)^{1/p}` (p ≥ 1), or the squared-L2 ("mse") variant
+:math:`L_e = \tfrac{1}{Nn}\sum\|\cdot\|_2^2`.
+
+Training: Adam over a piecewise-constant learning rate (paper: {1e-2, 1e-3, 1e-4, 1e-5} × 500 steps), minibatches of
+32 drawn with replacement, the whole loop one ``lax.scan`` under ``jit``. λ is a traced argument, so one compiled
+trainer serves every λ (and ``vmap`` over λ trains all of them at once).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from functools import partial
+from typing import Callable, Sequence
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+
+from .models import ModelConfig, Params, init_nnphd, nnphd_forces
+
+PAPER_LAMBDAS: tuple[float, ...] = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
+PAPER_LRS: tuple[float, ...] = (1e-2, 1e-3, 1e-4, 1e-5)
+
+_TINY = 1e-30  # keeps the gradient of (S)^{1/p} finite when S → 0 (float64); float32 uses 1e-20
+
+
+def parse_p(p) -> float | str:
+    """Validate a loss index: a number ≥ 1, or 'mse'."""
+    if isinstance(p, str):
+        s = p.strip().lower()
+        if s == "mse":
+            return "mse"
+        try:
+            p = float(s)
+        except ValueError:
+            raise ValueError(f"p must be a number ≥ 1 or 'mse', got {p!r}") from None
+    p = float(p)
+    if not np.isfinite(p) or p < 1:
+        raise ValueError(f"p must be a number ≥ 1 or 'mse', got {p:g}")
+    return p
+
+
+def pnorm(r, p: float | str):
+    """(1/(Nn) Σ |r|^p)^{1/p} over all entries of r; 'mse' gives the mean of r²."""
+    if p == "mse":
+        return jnp.mean(r * r)
+    if p == 1:
+        return jnp.mean(jnp.abs(r))
+    tiny = _TINY if r.dtype == jnp.float64 else 1e-20
+    return (jnp.mean(jnp.abs(r) ** p) + tiny) ** (1.0 / p)
+
+
+def loss_terms(params: Params, q, qd, t, qdd, cfg: ModelConfig, p):
+    """(L_e, L_b) on a batch."""
+    fc, fn = nnphd_forces(params, q, qd, t, cfg)
+    return pnorm(fc + fn - qdd, p), pnorm(fn, p)
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Optimisation settings (defaults: the paper's)."""
+
+    lrs: tuple[float, ...] = PAPER_LRS
+    steps: int = 2000  # per λ; split evenly over the learning rates
+    batch_size: int = 32
+    p: float | str = 1.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "p", parse_p(self.p))
+        if self.steps < len(self.lrs) or int(self.steps) != self.steps:
+            raise ValueError(f"steps must be an integer ≥ {len(self.lrs)}, got {self.steps}")
+        if self.batch_size < 1:
+            raise ValueError(f"batch_size must be ≥ 1, got {self.batch_size}")
+        if not self.lrs or any(lr <= 0 for lr in self.lrs):
+            raise ValueError(f"learning rates must be positive, got {self.lrs}")
+
+    def replace(self, **kw) -> "TrainConfig":
+        return replace(self, **kw)
+
+    def schedule(self):
+        per = self.steps // len(self.lrs)
+        bounds = {per * (i + 1): self.lrs[i + 1] / self.lrs[i] for i in range(len(self.lrs) - 1)}
+        return optax.piecewise_constant_schedule(self.lrs[0], bounds)
+
+
+def _as_arrays(data, dtype):
+    return tuple(jnp.asarray(a, dtype) for a in (data.q, data.qd, data.t, data.qdd))
+
+
+def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None = None):
+    """Return ``train(params, arrays, lam, key) -> (params, (L_e history, L_b history))``, jitted.
+
+    ``arrays`` = (q, q̇, t, q̈) of the training set. The Adam state starts fresh on every call (appendix E restarts
+    the learning-rate annealing at each λ); parameters are whatever is passed in (warm start).
+    ``loss_fn(params, q, qd, t, qdd) -> (L_e, L_b)`` replaces the NNPhD loss (used for the LNN-only and black-box
+    baselines and constrained Lagrangians).
+    """
+    opt = optax.adam(tcfg.schedule())
+    if loss_fn is None:
+        loss_fn = partial(loss_terms, cfg=cfg, p=tcfg.p)
+
+    def objective(params, batch, lam):
+        le, lb = loss_fn(params, *batch)
+        return le + lam * lb, (le, lb)
+
+    grad_fn = jax.value_and_grad(objective, has_aux=True)
+
+    @jax.jit
+    def train(params, arrays, lam, key):
+        n_data = arrays[0].shape[0]
+        opt_state = opt.init(params)
+
+        def step(carry, k):
+            params, opt_state = carry
+            idx = jax.random.randint(k, (tcfg.batch_size,), 0, n_data)
+            batch = tuple(a[idx] for a in arrays)
+            (_, (le, lb)), g = grad_fn(params, batch, lam)
+            updates, opt_state = opt.update(g, opt_state, params)
+            return (optax.apply_updates(params, updates), opt_state), (le, lb)
+
+        keys = jax.random.split(key, tcfg.steps)
+        (params, _), hist = jax.lax.scan(step, (params, opt_state), keys)
+        return params, hist
+
+    return train
+
+
+@partial(jax.jit, static_argnames=("cfg", "p"))
+def evaluate_arrays(params: Params, q, qd, t, qdd, cfg: ModelConfig, p):
+    fc, fn = nnphd_forces(params, q, qd, t, cfg)
+    return pnorm(fc + fn - qdd, p), pnorm(fn, p), fc, fn
+
+
+@dataclass
+class Evaluation:
+    L_e: float
+    L_b: float
+    fc: np.ndarray
+    fn: np.ndarray
+
+
+def evaluate(params: Params, data, cfg: ModelConfig, p) -> Evaluation:
+    """L_e, L_b and the learned forces on a whole dataset."""
+    le, lb, fc, fn = evaluate_arrays(params, *_as_arrays(data, jnp.dtype(cfg.dtype)), cfg, p)
+    return Evaluation(float(le), float(lb), np.asarray(fc), np.asarray(fn))
+
+
+def alignment(pred, truth) -> float:
+    """Misalignment m = (1/(nN) Σ ‖pred − truth‖²)^{1/2} (paper section III.D)."""
+    d = np.asarray(pred, float) - np.asarray(truth, float)
+    return float(np.sqrt(np.mean(d * d)))
+
+
+def validate_lambdas(lambdas: Sequence[float]) -> tuple[float, ...]:
+    lams = tuple(float(x) for x in lambdas)
+    if not lams:
+        raise ValueError("lambdas must not be empty")
+    for x in lams:
+        if not np.isfinite(x) or x <= 0:
+            raise ValueError(f"λ must be > 0, got {x:g}")
+    return lams
+
+
+@dataclass
+class SweepPoint:
+    lam: float
+    L_e: float  # on the evaluation set (test set if given, else the training set)
+    L_b: float
+    L_e_train: float
+    L_b_train: float
+    m_c: float | None = None
+    m_n: float | None = None
+    params: Params | None = None
+
+
+def sweep(
+    train_data,
+    cfg: ModelConfig,
+    tcfg: TrainConfig,
+    lambdas: Sequence[float] = PAPER_LAMBDAS,
+    seed: int = 0,
+    test_data=None,
+    mode: str = "warm",
+    progress: Callable[[int, float], None] | None = None,
+    resume: dict | None = None,
+    on_point: Callable[[SweepPoint], None] | None = None,
+    keep_params: bool = True,
+) -> list[SweepPoint]:
+    """Train NNPhD for each λ and record L_e(λ), L_b(λ) (and m_c, m_n when the data carry the true split).
+
+    mode="warm": the paper's protocol (appendix E): λ in increasing order, each run starting from the previous λ's
+    parameters. mode="vmap": every λ trained independently from the same initialisation, all in one vmapped run.
+    ``resume`` maps λ → a finished :class:`SweepPoint` (with params) to skip (warm mode continues from its params).
+    """
+    lams = validate_lambdas(lambdas)
+    if mode not in ("warm", "vmap"):
+        raise ValueError(f"mode must be 'warm' or 'vmap', got {mode!r}")
+    dtype = jnp.dtype(cfg.dtype)
+    arrays = _as_arrays(train_data, dtype)
+    key = jax.random.PRNGKey(seed)
+    k_init, k_train = jax.random.split(key)
+    params0 = init_nnphd(k_init, cfg)
+    train = make_trainer(cfg, tcfg)
+    eval_data = test_data if test_data is not None else train_data
+    resume = dict(resume or {})
+
+    def finish(lam, params):
+        ev = evaluate(params, eval_data, cfg, tcfg.p)
+        tr = ev if test_data is None else evaluate(params, train_data, cfg, tcfg.p)
+        pt = SweepPoint(lam, ev.L_e, ev.L_b, tr.L_e, tr.L_b, params=params)
+        if eval_data.fc is not None:
+            pt.m_c = alignment(ev.fc, eval_data.fc)
+            pt.m_n = alignment(ev.fn, eval_data.fn)
+        return pt
+
+    points: list[SweepPoint] = []
+    if mode == "warm":
+        order = sorted(range(len(lams)), key=lambda i: lams[i])
+        params = params0
+        keys = jax.random.split(k_train, len(lams))
+        for j, i in enumerate(order):
+            lam = lams[i]
+            if lam in resume and resume[lam].params is not None:
+                pt = resume[lam]
+                params = pt.params
+            else:
+                params, _ = train(params, arrays, jnp.asarray(lam, dtype), keys[j])
+                pt = finish(lam, params)
+                if on_point:
+                    on_point(pt)
+            points.append(pt)
+            if progress:
+                progress(j + 1, lam)
+    else:
+        vtrain = jax.jit(jax.vmap(train, in_axes=(None, None, 0, None)))
+        todo = [x for x in lams if x not in resume]
+        if todo:
+            pstack, _ = vtrain(params0, arrays, jnp.asarray(todo, dtype), k_train)
+            for i, lam in enumerate(todo):
+                resume[lam] = finish(lam, jax.tree_util.tree_map(lambda a: a[i], pstack))
+                if on_point:
+                    on_point(resume[lam])
+        for j, lam in enumerate(sorted(lams)):
+            points.append(resume[lam])
+            if progress:
+                progress(j + 1, lam)
+    points.sort(key=lambda pt: pt.lam)
+    if not keep_params:
+        for pt in points:
+            pt.params = None
+    return points

@@ -59,7 +59,7 @@ class ModelConfig:
             raise ValueError(f"uan_widths must be positive integers, got {self.uan_widths}")
         if self.dtype not in ("float32", "float64"):
             raise ValueError(f"dtype must be 'float32' or 'float64', got {self.dtype!r}")
-        _activation_masks(self.lnn_activation, 2)  # validates the name
+        _activation_groups(self.lnn_activation, 2)  # validates the name
 
     def replace(self, **kw) -> "ModelConfig":
         return replace(self, **kw)
@@ -86,24 +86,23 @@ _ACTS: dict[str, Callable] = {"softplus": _softplus, "quadratic": _quadratic, "t
 LNN_ACTIVATIONS = ("softplus+quadratic", "softplus", "quadratic", "tanh")
 
 
-def _activation_masks(name: str, width: int) -> list[tuple[Callable, np.ndarray]]:
-    """Split a layer of `width` units into groups, one activation each (boolean masks)."""
+def _activation_groups(name: str, width: int) -> list[tuple[Callable, int, int]]:
+    """Split a layer of `width` units into contiguous groups (activation, start, stop)."""
     if name == "softplus+quadratic":
-        m = np.arange(width) < (width + 1) // 2
-        return [(_softplus, m), (_quadratic, ~m)]
+        half = (width + 1) // 2
+        return [(_softplus, 0, half), (_quadratic, half, width)]
     if name in _ACTS:
-        return [(_ACTS[name], np.ones(width, bool))]
+        return [(_ACTS[name], 0, width)]
     raise ValueError(f"unknown LNN activation {name!r}; expected one of: {', '.join(LNN_ACTIVATIONS)}")
 
 
 def _act_with_derivs(name: str, a):
     """σ(a), σ'(a), σ''(a) for a layer pre-activation a (..., width)."""
-    groups = _activation_masks(name, a.shape[-1])
+    groups = [(fn, lo, hi) for fn, lo, hi in _activation_groups(name, a.shape[-1]) if hi > lo]
     if len(groups) == 1:
         return groups[0][0](a)
-    outs = [fn(a) for fn, _ in groups]
-    masks = [jnp.asarray(m) for _, m in groups]
-    return tuple(sum(jnp.where(m, o[i], 0.0) for m, o in zip(masks, outs)) for i in range(3))
+    outs = [fn(a[..., lo:hi]) for fn, lo, hi in groups]
+    return tuple(jnp.concatenate([o[i] for o in outs], axis=-1) for i in range(3))
 
 
 # --------------------------------------------------------------------------------------------------------------------

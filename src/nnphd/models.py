@@ -149,8 +149,20 @@ def euler_lagrange_solve(grad_q, hess_vv, mixed_qd, eps: float = 1e-6):
     h = 0.5 * (hess_vv + jnp.swapaxes(hess_vv, -1, -2))
     n = h.shape[-1]
     eye = jnp.eye(n, dtype=h.dtype)
-    a = h @ h + (eps * eps) * eye
     b = jnp.einsum("...ij,...j->...i", h, rhs)
+    e2 = eps * eps
+    if n == 1:  # closed forms for n ≤ 2: a batched LU of tiny matrices costs more than the whole network on CPU
+        return b / (h[..., 0, :] ** 2 + e2)
+    if n == 2:
+        h00, h01, h11 = h[..., 0, 0], h[..., 0, 1], h[..., 1, 1]
+        a00 = h00 * h00 + h01 * h01 + e2
+        a01 = h01 * (h00 + h11)
+        a11 = h01 * h01 + h11 * h11 + e2
+        det = a00 * a11 - a01 * a01
+        x0 = (a11 * b[..., 0] - a01 * b[..., 1]) / det
+        x1 = (a00 * b[..., 1] - a01 * b[..., 0]) / det
+        return jnp.stack([x0, x1], axis=-1)
+    a = h @ h + e2 * eye
     return jnp.linalg.solve(a, b[..., None])[..., 0]
 
 

@@ -1,0 +1,167 @@
+"""Command line: ``nnphd systems``, ``nnphd sweep``. A thin shell over :mod:`nnphd.run`.
+
+Bad input gives a one-line ``error: ...`` on stderr and exit code 2, with nothing written.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from typing import Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.")
+console = Console()
+
+# typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
+_ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+class InputError(Exception):
+    """Bad user input: reported as one line, exit code 2."""
+
+
+def _parse_int(name: str, value: str, minimum: int) -> int:
+    try:
+        f = float(value)
+    except ValueError:
+        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}") from None
+    if not math.isfinite(f) or f != int(f) or "." in value.strip().rstrip("0").rstrip("."):
+        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
+    if int(f) < minimum:
+        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
+    return int(f)
+
+
+def _parse_lambdas(value: Optional[str]):
+    from .train import PAPER_LAMBDAS
+
+    if value is None:
+        return PAPER_LAMBDAS
+    out = []
+    for tok in value.split(","):
+        try:
+            x = float(tok)
+        except ValueError:
+            raise InputError(f"--lambdas must be comma-separated numbers > 0, got {tok.strip()!r}") from None
+        if not math.isfinite(x) or x <= 0:
+            raise InputError(f"λ must be > 0, got {tok.strip()}")
+        out.append(x)
+    if not any(x < 1 for x in out) or not any(x > 1 for x in out):
+        raise InputError("--lambdas must contain values both below and above 1 (the transition is read across λ=1)")
+    return tuple(out)
+
+
+@app.command()
+def systems():
+    """List the built-in systems with their ground truth and default settings."""
+    from .systems import SYSTEMS
+
+    for s in SYSTEMS.values():
+        params = ", ".join(f"{k}={v:.6g}" for k, v in s.params.items())
+        kind = "conservative" if s.conservative else "non-conservative"
+        console.print(f"[bold]{s.name}[/]  n={s.n}, {kind}, data: {s.data} (dt={s.dt:g}, {s.n_steps} steps from "
+                      f"{tuple(round(x, 6) for x in s.x0)})")
+        console.print(f"    {params}")
+        console.print(f"    {s.description}", highlight=False)
+
+
+@app.command()
+def sweep(
+    system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)"),
+    p: str = typer.Option("1", "--p", help="loss norm index p ≥ 1, or 'mse'"),
+    steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
+    seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
+    lambdas: Optional[str] = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
+    mode: str = typer.Option("warm", "--mode", help="'warm' (paper: warm start, increasing λ) or 'vmap' (independent, one vmapped run)"),
+    param: list[str] = typer.Option([], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"),
+    out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png"),
+    resume: bool = typer.Option(True, "--resume/--no-resume", help="continue an interrupted sweep in --out"),
+):
+    """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
+    from .report import ensure_writable_dir
+    from .systems import get_system
+    from .train import parse_p
+
+    # --- validate everything before any work
+    try:
+        overrides = {}
+        for item in param:
+            if "=" not in item:
+                raise InputError(f"--param must look like name=value, got {item!r}")
+            k, v = item.split("=", 1)
+            try:
+                overrides[k.strip()] = float(v)
+            except ValueError:
+                raise InputError(f"--param {k.strip()} must be a number, got {v!r}") from None
+        sysm = get_system(system, **overrides)
+        pp = parse_p(p)
+        nsteps = _parse_int("--steps", steps, 4)
+        nseed = _parse_int("--seed", seed, 0)
+        lams = _parse_lambdas(lambdas)
+        if mode not in ("warm", "vmap"):
+            raise InputError(f"--mode must be 'warm' or 'vmap', got {mode!r}")
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+    from .run import run_sweep
+
+    console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=console, transient=False) as prog:
+        task = prog.add_task("λ-sweep (first λ includes compilation)", total=len(lams))
+        res = run_sweep(sysm, p=pp, steps=nsteps, seed=nseed, lambdas=lams, mode=mode, out=out, resume=resume,
+                        progress=lambda i, lam: prog.update(task, completed=i, description=f"λ-sweep: done λ={lam:g}"))
+    t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
+    has_m = res["table"][0]["m_c"] is not None
+    for col in ("λ", "L_e", "L_b") + (("m_c", "m_n") if has_m else ()):
+        t.add_column(col, justify="right")
+    for r in res["table"]:
+        row = [f"{r['lam']:g}", f"{r['L_e']:.4g}", f"{r['L_b']:.4g}"]
+        if has_m:
+            row += [f"{r['m_c']:.4f}", f"{r['m_n']:.4f}"]
+        t.add_row(*row)
+    console.print(t)
+    v = res["verdict"]
+    tag = "[bold red]NEW PHYSICS[/]" if v["new_physics"] else "[bold green]no new physics[/]"
+    console.print(f"verdict: {tag} — {v['reason']}")
+    console.print(f"statistic: L_e ratio across λ=1 = {v['ratio']:.3g} (threshold {v['min_ratio']:g}); "
+                  f"|f_n| ≈ {v['fn_size_from_jump']:.3g} (jump) / {v['fn_size_from_uan']:.3g} (UAN)")
+    if res["resumed_lambdas"]:
+        console.print(f"resumed {len(res['resumed_lambdas'])} finished λ from a checkpoint")
+    console.print(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)")
+
+
+def main(argv: list[str] | None = None) -> int:
+    cmd = typer.main.get_command(app)
+    try:
+        cmd.main(args=argv if argv is not None else sys.argv[1:], prog_name="nnphd", standalone_mode=False)
+    except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except typer.Exit as e:
+        return getattr(e, "exit_code", 0)
+    except typer.Abort:
+        print("error: aborted", file=sys.stderr)
+        return 130
+    except _ClickException as e:
+        if type(e).__name__ == "NoArgsIsHelpError":  # bare `nnphd`: show help
+            ctx = getattr(e, "ctx", None)
+            print(ctx.get_help() if ctx is not None else e.format_message())
+            return 2
+        print(f"error: {e.format_message()}", file=sys.stderr)
+        return getattr(e, "exit_code", 2) or 2
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
+
+
+def entry() -> None:  # console-script entry point
+    sys.exit(main())

@@ -1,0 +1,86 @@
+"""Writing results: atomic JSON and PNG files (nothing half-written), and the L_e(λ) plot."""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+
+def ensure_writable_dir(path: str | os.PathLike) -> Path:
+    """Create ``path`` if needed and check a file can be written there; ValueError with a one-line reason if not."""
+    p = Path(path)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".nnphd-probe-", dir=p)
+        os.close(fd)
+        os.unlink(tmp)
+    except OSError as e:
+        raise ValueError(f"--out {str(path)!r} is not a writable directory ({e.strerror or e})") from None
+    return p
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, np.bool_):
+        return bool(o)
+    raise TypeError(f"not JSON serialisable: {type(o)}")
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def write_json(path: str | os.PathLike, obj) -> None:
+    atomic_write_bytes(path, (json.dumps(obj, indent=2, default=_json_default, allow_nan=True) + "\n").encode())
+
+
+def save_figure(fig, path: str | os.PathLike) -> None:
+    import io
+
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=120, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def plot_sweep(curves: dict[str, Sequence[dict]], title: str = "", show_lb: bool = True):
+    """L_e(λ) (and dashed L_b(λ)) on log axes, one curve per name; rows are dicts with lam, L_e, L_b."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    for i, (name, rows) in enumerate(curves.items()):
+        lam = [r["lam"] for r in rows]
+        color = f"C{i}"
+        ax.plot(lam, [max(r["L_e"], 1e-8) for r in rows], "o-", color=color, label=f"{name}: $L_e$")
+        if show_lb:
+            ax.plot(lam, [max(r["L_b"], 1e-8) for r in rows], "s--", color=color, alpha=0.5, ms=3, label=f"{name}: $L_b$")
+    ax.axvline(1.0, color="k", lw=0.8, ls=":")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel(r"$\lambda$")
+    ax.set_ylabel("loss")
+    ax.set_title(title or r"recovery error $L_e(\lambda)$")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig

@@ -24,7 +24,7 @@ import numpy as np
 
 from .train import SweepPoint, pnorm
 
-MIN_RATIO = 5.0
+MIN_RATIO = 3.0
 MIN_RELATIVE_SIZE = 0.01
 
 

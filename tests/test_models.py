@@ -1,0 +1,195 @@
+"""LNN / UAN against analytic truths: known Lagrangians, the jax.hessian reference, energy conservation."""
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import nnphd  # noqa: F401  (enables float64)
+from nnphd.data import rk4_trajectory
+from nnphd.models import (
+    ModelConfig,
+    accel_from_lagrangian,
+    euler_lagrange_solve,
+    init_lnn,
+    init_nnphd,
+    lnn_accel,
+    lnn_accel_reference,
+    lnn_energy,
+    lnn_value,
+    nnphd_forces,
+    uan_force,
+)
+from nnphd.systems import get_system
+
+
+def _batch(n, b=9, seed=0):
+    rng = np.random.default_rng(seed)
+    return jnp.asarray(rng.normal(size=(b, n))), jnp.asarray(rng.normal(size=(b, n))), jnp.asarray(rng.normal(size=b))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+@pytest.mark.parametrize("act", ["softplus+quadratic", "softplus", "tanh", "quadratic"])
+def test_handwritten_pass_equals_hessian_reference(n, act):
+    cfg = ModelConfig(n=n, lnn_widths=(40, 30), lnn_activation=act, lnn_out_scale=1.0)
+    lnn = init_lnn(jax.random.PRNGKey(n), cfg)
+    q, qd, _ = _batch(n)
+    ours = lnn_accel(lnn, q, qd, cfg)
+    ref = lnn_accel_reference(lnn, q, qd, cfg)
+    assert float(jnp.max(jnp.abs(ref))) > 1e-2  # a non-trivial acceleration
+    np.testing.assert_allclose(ours, ref, atol=1e-10, rtol=0)
+
+
+def test_handwritten_pass_three_layers_and_gradients_match_reference():
+    cfg = ModelConfig(n=2, lnn_widths=(20, 20, 20), lnn_out_scale=1.0)
+    lnn = init_lnn(jax.random.PRNGKey(3), cfg)
+    q, qd, _ = _batch(2)
+    np.testing.assert_allclose(lnn_accel(lnn, q, qd, cfg), lnn_accel_reference(lnn, q, qd, cfg), atol=1e-10)
+    g1 = jax.grad(lambda p: jnp.sum(lnn_accel(p, q, qd, cfg) ** 2))(lnn)
+    g2 = jax.grad(lambda p: jnp.sum(lnn_accel_reference(p, q, qd, cfg) ** 2))(lnn)
+    for a, b in zip(jax.tree_util.tree_leaves(g1), jax.tree_util.tree_leaves(g2)):
+        np.testing.assert_allclose(a, b, atol=1e-9)
+
+
+# ---- known Lagrangians through the same Euler–Lagrange solve ------------------------------------------------------
+
+
+def test_harmonic_oscillator_lagrangian():
+    lag = lambda q, qd: 0.5 * qd[0] ** 2 - 0.5 * q[0] ** 2  # noqa: E731
+    for x, v in [(0.3, -1.2), (-2.0, 0.7)]:
+        a = accel_from_lagrangian(lag, jnp.array([x]), jnp.array([v]))
+        assert abs(float(a[0]) - (-x)) < 1e-10
+
+
+def test_table3_magnetic_lagrangian():
+    # Table III: L = (q̇1 − q2)²/2 + (q̇2 + q1)²/2. Euler–Lagrange by hand: q̈1 − q̇2 = q̇2 + q1, q̈2 + q̇1 = −q̇1 + q2.
+    lag = lambda q, qd: 0.5 * (qd[0] - q[1]) ** 2 + 0.5 * (qd[1] + q[0]) ** 2  # noqa: E731
+    rng = np.random.default_rng(1)
+    for _ in range(5):
+        q, qd = rng.normal(size=2), rng.normal(size=2)
+        a = accel_from_lagrangian(lag, jnp.asarray(q), jnp.asarray(qd))
+        np.testing.assert_allclose(a, [2 * qd[1] + q[0], -2 * qd[0] + q[1]], atol=1e-10)
+
+
+def test_double_pendulum_lagrangian_gives_closed_form():
+    s = get_system("double-pendulum")
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        q, qd = jnp.asarray(rng.uniform(-2, 2, 2)), jnp.asarray(rng.normal(size=2))
+        np.testing.assert_allclose(accel_from_lagrangian(s.lagrangian, q, qd), s.f_c(q, qd), atol=1e-10)
+
+
+def _exact_quadratic_lnn(w1, w_out, n):
+    """One hidden layer of quadratic units σ(a) = a²/2, zero biases: L_NN = Σ_k w_out[k] (w1[:,k]·z)²/2."""
+    w1 = jnp.asarray(w1, jnp.float64)
+    return [{"w": w1, "b": jnp.zeros(w1.shape[1])}, {"w": jnp.asarray(w_out, jnp.float64)[:, None], "b": jnp.zeros(1)}]
+
+
+def test_exact_harmonic_oscillator_in_the_network():
+    # L = ½q̇² (split trick) − ½q²: one quadratic unit a = q with output weight −1.
+    cfg = ModelConfig(n=1, lnn_widths=(1,), lnn_activation="quadratic")
+    lnn = _exact_quadratic_lnn([[1.0], [0.0]], [-1.0], 1)
+    q, qd, _ = _batch(1)
+    np.testing.assert_allclose(lnn_accel(lnn, q, qd, cfg), -q, atol=1e-10)
+
+
+def test_exact_magnetic_lagrangian_in_the_network():
+    # L = ½|q̇|² + (B/2)(q1 q̇2 − q2 q̇1) − ½k|q|², with xy = ½[σ(x+y) − σ(x−y)] for σ(a)=a²/2 → q̈ = −kq + B(q̇2, −q̇1)
+    k, b = 1.3, 0.7
+    # z = (q1, q2, q̇1, q̇2); units: q1+q̇2, q1−q̇2, q2+q̇1, q2−q̇1, q1, q2
+    w1 = np.array(
+        [[1, 1, 0, 0, 1, 0], [0, 0, 1, 1, 0, 1], [0, 0, 1, -1, 0, 0], [1, -1, 0, 0, 0, 0]], float
+    )
+    w_out = [b / 4, -b / 4, -b / 4, b / 4, -k, -k]
+    cfg = ModelConfig(n=2, lnn_widths=(6,), lnn_activation="quadratic")
+    lnn = _exact_quadratic_lnn(w1, w_out, 2)
+    q, qd, _ = _batch(2)
+    expected = -k * q + b * jnp.stack([qd[:, 1], -qd[:, 0]], axis=1)
+    np.testing.assert_allclose(lnn_accel(lnn, q, qd, cfg), expected, atol=1e-10)
+    # and it conserves H = ½|q̇|² + ½k|q|²
+    np.testing.assert_allclose(lnn_energy(lnn, q, qd, cfg), 0.5 * jnp.sum(qd**2, 1) + 0.5 * k * jnp.sum(q**2, 1), atol=1e-12)
+
+
+# ---- energy of a learned Lagrangian ------------------------------------------------------------------------------
+
+
+def test_random_lnn_conserves_its_energy_with_rk4_order_4():
+    cfg = ModelConfig(n=2, lnn_widths=(32, 32), lnn_out_scale=0.3)
+    lnn = init_lnn(jax.random.PRNGKey(7), cfg)
+
+    def f(q, qd, t):
+        return lnn_accel(lnn, q[None], qd[None], cfg)[0]
+
+    x0 = jnp.array([0.3, -0.2, 0.1, 0.4])
+    drifts = []
+    for dt in (0.1, 0.05):
+        _, q, qd = rk4_trajectory(f, x0, dt, int(round(4.0 / dt)))
+        e = lnn_energy(lnn, q, qd, cfg)
+        drifts.append(float(jnp.max(jnp.abs(e - e[0]))))
+    assert drifts[0] < 1e-4
+    ratio = drifts[0] / drifts[1]
+    assert 8 < ratio < 40, (drifts, ratio)  # 2⁴ = 16 for a 4th-order integrator
+
+
+# ---- the guarded solve -----------------------------------------------------------------------------------------------
+
+
+def test_guard_singular_mass_matrix_gives_finite_output():
+    # H = 0 (no split trick, L_NN without q̇ dependence) must not produce inf/NaN, nor NaN gradients
+    cfg = ModelConfig(n=2, lnn_widths=(8,), split_mass=0.0, lnn_activation="quadratic")
+    lnn = _exact_quadratic_lnn(np.array([[1.0], [0.5], [0.0], [0.0]]), [-1.0], 2)
+    q, qd, _ = _batch(2)
+    a = lnn_accel(lnn, q, qd, cfg)
+    assert bool(jnp.all(jnp.isfinite(a)))
+    g = jax.grad(lambda p: jnp.sum(lnn_accel(p, q, qd, cfg)))(lnn)
+    assert all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree_util.tree_leaves(g))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3])
+def test_guarded_solve_matches_exact_solve_when_well_conditioned(n):
+    rng = np.random.default_rng(n)
+    m = rng.normal(size=(5, n, n))
+    h = m @ np.swapaxes(m, 1, 2) + np.eye(n)  # SPD, eigenvalues ≥ 1
+    r = rng.normal(size=(5, n))
+    x = euler_lagrange_solve(jnp.asarray(r), jnp.asarray(h), jnp.zeros((5, n)), eps=1e-6)
+    np.testing.assert_allclose(x, np.linalg.solve(h, r[..., None])[..., 0], atol=1e-10)
+    # a singular H gives a bounded answer |x| ≤ |H r| / ε²-regularised, never inf
+    x0 = euler_lagrange_solve(jnp.asarray(r), jnp.zeros((5, n, n)), jnp.zeros((5, n)), eps=1e-6)
+    assert bool(jnp.all(x0 == 0))
+
+
+def test_float32_model_runs_and_matches_float64():
+    cfg64 = ModelConfig(n=2, lnn_widths=(30, 30))
+    cfg32 = cfg64.replace(dtype="float32")
+    p64 = init_nnphd(jax.random.PRNGKey(0), cfg64)
+    p32 = jax.tree_util.tree_map(lambda a: a.astype(jnp.float32), p64)
+    q, qd, t = _batch(2)
+    fc64, fn64 = nnphd_forces(p64, q, qd, t, cfg64)
+    fc32, fn32 = nnphd_forces(p32, q.astype(jnp.float32), qd.astype(jnp.float32), t.astype(jnp.float32), cfg32)
+    assert fc32.dtype == jnp.float32
+    np.testing.assert_allclose(fc32, fc64, atol=1e-4)
+    np.testing.assert_allclose(fn32, fn64, atol=1e-4)
+
+
+def test_uan_is_leaky_relu_mlp_of_q_qd_t():
+    cfg = ModelConfig(n=1, uan_widths=(2,))
+    uan = [
+        {"w": jnp.array([[1.0, -1.0], [0.0, 0.0], [0.0, 0.0]]), "b": jnp.zeros(2)},
+        {"w": jnp.array([[1.0], [1.0]]), "b": jnp.array([0.5])},
+    ]
+    q = jnp.array([[2.0], [-3.0]])
+    out = uan_force(uan, q, jnp.zeros_like(q), jnp.zeros(2), cfg)
+    # q=2: relu(2) + leaky(−2) = 2 − 0.4; q=−3: leaky(−3) + 3 = −0.6 + 3
+    np.testing.assert_allclose(out[:, 0], [2 - 0.4 + 0.5, -0.6 + 3 + 0.5], atol=1e-12)
+
+
+def test_split_trick_makes_initial_mass_matrix_near_identity():
+    cfg = ModelConfig(n=2)
+    lnn = init_lnn(jax.random.PRNGKey(0), cfg)
+    q, qd, _ = _batch(2, b=64)
+    lag = lnn_value(lnn, q, qd, cfg)
+    assert lag.shape == (64,)
+    from nnphd.models import lnn_derivatives
+
+    _, h, _ = lnn_derivatives(lnn, q, qd, cfg)
+    eig = np.linalg.eigvalsh(np.asarray(h))
+    assert eig.min() > 0.5 and eig.max() < 1.5

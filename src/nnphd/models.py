@@ -198,48 +198,52 @@ def lnn_value(lnn: list, q, qd, cfg: ModelConfig):
     return out + 0.5 * cfg.split_mass * jnp.sum(qd * qd, axis=-1)
 
 
-def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
-    """(∇_q L, ∂²L/∂q̇², (∂²L/∂q̇∂q) q̇) for a batch q, q̇ of shape (B, n), by the hand-written pass.
+def _mm(x, w):
+    """(S, B, i) @ (i, o) as one 2-D matrix product (XLA:CPU is much slower on the 3-D form and its gradient)."""
+    s, b, i = x.shape
+    return (x.reshape(s * b, i) @ w).reshape(s, b, w.shape[1])
 
-    Streams: index 0 is the primal, 1..n the tangents e_{q̇_j}, n+1 the tangent (q̇, 0).
+
+def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
+    r"""(∇_q L, ∂²L/∂q̇², (∂²L/∂q̇∂q) q̇) for a batch q, q̇ of shape (B, n), by the hand-written pass.
+
+    For an MLP with pre-activations :math:`a_l` and :math:`g_l = \partial L/\partial h_l`, the Hessian is exactly
+
+    .. math::  \nabla_z^2 L = \sum_l J_l^T\,\mathrm{diag}(g_l \odot \sigma_l''(a_l))\,J_l,\qquad J_l = \partial a_l/\partial z,
+
+    because every :math:`a_l` is linear in the previous layer. So only the products :math:`J_l u` along the m = n+1
+    directions u ∈ {e_{q̇_1}, …, e_{q̇_n}, (q̇, 0)} are pushed forward (one stacked matrix product per layer, with the
+    primal), one backward pass gives g_l and ∇_z L, and the second derivatives are contractions over units.
     """
     n = q.shape[-1]
     bsz = q.shape[0]
     dt = q.dtype
     z = jnp.concatenate([q, qd], axis=-1)  # (B, 2n)
-    # tangents in z space: (n+1, B, 2n)
     e_v = jnp.concatenate([jnp.zeros((n, n), dt), jnp.eye(n, dtype=dt)], axis=-1)  # (n, 2n)
     tan = jnp.concatenate(
         [jnp.broadcast_to(e_v[:, None, :], (n, bsz, 2 * n)), jnp.concatenate([qd, jnp.zeros_like(qd)], -1)[None]],
         axis=0,
-    )
-    k = n + 1
+    )  # (m, B, 2n)
     hidden = lnn[:-1]
-    # forward: primal and tangents through each layer with one matmul per layer
-    x = jnp.concatenate([z[None], tan], axis=0)  # (k+1, B, in)
+    x = jnp.concatenate([z[None], tan], axis=0)  # (m+1, B, in): primal and tangents
     cache = []
     for layer in hidden:
-        pre = x @ layer["w"]
-        a = pre[0] + layer["b"]
-        adot = pre[1:]  # (k, B, width)
-        s0, s1, s2 = _act_with_derivs(cfg.lnn_activation, a)
+        pre = _mm(x, layer["w"])
+        s0, s1, s2 = _act_with_derivs(cfg.lnn_activation, pre[0] + layer["b"])
+        adot = pre[1:]  # J_l u for each direction: (m, B, width)
         cache.append((s1, s2, adot))
         x = jnp.concatenate([s0[None], s1[None] * adot], axis=0)
-    # backward: g_l = ∂L/∂h_l (primal) and its tangents ġ_l, pushed through σ' and W^T together
     w_out = lnn[-1]["w"][:, 0]
-    g = jnp.broadcast_to(w_out, (bsz, w_out.shape[0]))
-    gdot = jnp.zeros((k,) + g.shape, dt)
+    g = jnp.broadcast_to(w_out, (bsz, w_out.shape[0]))  # ∂L/∂h_D
+    hess = 0.0
     for layer, (s1, s2, adot) in zip(reversed(hidden), reversed(cache)):
-        delta = g * s1
-        ddelta = gdot * s1[None] + (g * s2)[None] * adot
-        y = jnp.concatenate([delta[None], ddelta], axis=0) @ layer["w"].T  # (k+1, B, in)
-        g, gdot = y[0], y[1:]
-    grad_z = g  # (B, 2n): ∇_z L_NN
-    dgrad = gdot  # (k, B, 2n): directional derivatives of ∇_z L_NN
-    grad_q = grad_z[:, :n]
-    hess_vv = jnp.swapaxes(dgrad[:n, :, n:], 0, 1)  # (B, n_j, n_i) → symmetric anyway
-    hess_vv = hess_vv + cfg.split_mass * jnp.eye(n, dtype=dt)
-    mixed = dgrad[n, :, n:]  # ∂/∂(q̇,0) of ∂L/∂q̇ = (∂²L/∂q̇∂q) q̇
+        weighted = adot * (g * s2)[None]  # (m, B, width)
+        hess = hess + jnp.sum(weighted[:n, None] * adot[None], axis=-1)  # (n, m, B): u_i^T J^T diag(c) J u_j
+        g = (g * s1) @ layer["w"].T
+    grad_q = g[:, :n]
+    hess = jnp.moveaxis(hess, -1, 0)  # (B, n, m)
+    hess_vv = hess[:, :, :n] + cfg.split_mass * jnp.eye(n, dtype=dt)
+    mixed = hess[:, :, n]
     return grad_q, hess_vv, mixed
 
 

@@ -1,0 +1,91 @@
+"""CLI: listing, a small sweep end to end, and every bad input → one line on stderr, exit 2, nothing written."""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from nnphd.cli import main
+from nnphd.systems import SYSTEMS
+
+
+def test_systems_lists_every_system(capsys):
+    assert main(["systems"]) == 0
+    out = capsys.readouterr().out
+    for name in SYSTEMS:
+        assert name in out
+    assert "gamma=0.02" in out and "GMn=0.005" in out
+
+
+def test_small_sweep_writes_results(tmp_path, capsys):
+    out = tmp_path / "o"
+    rc = main(["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", "0.2,5", "--seed", "3", "--out", str(out)])
+    assert rc == 0
+    res = json.loads((out / "results.json").read_text())
+    assert isinstance(res["new_physics"], bool)
+    assert res["statistic"]["value"] == pytest.approx(res["verdict"]["ratio"])
+    assert [r["lam"] for r in res["table"]] == [0.2, 5.0]
+    for r in res["table"]:
+        assert r["L_e"] >= 0 and r["L_b"] >= 0 and r["m_c"] is not None
+    assert res["settings"]["seed"] == 3 and res["settings"]["steps_per_lambda"] == 40
+    assert (out / "loss_vs_lambda.png").stat().st_size > 1000
+    assert "verdict" in capsys.readouterr().out
+    # same seed → same numbers
+    out2 = tmp_path / "o2"
+    main(["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", "0.2,5", "--seed", "3", "--out", str(out2)])
+    res2 = json.loads((out2 / "results.json").read_text())
+    assert [r["L_e"] for r in res2["table"]] == [r["L_e"] for r in res["table"]]
+
+
+BAD = [
+    (["sweep", "--system", "nope"], "unknown system 'nope'"),
+    (["sweep", "--system", "ho+ld", "--lambdas", "0,1,2"], "λ must be > 0"),
+    (["sweep", "--system", "ho+ld", "--lambdas", "-1,2"], "λ must be > 0"),
+    (["sweep", "--system", "ho+ld", "--lambdas", "0.5,x"], "--lambdas must be comma-separated numbers"),
+    (["sweep", "--system", "ho+ld", "--p", "0.5"], "p must be a number ≥ 1 or 'mse'"),
+    (["sweep", "--system", "ho+ld", "--p", "two"], "p must be a number ≥ 1 or 'mse'"),
+    (["sweep", "--system", "ho+ld", "--steps", "1.5"], "--steps must be an integer"),
+    (["sweep", "--system", "ho+ld", "--steps", "abc"], "--steps must be an integer"),
+    (["sweep", "--system", "ho+ld", "--steps", "0"], "--steps must be an integer"),
+    (["sweep", "--system", "ho+ld", "--seed", "-1"], "--seed must be an integer"),
+    (["sweep", "--system", "ho+ld", "--mode", "fast"], "--mode must be"),
+    (["sweep", "--system", "ho+ld", "--param", "zeta=1"], "unknown parameter(s) 'zeta'"),
+    (["sweep", "--system", "ho+ld", "--param", "gamma"], "--param must look like name=value"),
+    (["sweep", "--system", "ho+ld", "--wat"], "No such option"),
+    (["sweep"], "Missing option"),
+]
+
+
+@pytest.mark.parametrize("argv,msg", BAD)
+def test_bad_input_one_line_exit_2(argv, msg, tmp_path, capsys):
+    out = tmp_path / "never"
+    rc = main(argv + ["--out", str(out)] if "--wat" not in argv else argv)
+    err = capsys.readouterr().err
+    assert rc == 2
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and msg in lines[0], err
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_unwritable_out(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    rc = main(["sweep", "--system", "ho+ld", "--out", str(blocker / "sub")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and err.startswith("error: --out") and "not a writable directory" in err and "\n" not in err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere; covered by test_unwritable_out")
+def test_read_only_out(tmp_path, capsys):  # pragma: no cover - runs for non-root users
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    assert main(["sweep", "--system", "ho+ld", "--out", str(ro)]) == 2
+
+
+def test_console_script_no_traceback(tmp_path):
+    exe = os.path.join(os.path.dirname(sys.executable), "nnphd")
+    r = subprocess.run([exe, "sweep", "--system", "ho+xx", "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "Traceback" not in r.stderr and r.stderr.strip().startswith("error: unknown system")

@@ -1,0 +1,54 @@
+#!/usr/bin/env python3
+"""Set up the project in ./.venv (if needed) and run the demo or the tests. Needs only python3 (≥ 3.11).
+
+    python3 dev.py demo    # λ-sweeps on HO+LD (friction: a jump at λ=1) and HO+MF (conservative: no jump)
+    python3 dev.py test    # the test suite (pytest)
+"""
+import hashlib
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
+STAMP = VENV / ".nnphd-installed"
+
+
+def run(*cmd: str) -> None:
+    r = subprocess.run(cmd, cwd=ROOT)
+    if r.returncode:
+        sys.exit(r.returncode)
+
+
+def setup() -> None:
+    if sys.version_info < (3, 11):
+        sys.exit(f"error: nnphd needs Python ≥ 3.11, this is {sys.version.split()[0]}")
+    if not (BIN / "python").exists():
+        print(f"creating {VENV}", flush=True)
+        venv.EnvBuilder(with_pip=True).create(VENV)
+    want = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    if not STAMP.exists() or STAMP.read_text() != want:
+        print("installing nnphd and its dependencies into .venv (first run: a few minutes)", flush=True)
+        run(str(BIN / "python"), "-m", "pip", "install", "-q", "--upgrade", "pip")
+        run(str(BIN / "python"), "-m", "pip", "install", "-q", "-e", ".[test]")
+        STAMP.write_text(want)
+
+
+def main() -> None:
+    what = sys.argv[1] if len(sys.argv) > 1 else ""
+    if what not in ("demo", "test", "setup"):
+        sys.exit("usage: python3 dev.py demo|test|setup [extra pytest arguments for test]")
+    setup()
+    if what == "demo":
+        for system in ("ho+ld", "ho+mf"):
+            run(str(BIN / "nnphd"), "sweep", "--system", system, "--out", f"out/demo/{system}")
+        print("\nresults: out/demo/ho+ld/ and out/demo/ho+mf/ (results.json, loss_vs_lambda.png)")
+    elif what == "test":
+        run(str(BIN / "python"), "-m", "pytest", "tests", *sys.argv[2:])
+
+
+if __name__ == "__main__":
+    main()

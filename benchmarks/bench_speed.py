@@ -7,8 +7,8 @@ Measures, in one run:
      -- goal: ours/plain ≤ 3;
   3. wall time of a full 13-λ sweep at paper settings (``ho+ld``, 2000 steps/λ, warm and vmap modes, compilation
      included; goal ≤ 20 s) and of the n=2 ``ho+mf`` warm sweep.
-Steps are timed after one compiling call: each block runs ``--reps`` steps (params and Adam state threaded through),
-the reported ms/step is the median over ``--blocks`` blocks. Results: a table on stdout and benchmarks/results/speed.json.
+Steps are timed after one compiling call: each block is one jitted ``lax.scan`` of ``--reps`` steps (params and Adam
+state threaded through, as in training); the reported ms/step is the median over ``--blocks`` blocks. Results: a table on stdout and benchmarks/results/speed.json.
 
 Run:  .venv/bin/python benchmarks/bench_speed.py [--quick] [--reps 50] [--blocks 3]
 """
@@ -65,15 +65,23 @@ def make_step(loss_fn, opt):
 
 
 def time_step(step, params, batch, opt, reps: int, blocks: int) -> float:
-    """Median over blocks of the mean ms/step; the first (compiling) call is not timed."""
+    """Median over blocks of ms/step. Each block is one jitted ``lax.scan`` over ``reps`` steps (as the trainer runs
+    them, so Python dispatch is not measured); the first (compiling) call is not timed."""
     lam, opt_state = jnp.asarray(LAM), opt.init(params)
-    params, opt_state, loss = jax.block_until_ready(step(params, opt_state, batch, lam))
+
+    @jax.jit
+    def loop(params, opt_state):
+        def body(carry, _):
+            p, o, _ = step(*carry[:2], batch, lam)
+            return (p, o, carry[2]), None
+
+        return jax.lax.scan(body, (params, opt_state, jnp.zeros(())), None, length=reps)[0]
+
+    params, opt_state, _ = jax.block_until_ready(loop(params, opt_state))
     times = []
     for _ in range(blocks):
         t0 = time.perf_counter()
-        for _ in range(reps):
-            params, opt_state, loss = step(params, opt_state, batch, lam)
-        jax.block_until_ready((params, opt_state, loss))
+        params, opt_state, _ = jax.block_until_ready(loop(params, opt_state))
         times.append((time.perf_counter() - t0) / reps * 1e3)
     return statistics.median(times)
 

@@ -4,15 +4,15 @@ LNN (paper Eq. 3):
 
 .. math::  \ddot q = (\nabla_{\dot q}\nabla_{\dot q}^T L)^{-1}\,[\nabla_q L - (\nabla_{\dot q}\nabla_q^T L)\,\dot q]
 
-with :math:`L = L_{NN}(q, \dot q) + \tfrac12 a\,\dot q\cdot\dot q` (the paper's *split trick*, appendix F) and hidden units
+with :math:`L = L_{NN}(q, \dot q) + \tfrac12 a\,\dot q\cdot\dot q` (the paper's *split trick*, appendix C "Tricks to boost LNN training") and hidden units
 that are half softplus, half quadratic (the *activation trick*).
 
-The derivatives are computed by a hand-written pass over the whole batch at once: one forward pass, one backward
-pass for :math:`g = \partial L/\partial z` (:math:`z = (q, \dot q)`), and n+1 directional (tangent) passes that
-differentiate g along :math:`e_{\dot q_j}` (giving the columns of :math:`\partial^2 L/\partial\dot q^2`) and along
-:math:`(\dot q, 0)` (giving :math:`(\partial^2 L/\partial\dot q\,\partial q)\,\dot q`). All K = n+2 streams (primal and
-n+1 tangents) go through each layer in a single matrix product. :func:`lnn_accel_reference` is the plain
-per-sample ``jax.hessian`` version (as in Cranmer et al.'s LNN code), kept as the reference in tests and benchmarks.
+The derivatives are computed by a hand-written pass over the whole batch at once (:func:`lnn_derivatives`): the
+primal and the n+1 directions :math:`e_{\dot q_j}` and :math:`(\dot q, 0)` are pushed forward together (one matrix
+product per layer), one backward pass gives :math:`\partial L/\partial h_l` and :math:`\nabla_z L`, and the second
+derivatives follow exactly from :math:`\nabla_z^2 L = \sum_l J_l^T \mathrm{diag}(g_l\odot\sigma_l'')J_l`.
+:func:`lnn_accel_reference` is the plain per-sample ``jax.hessian`` version (as in Cranmer et al.'s LNN code), kept
+as the reference in tests and benchmarks.
 
 Both paths finish in :func:`euler_lagrange_solve`, which guards the solve against a singular mass matrix with a
 Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is symmetric). For a well-conditioned H
@@ -37,7 +37,7 @@ Params = dict
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """Architecture of an NNPhD model (defaults: the paper's appendix E)."""
+    """Architecture of an NNPhD model (defaults: the paper's appendix B, "Neural network training details")."""
 
     n: int
     lnn_widths: tuple[int, ...] = (200, 200)

@@ -1,4 +1,4 @@
-r"""Loss, the jitted training loop and the λ-sweep (paper Eq. 5, appendix E).
+r"""Loss, the jitted training loop and the λ-sweep (paper Eq. 5, appendix B).
 
 Loss: :math:`L = L_e + \lambda L_b` with
 :math:`L_e = (\tfrac{1}{Nn}\sum_i \|f_c^{NN}+f_n^{NN}-f\|_p^p)^{1/p}` and
@@ -94,7 +94,7 @@ def _as_arrays(data, dtype):
 def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None = None):
     """Return ``train(params, arrays, lam, key) -> (params, (L_e history, L_b history))``, jitted.
 
-    ``arrays`` = (q, q̇, t, q̈) of the training set. The Adam state starts fresh on every call (appendix E restarts
+    ``arrays`` = (q, q̇, t, q̈) of the training set. The Adam state starts fresh on every call (appendix B restarts
     the learning-rate annealing at each λ); parameters are whatever is passed in (warm start).
     ``loss_fn(params, q, qd, t, qdd) -> (L_e, L_b)`` replaces the NNPhD loss (used for the LNN-only and black-box
     baselines and constrained Lagrangians).
@@ -192,7 +192,7 @@ def sweep(
 ) -> list[SweepPoint]:
     """Train NNPhD for each λ and record L_e(λ), L_b(λ) (and m_c, m_n when the data carry the true split).
 
-    mode="warm": the paper's protocol (appendix E): λ in increasing order, each run starting from the previous λ's
+    mode="warm": the paper's protocol (appendix B): λ in increasing order, each run starting from the previous λ's
     parameters. mode="vmap": every λ trained independently from the same initialisation, all in one vmapped run.
     ``resume`` maps λ → a finished :class:`SweepPoint` (with params) to skip (warm mode continues from its params).
     """

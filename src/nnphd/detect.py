@@ -52,6 +52,10 @@ def _median(points: Sequence[SweepPoint], lo: float, hi: float, attr: str = "L_e
     return float(np.median(vals)) if vals else None
 
 
+def _first_not_none(*vals):
+    return next((v for v in vals if v is not None), None)
+
+
 def verdict(
     points: Sequence[SweepPoint],
     force_norm: float,
@@ -59,11 +63,11 @@ def verdict(
     min_relative_size: float = MIN_RELATIVE_SIZE,
 ) -> Verdict:
     """Verdict from a λ-sweep. ``force_norm`` is ‖f‖ of the evaluation labels in the same norm as L_e."""
-    below = _median(points, 0.05, 1.0) or _median(points, 0.0, 1.0)
+    below = _first_not_none(_median(points, 0.05, 1.0), _median(points, 0.0, 1.0))
     above = _median(points, 1.0 + 1e-12, np.inf)
     if below is None or above is None:
         raise ValueError("the λ grid must contain values below and above 1 to read the phase transition")
-    uan = _median(points, 0.05, 1.0, "L_b") or _median(points, 0.0, 1.0, "L_b")
+    uan = _first_not_none(_median(points, 0.05, 1.0, "L_b"), _median(points, 0.0, 1.0, "L_b"))
     tiny = 1e-12 * max(force_norm, 1e-300)
     ratio = above / max(below, tiny)
     rel = above / force_norm if force_norm > 0 else 0.0

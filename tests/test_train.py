@@ -163,3 +163,8 @@ def test_phase_transition_reduced(name):
         assert v["L_above"] > 0.1  # the non-conservative forces are ~0.3–0.5 in L1
     else:
         assert v["ratio"] < 2
+
+
+def test_verdict_exact_fit_below_one():
+    v = verdict(_pts([0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3]), force_norm=1.0)
+    assert v.L_below == 0.0 and v.new_physics and v.ratio > 1e9

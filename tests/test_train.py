@@ -138,7 +138,7 @@ def test_verdict_no_jump():
 
 
 def test_verdict_tiny_remainder_is_not_new_physics():
-    v = verdict(_pts([1e-5, 1e-5, 1e-5, 1e-5, 1e-3, 1e-3, 1e-3]), force_norm=1.0)
+    v = verdict(_pts([1e-7, 1e-7, 1e-7, 1e-7, 1e-5, 1e-5, 1e-5]), force_norm=1.0)
     assert v.ratio == pytest.approx(100) and not v.new_physics
 
 

@@ -193,3 +193,24 @@ def test_split_trick_makes_initial_mass_matrix_near_identity():
     _, h, _ = lnn_derivatives(lnn, q, qd, cfg)
     eig = np.linalg.eigvalsh(np.asarray(h))
     assert eig.min() > 0.5 and eig.max() < 1.5
+
+
+def test_input_standardisation_is_folded_into_the_first_layer():
+    rng = np.random.default_rng(5)
+    q, qd, t = rng.normal(3, 2, (50, 2)), rng.normal(-1, 0.5, (50, 2)), rng.uniform(0, 100, 50)
+    cfg = ModelConfig(n=2, lnn_widths=(16, 16), uan_widths=(16, 16), lnn_out_scale=1.0).standardized(q, qd, t)
+    assert cfg.input_shift[4] == pytest.approx(t.mean()) and cfg.input_scale[4] == pytest.approx(t.std())
+    params = init_nnphd(jax.random.PRNGKey(2), cfg)
+    q, qd, t = jnp.asarray(q), jnp.asarray(qd), jnp.asarray(t)
+    # the hand-written pass still equals jax.hessian of the same (standardised) Lagrangian
+    np.testing.assert_allclose(lnn_accel(params["lnn"], q, qd, cfg), lnn_accel_reference(params["lnn"], q, qd, cfg), atol=1e-10)
+    # and the networks see (x − μ)/σ: same outputs as an unstandardised config on transformed inputs
+    mu, sd = np.asarray(cfg.input_shift), np.asarray(cfg.input_scale)
+    raw = cfg.replace(input_shift=None, input_scale=None)
+    zs = (np.concatenate([q, qd, t[:, None]], 1) - mu) / sd
+    np.testing.assert_allclose(
+        uan_force(params["uan"], q, qd, t, cfg), uan_force(params["uan"], zs[:, :2], zs[:, 2:4], zs[:, 4], raw), atol=1e-12
+    )
+    lag_std = lnn_value(params["lnn"], q, qd, cfg) - 0.5 * jnp.sum(qd**2, 1)
+    lag_raw = lnn_value(params["lnn"], zs[:, :2], zs[:, 2:4], raw) - 0.5 * jnp.sum(zs[:, 2:4] ** 2, 1)
+    np.testing.assert_allclose(lag_std, lag_raw, atol=1e-12)

@@ -81,6 +81,8 @@ def sweep(
     param: list[str] = typer.Option([], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"),
     out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png"),
     resume: bool = typer.Option(True, "--resume/--no-resume", help="continue an interrupted sweep in --out"),
+    standardize: bool = typer.Option(True, "--standardize/--no-standardize",
+                                     help="networks see (q, q̇, t) standardised by the training data's mean and std"),
 ):
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
     from .report import ensure_writable_dir
@@ -116,6 +118,7 @@ def sweep(
                   console=console, transient=False) as prog:
         task = prog.add_task("λ-sweep (first λ includes compilation)", total=len(lams))
         res = run_sweep(sysm, p=pp, steps=nsteps, seed=nseed, lambdas=lams, mode=mode, out=out, resume=resume,
+                        standardize=standardize,
                         progress=lambda i, lam: prog.update(task, completed=i, description=f"λ-sweep: done λ={lam:g}"))
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
     has_m = res["table"][0]["m_c"] is not None

@@ -49,6 +49,11 @@ class ModelConfig:
     guard_eps: float = 1e-6  # ε of the guarded (Tikhonov) solve
     dtype: str = "float64"
     lnn_out_scale: float = 0.1  # std multiplier of the LNN output layer at init: L_NN small, so L ≈ a/2 q̇² at init
+    # input standardisation: the networks see (x − shift)/scale for x = (q, q̇, t) (length 2n+1); None = identity.
+    # Set from the training data with :func:`standardized`; folded into the first layer, so L stays a function of
+    # the raw (q, q̇) and Eq. (3) is unchanged.
+    input_shift: tuple[float, ...] | None = None
+    input_scale: tuple[float, ...] | None = None
 
     def __post_init__(self):
         if self.n < 1:
@@ -63,6 +68,13 @@ class ModelConfig:
 
     def replace(self, **kw) -> "ModelConfig":
         return replace(self, **kw)
+
+    def standardized(self, q, qd, t) -> "ModelConfig":
+        """This config with input standardisation set from data (per-column mean and std; std 0 → 1)."""
+        x = np.concatenate([np.asarray(q, float), np.asarray(qd, float), np.asarray(t, float)[:, None]], axis=1)
+        mu, sd = x.mean(axis=0), x.std(axis=0)
+        sd = np.where(sd > 1e-12 * max(1.0, float(np.max(np.abs(mu)))), sd, 1.0)
+        return replace(self, input_shift=tuple(float(v) for v in mu), input_scale=tuple(float(v) for v in sd))
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -119,6 +131,20 @@ def _init_mlp(key, sizes, dtype, out_scale=1.0):
         w = std * jax.random.normal(k, (fan_in, fan_out), dtype=dtype)
         layers.append({"w": w, "b": jnp.zeros((fan_out,), dtype)})
     return layers
+
+
+def _first_layer(layers: list, cfg: ModelConfig, cols: slice) -> list:
+    """Fold (x − shift)/scale of the input columns ``cols`` into the first layer's weights and bias."""
+    if cfg.input_shift is None:
+        return layers
+    mu = jnp.asarray(cfg.input_shift, layers[0]["w"].dtype)[cols]
+    sd = jnp.asarray(cfg.input_scale, layers[0]["w"].dtype)[cols]
+    w = layers[0]["w"] / sd[:, None]
+    return [{"w": w, "b": layers[0]["b"] - mu @ w}, *layers[1:]]
+
+
+_Z = slice(0, -1)  # (q, q̇) columns of (q, q̇, t)
+_ALL = slice(None)
 
 
 def init_lnn(key, cfg: ModelConfig) -> list:
@@ -192,6 +218,7 @@ def accel_from_lagrangian(lagrangian: Callable, q, qd, eps: float = 1e-6):
 def lnn_value(lnn: list, q, qd, cfg: ModelConfig):
     """Lagrangian L(q, q̇) = L_NN + a/2 q̇·q̇ for a batch (B, n) → (B,)."""
     h = jnp.concatenate([q, qd], axis=-1)
+    lnn = _first_layer(lnn, cfg, _Z)
     for layer in lnn[:-1]:
         h = _act_with_derivs(cfg.lnn_activation, h @ layer["w"] + layer["b"])[0]
     out = (h @ lnn[-1]["w"] + lnn[-1]["b"])[..., 0]
@@ -224,6 +251,7 @@ def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
         [jnp.broadcast_to(e_v[:, None, :], (n, bsz, 2 * n)), jnp.concatenate([qd, jnp.zeros_like(qd)], -1)[None]],
         axis=0,
     )  # (m, B, 2n)
+    lnn = _first_layer(lnn, cfg, _Z)
     hidden = lnn[:-1]
     x = jnp.concatenate([z[None], tan], axis=0)  # (m+1, B, in): primal and tangents
     cache = []
@@ -291,7 +319,7 @@ def mlp_apply(layers: list, x, activation: str = "leaky_relu", slope: float = 0.
 def uan_force(uan: list, q, qd, t, cfg: ModelConfig):
     """f_n^NN(q, q̇, t) for a batch: q, q̇ (B, n), t (B,) → (B, n)."""
     x = jnp.concatenate([q, qd, t[:, None]], axis=-1)
-    return mlp_apply(uan, x, cfg.uan_activation, cfg.leaky_slope)
+    return mlp_apply(_first_layer(uan, cfg, _ALL), x, cfg.uan_activation, cfg.leaky_slope)
 
 
 def nnphd_forces(params: Params, q, qd, t, cfg: ModelConfig):

@@ -64,12 +64,16 @@ def run_sweep(
     n_test: int = 1000,
     progress: Callable[[int, float], None] | None = None,
     resume: bool = True,
+    standardize: bool = True,
 ) -> dict:
     """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given)."""
     sysm = get_system(system) if isinstance(system, str) else system
     tcfg = TrainConfig(steps=steps, p=p)
     lams = validate_lambdas(lambdas)
+    train, test = train_test(sysm, seed=seed, n_train=n_train, n_test=n_test)
     cfg = model_cfg or ModelConfig(n=sysm.n)
+    if standardize:  # the networks see order-one inputs whatever the units (t runs to 100 on the Neptune orbit)
+        cfg = cfg.standardized(train.q, train.qd, train.t)
     outdir = ensure_writable_dir(out) if out is not None else None
     settings = {
         "system": sysm.name,
@@ -96,7 +100,6 @@ def run_sweep(
         if ckpath is not None:
             _save_checkpoint(ckpath, fp, done)
 
-    train, test = train_test(sysm, seed=seed, n_train=n_train, n_test=n_test)
     t0 = time.perf_counter()
     points = sweep(train, cfg, tcfg, lams, seed=seed, test_data=test, mode=mode, progress=progress, resume=done, on_point=on_point)
     wall = time.perf_counter() - t0

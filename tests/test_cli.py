@@ -4,6 +4,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from nnphd.cli import main
@@ -81,3 +82,35 @@ def test_console_script_no_traceback(tmp_path):
     r = subprocess.run([exe, "sweep", "--system", "ho+xx", "--out", str(tmp_path / "o")], capture_output=True, text=True)
     assert r.returncode == 2
     assert "Traceback" not in r.stderr and r.stderr.strip().startswith("error: unknown system")
+
+
+def test_discover_small_run_writes_table2_row(tmp_path, capsys):
+    out = tmp_path / "d"
+    rc = main(["discover", "--system", "double-pendulum", "--steps", "300", "--sweep-steps", "40", "--out", str(out)])
+    assert rc == 0
+    res = json.loads((out / "double-pendulum" / "results.json").read_text())
+    assert [r["quantity"] for r in res["table2"]] == ["Gamma_11", "Gamma_12", "Gamma_21", "Gamma_22"]
+    assert [r["paper"] for r in res["table2"]] == [0.018, 0.001, 0.001, 0.018]
+    for r in res["table2"]:
+        assert np.isfinite(r["ours"]) and r["stderr"] > 0 and isinstance(r["goal_met"], bool)
+    assert set(res["blind"]["formula"]) == {"theta1_ddot", "theta2_ddot"} and isinstance(res["blind"]["readable"], bool)
+    assert (out / "double-pendulum" / "loss_vs_lambda.png").exists()
+    assert "Table II" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv,msg",
+    [
+        (["discover"], "give either --system"),
+        (["discover", "--system", "ho+ld"], "--system must be one of"),
+        (["discover", "--all", "--system", "gw"], "give either --system"),
+        (["discover", "--system", "gw", "--lam", "1.5"], "--lam must be a number in (0, 1)"),
+        (["discover", "--system", "gw", "--steps", "x"], "--steps must be an integer"),
+    ],
+)
+def test_discover_bad_input(argv, msg, tmp_path, capsys):
+    out = tmp_path / "never"
+    assert main(argv + ["--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and msg in err and "\n" not in err
+    assert not out.exists()

@@ -140,6 +140,78 @@ def sweep(
     console.print(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)")
 
 
+@app.command()
+def discover(
+    system: Optional[str] = typer.Option(None, "--system", "-s", help="double-pendulum, neptune or gw"),
+    all_: bool = typer.Option(False, "--all", help="all three systems, our Table II beside the paper's, and Fig. 3"),
+    steps: str = typer.Option("2000", "--steps", help="training steps of the constrained Lagrangian + UAN"),
+    sweep_steps: str = typer.Option("2000", "--sweep-steps", help="training steps per λ of the detection sweep"),
+    lam: str = typer.Option("0.2", "--lam", help="λ of the constrained training (paper: 0.2)"),
+    seed: str = typer.Option("0", "--seed", help="random seed"),
+    standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
+    out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
+):
+    """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
+    from .discover import DISCOVERY_SYSTEMS
+    from .report import ensure_writable_dir
+
+    try:
+        if all_ == (system is not None):
+            raise InputError("give either --system (double-pendulum, neptune, gw) or --all")
+        if system is not None and system not in DISCOVERY_SYSTEMS:
+            raise InputError(f"--system must be one of: {', '.join(DISCOVERY_SYSTEMS)}; got {system!r}")
+        nsteps = _parse_int("--steps", steps, 4)
+        nsweep = _parse_int("--sweep-steps", sweep_steps, 4)
+        nseed = _parse_int("--seed", seed, 0)
+        try:
+            lam_v = float(lam)
+        except ValueError:
+            raise InputError(f"--lam must be a number in (0, 1), got {lam!r}") from None
+        if not (0 < lam_v < 1):
+            raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {lam!r}")
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+    from pathlib import Path
+
+    from .discover import discover as run_discover
+    from .discover import write_discovery, write_fig3
+    from .report import write_json
+
+    systems_ = DISCOVERY_SYSTEMS if all_ else (system,)
+    results = []
+    for name in systems_:
+        with console.status(f"{name}: starting") as status:
+            res = run_discover(name, steps=nsteps, sweep_steps=nsweep, lam=lam_v, seed=nseed, standardize=standardize,
+                               progress=lambda msg, n=name: status.update(f"{n}: {msg}"))
+        write_discovery(res, Path(out) / name)
+        results.append(res)
+        v = res["verdict"]
+        tag = "[bold red]NEW PHYSICS[/]" if res["new_physics"] else "[bold green]no new physics[/]"
+        console.print(f"[bold]{name}[/]: {tag} (L_e ratio across λ=1: {v['ratio']:.3g}) — {res['wall_time_s']:.0f} s")
+        console.print(f"  constrained Lagrangian: {res['constrained_lagrangian']['formula']}", highlight=False)
+        console.print(f"  parametric: {res['parametric']['formula']}", highlight=False)
+        b = res["blind"]
+        console.print(f"  blind: {'; '.join(f'{k} = {e}' for k, e in b['formula'].items()) if b['readable'] else '—'}"
+                      f"  ({b['note']})", highlight=False)
+    t = Table(title="Table II — ground truth, paper, ours")
+    for col in ("system", "quantity", "truth", "paper", "ours", "± stderr", "goal", "met"):
+        t.add_column(col, justify="right")
+    for res in results:
+        for r in res["table2"]:
+            t.add_row(res["system"].replace("double-pendulum", "pendulum"), r["quantity"], f"{r['truth']:.4g}",
+                      f"{r['paper']:.4g}", f"{r['ours']:.4g}",
+                      f"{r['stderr']:.2g}", r["goal"], "yes" if r["goal_met"] else "[red]no[/]")
+    console.print(t)
+    if all_:
+        write_fig3(results, out)
+        write_json(Path(out) / "table2.json", [{"system": r["system"], "rows": r["table2"], "blind": r["blind"]} for r in results])
+        console.print(f"wrote {out}/<system>/results.json, {out}/fig3_loss_vs_lambda.png, {out}/table2.json")
+    else:
+        console.print(f"wrote {out}/{system}/results.json and loss_vs_lambda.png")
+
+
 def main(argv: list[str] | None = None) -> int:
     cmd = typer.main.get_command(app)
     try:

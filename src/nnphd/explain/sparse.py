@@ -2,8 +2,8 @@
 
 No functional form is given: f_n is regressed on a library of candidate terms — polynomials of low degree in every
 input (q, q̇, t), isotropic drag laws v_j·(|v|²)^m for m ≤ 6, sin/cos of t (driving) — and for each
-component the sparsity threshold is swept over a grid, keeping the sparsest model whose residual is within
-max(2×, +1% of f_n) of the best. The result is a SymPy expression built from the library terms.
+component the sparsity threshold is swept over a grid (plus an exhaustive search of 1- and 2-term models), keeping
+the model that minimises log(rms) + term_cost·terms: every term must cut the residual by 25%. The result is a SymPy expression built from the library terms.
 When the best model still leaves a large residual or needs many terms, it says so (``readable = False``).
 """
 from __future__ import annotations
@@ -123,6 +123,7 @@ def sparse_formula(
     speed_powers: int = 6,
     fourier: int = 2,
     thresholds: Sequence[float] | None = None,
+    term_cost: float = float(np.log(1.25)),
 ) -> BlindFormula:
     """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,))."""
     from pysindy import STLSQ
@@ -157,10 +158,9 @@ def sparse_formula(
             c = np.asarray(opt.coef_).reshape(-1) / col_rms
             fits.append((int(np.count_nonzero(c)), float(np.sqrt(np.mean((theta @ c - yi) ** 2))), c))
         fits += _best_small_subsets(theta_n, yi, col_rms)
-        # the simplest model within reach of the best one: with collinear terms, in-sample criteria keep adding
-        # terms that fit the noise; the knee rule (rms ≤ max(2 × best, best + 1% of f_n)) stops at the sparse form
-        best_rel = min(f[1] for f in fits)
-        _, _, c = min((f for f in fits if f[1] <= max(2 * best_rel, best_rel + 0.01)), key=lambda f: (f[0], f[1]))
+        # parsimony: minimise log(rms) + term_cost·(terms), i.e. a term must cut the residual by a factor e^term_cost
+        # (25% by default). In-sample BIC keeps adding collinear terms that fit the learned f_n's own errors.
+        _, _, c = min(fits, key=lambda f: (np.log(max(f[1], 1e-12)) + term_cost * f[0], f[0]))
         coefs.append(c)
         exprs.append(sum((sp.Float(v * scale, 6) * term for v, term in zip(c, terms) if v != 0), sp.Integer(0)))
     coef = np.stack(coefs)
@@ -175,5 +175,5 @@ def sparse_formula(
     else:
         note = (f"nothing readable: the best sparse model needs {k} terms and leaves {100 * rel:.0f}% rms "
                 f"(readable means ≤ {READABLE_MAX_TERMS} terms and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)")
-    return BlindFormula("sparse regression (pysindy STLSQ, sparsest within reach of the best fit)", tuple(str(e) for e in exprs), tuple(component_names),
+    return BlindFormula("sparse regression (pysindy STLSQ; every term must cut the residual by 25%)", tuple(str(e) for e in exprs), tuple(component_names),
                         rel, k, readable, note)

@@ -30,9 +30,7 @@ def _parse_int(name: str, value: str, minimum: int) -> int:
         f = float(value)
     except ValueError:
         raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}") from None
-    if not math.isfinite(f) or f != int(f) or "." in value.strip().rstrip("0").rstrip("."):
-        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
-    if int(f) < minimum:
+    if not math.isfinite(f) or f != int(f) or int(f) < minimum:
         raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
     return int(f)
 

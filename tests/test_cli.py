@@ -86,14 +86,18 @@ def test_console_script_no_traceback(tmp_path):
 
 def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     out = tmp_path / "d"
-    rc = main(["discover", "--system", "double-pendulum", "--steps", "300", "--sweep-steps", "40", "--out", str(out)])
+    rc = main(["discover", "--system", "double-pendulum", "--steps", "300", "--sweep-steps", "40", "--sr-time", "1",
+               "--out", str(out)])
     assert rc == 0
     res = json.loads((out / "double-pendulum" / "results.json").read_text())
     assert [r["quantity"] for r in res["table2"]] == ["Gamma_11", "Gamma_12", "Gamma_21", "Gamma_22"]
     assert [r["paper"] for r in res["table2"]] == [0.018, 0.001, 0.001, 0.018]
     for r in res["table2"]:
         assert np.isfinite(r["ours"]) and r["stderr"] > 0 and isinstance(r["goal_met"], bool)
-    assert set(res["blind"]["formula"]) == {"theta1_ddot", "theta2_ddot"} and isinstance(res["blind"]["readable"], bool)
+    assert set(res["blind"]) == {"sparse", "genetic"}
+    for b in res["blind"].values():
+        assert set(b["formula"]) == {"theta1_ddot", "theta2_ddot"} and isinstance(b["readable"], bool)
+    assert res["settings"]["trajectory"]["n_steps"] == 300
     assert (out / "double-pendulum" / "loss_vs_lambda.png").exists()
     assert "Table II" in capsys.readouterr().out
 
@@ -106,6 +110,8 @@ def test_discover_small_run_writes_table2_row(tmp_path, capsys):
         (["discover", "--all", "--system", "gw"], "give either --system"),
         (["discover", "--system", "gw", "--lam", "1.5"], "--lam must be a number in (0, 1)"),
         (["discover", "--system", "gw", "--steps", "x"], "--steps must be an integer"),
+        (["discover", "--system", "gw", "--n-steps", "5"], "--n-steps must be 0 (default) or ≥ 20"),
+        (["discover", "--system", "gw", "--sr-time", "-1"], "--sr-time must be an integer ≥ 0"),
     ],
 )
 def test_discover_bad_input(argv, msg, tmp_path, capsys):

@@ -147,6 +147,8 @@ def discover(
     lam: str = typer.Option("0.2", "--lam", help="λ of the constrained training (paper: 0.2)"),
     seed: str = typer.Option("0", "--seed", help="random seed"),
     standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
+    n_steps: str = typer.Option("0", "--n-steps", help="RK4 steps of the trajectory (0: 300/1000/1000; the paper's gw has 300)"),
+    sr_time: str = typer.Option("20", "--sr-time", help="seconds of genetic symbolic regression per force component (0: skip)"),
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
@@ -161,6 +163,10 @@ def discover(
         nsteps = _parse_int("--steps", steps, 4)
         nsweep = _parse_int("--sweep-steps", sweep_steps, 4)
         nseed = _parse_int("--seed", seed, 0)
+        ntraj = _parse_int("--n-steps", n_steps, 0)
+        if 0 < ntraj < 20:
+            raise InputError(f"--n-steps must be 0 (default) or ≥ 20, got {n_steps!r}")
+        nsr = _parse_int("--sr-time", sr_time, 0)
         try:
             lam_v = float(lam)
         except ValueError:
@@ -182,7 +188,8 @@ def discover(
     for name in systems_:
         with console.status(f"{name}: starting") as status:
             res = run_discover(name, steps=nsteps, sweep_steps=nsweep, lam=lam_v, seed=nseed, standardize=standardize,
-                               progress=lambda msg, n=name: status.update(f"{n}: {msg}"))
+                               progress=lambda msg, n=name: status.update(f"{n}: {msg}"), n_steps=ntraj or None,
+                               sr_time=nsr)
         write_discovery(res, Path(out) / name)
         results.append(res)
         v = res["verdict"]
@@ -190,9 +197,10 @@ def discover(
         console.print(f"[bold]{name}[/]: {tag} (L_e ratio across λ=1: {v['ratio']:.3g}) — {res['wall_time_s']:.0f} s")
         console.print(f"  constrained Lagrangian: {res['constrained_lagrangian']['formula']}", highlight=False)
         console.print(f"  parametric: {res['parametric']['formula']}", highlight=False)
-        b = res["blind"]
-        console.print(f"  blind: {'; '.join(f'{k} = {e}' for k, e in b['formula'].items()) if b['readable'] else '—'}"
-                      f"  ({b['note']})", highlight=False)
+        for method, b in res["blind"].items():
+            console.print(f"  blind ({method}): "
+                          f"{'; '.join(f'{k} = {e}' for k, e in b['formula'].items()) if b['readable'] else '—'}"
+                          f"  ({b['note']})", highlight=False)
     t = Table(title="Table II — ground truth, paper, ours")
     for col in ("system", "quantity", "truth", "paper", "ours", "± stderr", "goal", "met"):
         t.add_column(col, justify="right")

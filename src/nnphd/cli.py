@@ -218,6 +218,191 @@ def discover(
         console.print(f"wrote {out}/{system}/results.json and loss_vs_lambda.png")
 
 
+def _print_claims(claims) -> None:
+    for c in claims:
+        tag = "[bold green]met[/]" if c["met"] else "[bold red]not met[/]"
+        console.print(f"{tag}: {c['claim']} — {c['ours']}", highlight=False)
+
+
+@app.command()
+def predict(
+    steps: str = typer.Option("2000", "--steps", help="training steps of each model (split over the 4 learning rates)"),
+    seed: str = typer.Option("0", "--seed", help="random seed (initialisation and minibatches)"),
+    uan_time: bool = typer.Option(False, "--uan-time/--no-uan-time",
+                                  help="UAN sees (q, q̇, t) as in the paper (default: (q, q̇), see nnphd.predict)"),
+    out: str = typer.Option("out/predict", "--out", help="output directory for results.json and the figures"),
+):
+    """Extrapolate the damped double pendulum with NNPhD, an LNN and a black box (paper Fig. 4)."""
+    from .report import ensure_writable_dir
+
+    try:
+        nsteps = _parse_int("--steps", steps, 4)
+        nseed = _parse_int("--seed", seed, 0)
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+    from .predict import LABELS, MODELS, THETA_TOL, run_prediction
+
+    with console.status("starting") as status:
+        res = run_prediction(seed=nseed, steps=nsteps, out=out, uan_time=uan_time, progress=status.update)
+    tkey = f"t_error_exceeds_{THETA_TOL:g}"
+    t = Table(title=f"prediction from t = 30 (train t ≤ 30), {nsteps} training steps, seed {nseed}")
+    for col in ("model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t",
+                "train |Δq̈|"):
+        t.add_column(col, justify="right")
+    for kind in MODELS:
+        m = res["metrics"][kind]
+        t.add_row(LABELS[kind], f"{m['theta1_rmse_30_40']:.4g}", f"{m['theta1_rmse_30_200']:.4g}",
+                  f"{m['energy_rmse_30_200']:.4g}", "never" if m[tkey] is None else f"{m[tkey]:.1f}",
+                  f"{m['train_force_error']:.3g}")
+    console.print(t)
+    b = res["energy_balance"]
+    console.print(f"energy balance (NNPhD rollout): dH/dt vs q̇ᵀ(∂²L/∂q̇²)f_n: rel. rms difference "
+                  f"{b['dHdt_vs_power_rel_rms']:.3g}, correlation {b['dHdt_vs_power_corr']:.4f}; learned vs true "
+                  f"dissipation: correlation {b['learned_vs_true_power_corr']:.3f}", highlight=False)
+    _print_claims(res["claims"])
+    console.print(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res['wall_time_s']:.1f} s)")
+
+
+# ---- nnphd study: the paper's λ/p study (Fig. 5) and data-quality study (Fig. 6) ----------------------------------
+study_app = typer.Typer(no_args_is_help=True, help="Paper studies: λ and loss dependence (Fig. 5), data quality (Fig. 6).")
+app.add_typer(study_app, name="study")
+
+
+def _parse_csv(name: str, value: Optional[str], conv, default):
+    if value is None:
+        return default
+    toks = [t.strip() for t in value.split(",")]
+    if not all(toks):
+        raise InputError(f"{name} must be a comma-separated list, got {value!r}")
+    return tuple(conv(t) for t in toks)
+
+
+def _fraction(name: str):
+    def conv(tok: str) -> float:
+        try:
+            x = float(tok)
+        except ValueError:
+            raise InputError(f"{name} must be comma-separated numbers in [0, 1], got {tok!r}") from None
+        if not (0.0 <= x <= 1.0):
+            raise InputError(f"{name} must be comma-separated numbers in [0, 1], got {tok!r}")
+        return x
+
+    return conv
+
+
+@study_app.command("lambda-p")
+def study_lambda_p(
+    steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
+    seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
+    systems_: Optional[str] = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
+    ps: Optional[str] = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
+    lambdas: Optional[str] = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
+    out: str = typer.Option("out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"),
+):
+    """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
+    from .report import ensure_writable_dir
+    from .studies import LOSSES, TOY_SYSTEMS, p_label
+    from .train import parse_p
+
+    try:
+        nsteps = _parse_int("--steps", steps, 4)
+        nseed = _parse_int("--seed", seed, 0)
+
+        def sys_conv(tok):
+            if tok not in TOY_SYSTEMS:
+                raise InputError(f"--systems must be among {', '.join(TOY_SYSTEMS)}; got {tok!r}")
+            return tok
+
+        syss = _parse_csv("--systems", systems_, sys_conv, TOY_SYSTEMS)
+        pvals = _parse_csv("--ps", ps, parse_p, LOSSES)
+        if len(set(syss)) != len(syss) or len({p_label(p) for p in pvals}) != len(pvals):
+            raise InputError("--systems and --ps must not repeat an entry")
+        lams = _parse_lambdas(lambdas)
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+    from .studies import lambda_p_study
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=console, transient=False) as prog:
+        task = prog.add_task("λ/p study (each sweep compiles first)", total=None)
+        res = lambda_p_study(steps=nsteps, seed=nseed, lambdas=lams, ps=pvals, systems=syss, out=out,
+                             progress=lambda d, tot, desc: prog.update(task, completed=d, total=tot, description=desc))
+    t = Table(title=f"verdicts — {nsteps} steps per λ, seed {nseed}, L_e on the test set")
+    for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
+        t.add_column(col, justify="right")
+    for v in res["verdicts"]:
+        verd = "new" if v["new_physics"] else "none"
+        t.add_row(v["system"], "MSE" if v["p"] == "mse" else f"p={v['p']}", f"{v['L_below']:.3g}", f"{v['L_above']:.3g}",
+                  f"{v['ratio']:.3g}", verd if v["correct"] else f"[red]{verd} ✗[/]",
+                  ("—" if v["sharpness"] is None else f"{v['sharpness']:.2f}") + f" {v['transition']}",
+                  "—" if v["rise_fraction"] is None else f"{v['rise_fraction']:.2f}")
+    console.print(t)
+    al = res["alignment"]
+    if al is not None:
+        t = Table(title="HO+LD misalignment m_c / m_n (test set)")
+        t.add_column("λ", justify="right")
+        for l in res["settings"]["ps"]:
+            t.add_column("MSE" if l == "mse" else f"p={l}", justify="right")
+        for i, lam in enumerate(res["settings"]["lambdas"]):
+            t.add_row(f"{lam:g}", *[f"{al['by_p'][l][i]['m_c']:.3f} / {al['by_p'][l][i]['m_n']:.3f}" for l in res["settings"]["ps"]])
+        console.print(t)
+    _print_claims(res["claims"])
+    if res["cached"]:
+        console.print(f"loaded {len(res['cached'])} of {len(res['verdicts'])} sweeps from the cache in {out}/runs")
+    figs = "fig5.png" + (", fig5_forces.png" if al is not None else "")
+    console.print(f"wrote {out}/results.json, {figs} ({res['wall_time_s']:.1f} s)")
+
+
+@study_app.command("data-quality")
+def study_data_quality(
+    steps: str = typer.Option("2000", "--steps", help="training steps per data set (split over the 4 learning rates)"),
+    seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
+    alphas: Optional[str] = typer.Option(None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"),
+    betas: Optional[str] = typer.Option(None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"),
+    out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
+):
+    """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
+    from .report import ensure_writable_dir
+    from .studies import DQ_GRID
+
+    try:
+        nsteps = _parse_int("--steps", steps, 4)
+        nseed = _parse_int("--seed", seed, 0)
+        al = _parse_csv("--alphas", alphas, _fraction("--alphas"), DQ_GRID)
+        be = _parse_csv("--betas", betas, _fraction("--betas"), DQ_GRID)
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+    from .studies import data_quality_study
+
+    with console.status("data-quality study: starting") as status:
+        res = data_quality_study(steps=nsteps, seed=nseed, alphas=al, betas=be, out=out,
+                                 progress=lambda d, tot, desc: status.update(f"data-quality study ({d}/{tot}): {desc}"))
+    s = res["settings"]
+    t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {nsteps} steps)")
+    for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
+        t.add_column(col, justify="right")
+    for r in res["alpha"]["table"]:
+        t.add_row(f"{r['alpha']:g}", f"{r['L_e']:.4g}", f"{r['L_e_train']:.4g}", f"{r['L_e_full']:.4g}", f"{r['L_b']:.3g}")
+    console.print(t)
+    t = Table(title=f"HO+LD, λ={s['lam_beta']:g}: misalignment vs imbalance β")
+    for col in ("β", "m_c (test, same β)", "m_n (test, same β)", "m_c (balanced)", "m_n (balanced)", "L_e"):
+        t.add_column(col, justify="right")
+    for r in res["beta"]["table"]:
+        t.add_row(f"{r['beta']:g}", f"{r['m_c']:.4f}", f"{r['m_n']:.4f}", f"{r['m_c_full']:.4f}", f"{r['m_n_full']:.4f}",
+                  f"{r['L_e']:.3g}")
+    console.print(t)
+    _print_claims(res["claims"])
+    if res["cached"]:
+        console.print(f"loaded {' and '.join(res['cached'])} from the cache in {out}")
+    console.print(f"wrote {out}/results.json and fig6.png ({res['wall_time_s']:.1f} s)")
+
+
 def main(argv: list[str] | None = None) -> int:
     cmd = typer.main.get_command(app)
     try:

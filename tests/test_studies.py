@@ -1,0 +1,186 @@
+"""λ/p study (Fig. 5) and data-quality study (Fig. 6) at reduced settings: numbers that can fail, cache, CLI."""
+import json
+import math
+
+import pytest
+
+from nnphd.cli import main
+from nnphd.run import run_sweep
+from nnphd.studies import data_quality_study, lambda_p_study, transition_sharpness
+
+LP = dict(steps=200, seed=0, lambdas=(0.1, 0.5, 2.0, 10.0, 50.0), ps=(1, "mse"), systems=("ho+ld", "ho+mf"))
+DQ = dict(steps=300, seed=1, alphas=(0.25, 1.0), betas=(0.5, 1.0))
+
+
+# ---- the jump/smooth criterion on known curves ------------------------------------------------------------------
+GRID = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
+
+
+def test_sharpness_of_ideal_mse_curve_is_smooth():
+    # MSE minimiser: L_e = (λ/(1+λ))² ‖f_n‖² — steepest at small λ, slope 1 at λ=1
+    t = transition_sharpness(GRID, [(x / (1 + x)) ** 2 * 0.25 for x in GRID])
+    assert t["kind"] == "smooth" and t["sharpness"] == pytest.approx(0.5, abs=0.03)
+    assert t["rise_fraction"] == pytest.approx(0.36, abs=0.02)
+    assert (t["lam_below"], t["lam_above"]) == (0.5, 2.0)
+    # a fitting floor at small λ does not make it a jump
+    t = transition_sharpness(GRID, [max((x / (1 + x)) ** 2 * 0.25, 1e-4) for x in GRID])
+    assert t["kind"] == "smooth" and t["sharpness"] < 1
+
+
+def test_sharpness_of_step_and_flat_curves():
+    noise = [1.0, 1.3, 0.8, 1.1, 0.9, 1.2, 5.0, 1.0, 0.9, 1.1, 1.0, 0.95, 1.05]
+    step = [n * (1e-3 if x < 1 else 0.3) for x, n in zip(GRID, noise)]
+    t = transition_sharpness(GRID, step)
+    assert t["kind"] == "jump" and t["sharpness"] > 5 and t["rise_fraction"] == pytest.approx(1.0, abs=0.15)
+    flat = [n * 1e-3 for n in noise]
+    assert transition_sharpness(GRID, flat)["kind"] in ("none", "ambiguous", "smooth")
+    falling = [1e-2 if x < 1 else 1e-3 for x in GRID]
+    assert transition_sharpness(GRID, falling)["kind"] == "none"
+    with pytest.raises(ValueError):
+        transition_sharpness((0.1, 0.5), (1.0, 2.0))
+
+
+# ---- λ/p study ----------------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def lp(tmp_path_factory):
+    out = tmp_path_factory.mktemp("lp")
+    calls = []
+    res = lambda_p_study(out=out, progress=lambda d, t, s: calls.append((d, t)), **LP)
+    return out, res, calls
+
+
+def test_lambda_p_verdicts_and_files(lp):
+    out, res, calls = lp
+    v = {(r["system"], r["p"]): r for r in res["verdicts"]}
+    assert set(v) == {("ho+ld", "1"), ("ho+ld", "mse"), ("ho+mf", "1"), ("ho+mf", "mse")}
+    for p in ("1", "mse"):
+        assert v[("ho+ld", p)]["new_physics"] and v[("ho+ld", p)]["ratio"] > 3
+        assert not v[("ho+mf", p)]["new_physics"] and v[("ho+mf", p)]["ratio"] < 1.5
+    assert all(r["correct"] for r in res["verdicts"])
+    # curves: one row per λ, L_e from the test set
+    for s in ("ho+ld", "ho+mf"):
+        for p in ("1", "mse"):
+            rows = res["curves"][s][p]
+            assert [r["lam"] for r in rows] == list(LP["lambdas"])
+            assert all(r["L_e"] > 0 and math.isfinite(r["m_c"]) for r in rows)
+    # HO+LD: above λ=1 the UAN is switched off
+    for r in res["alignment"]["by_p"]["1"]:
+        if r["lam"] > 1:
+            assert r["fn_rms"] < 0.05 * res["alignment"]["fn_true_rms"]
+    f = res["alignment"]["forces"]["1"]
+    assert sorted(f["by_lambda"]) == ["0.1", "0.5", "10", "2"] and len(f["q"]) == len(f["by_lambda"]["2"]["fn"]) == 400
+    for c in res["claims"]:
+        assert set(c) == {"claim", "ours", "met"} and isinstance(c["met"], bool)
+    assert any("MSE" in c["claim"] for c in res["claims"]) and any("no jump" in c["claim"] for c in res["claims"])
+    assert not res["cached"]
+    assert calls[-1] == (20, 20) and [d for d, _ in calls] == sorted(d for d, _ in calls)
+    for name in ("results.json", "fig5.png", "fig5_forces.png"):
+        assert (out / name).stat().st_size > 1000
+    assert (out / "runs" / "ho+ld_pmse" / "results.json").exists()
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["curves"] == res["curves"] and saved["settings"]["steps_per_lambda"] == 200
+
+
+def test_lambda_p_subrun_is_nnphd_sweep(lp):
+    """Same seed → same numbers: a sub-run reproduces `nnphd sweep` (run_sweep) exactly."""
+    _, res, _ = lp
+    ref = run_sweep("ho+ld", p=1, steps=LP["steps"], seed=LP["seed"], lambdas=LP["lambdas"])
+    assert [r["L_e"] for r in res["curves"]["ho+ld"]["1"]] == [r["L_e"] for r in ref["table"]]
+    assert [r["m_c"] for r in res["curves"]["ho+ld"]["1"]] == [r["m_c"] for r in ref["table"]]
+
+
+def test_lambda_p_cached_rerun_and_cli(lp, capsys):
+    out, res, _ = lp
+    again = lambda_p_study(out=out, **LP)
+    assert sorted(again["cached"]) == ["ho+ld/p=1", "ho+ld/p=mse", "ho+mf/p=1", "ho+mf/p=mse"]
+    assert again["curves"] == res["curves"] and again["claims"] == res["claims"]
+    assert [v["ratio"] for v in again["verdicts"]] == [v["ratio"] for v in res["verdicts"]]
+    (out / "results.json").unlink()
+    rc = main(["study", "lambda-p", "--steps", "200", "--seed", "0", "--lambdas", "0.1,0.5,2,10,50",
+               "--ps", "1,mse", "--systems", "ho+ld,ho+mf", "--out", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "loaded 4 of 4 sweeps from the cache" in text and "verdicts" in text and ("met" in text)
+    assert json.loads((out / "results.json").read_text())["curves"] == res["curves"]
+
+
+# ---- data-quality study ---------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def dq(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dq")
+    return out, data_quality_study(out=out, **DQ)
+
+
+def test_data_quality_coverage_and_imbalance(dq):
+    out, res = dq
+    a = {r["alpha"]: r for r in res["alpha"]["table"]}
+    # q̇ ≥ 0 only (α = 0.25): constant damping looks conservative → L_e ≈ 0; full plane: L_e ≈ ‖f_n‖₁ = 0.5
+    assert a[0.25]["L_e"] < 0.05 and a[1.0]["L_e"] > 0.25
+    assert a[1.0]["L_e"] > 10 * a[0.25]["L_e"]
+    # …but only on the data's own distribution: on the full plane the half-plane model is wrong
+    assert a[0.25]["L_e_full"] > 5 * a[0.25]["L_e"]
+    b = {r["beta"]: r for r in res["beta"]["table"]}
+    assert b[0.5]["frac_qd_pos"] == 0.5 and b[1.0]["frac_qd_pos"] == 1.0
+    assert all(math.isfinite(r[k]) and r[k] >= 0 for r in b.values() for k in ("m_c", "m_n", "m_c_full", "m_n_full"))
+    for c in res["claims"]:
+        assert set(c) == {"claim", "ours", "met"} and isinstance(c["met"], bool)
+    assert len(res["claims"]) == 5  # α: nearly zero, median jump, strict jump; β: minimum at 0.5, nearly zero there
+    for name in ("results.json", "fig6.png", "alpha.json", "beta.json"):
+        assert (out / name).stat().st_size > 500
+    assert not res["cached"]
+
+
+def test_data_quality_cached_rerun(dq):
+    out, res = dq
+    again = data_quality_study(out=out, **DQ)
+    assert again["cached"] == ["alpha", "beta"]
+    assert again["alpha"]["table"] == res["alpha"]["table"] and again["beta"]["table"] == res["beta"]["table"]
+    assert again["claims"] == res["claims"]
+
+
+def test_data_quality_cli_same_seed_same_numbers(dq, tmp_path, capsys):
+    _, res = dq
+    out = tmp_path / "cli"
+    rc = main(["study", "data-quality", "--steps", "300", "--seed", "1", "--alphas", "0.25,1", "--betas", "0.5,1",
+               "--out", str(out)])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "pie coverage" in text and "imbalance" in text and "wrote" in text
+    got = json.loads((out / "results.json").read_text())
+    assert got["alpha"]["table"] == res["alpha"]["table"] and got["beta"]["table"] == res["beta"]["table"]
+    assert (out / "fig6.png").stat().st_size > 1000
+
+
+# ---- bad input ----------------------------------------------------------------------------------------------------
+BAD = [
+    (["study", "lambda-p", "--steps", "0"], "--steps must be an integer"),
+    (["study", "lambda-p", "--seed", "-1"], "--seed must be an integer"),
+    (["study", "lambda-p", "--systems", "ho+xx"], "--systems must be among"),
+    (["study", "lambda-p", "--systems", "gw"], "--systems must be among"),
+    (["study", "lambda-p", "--systems", "ho+ld,,ho+mf"], "--systems must be a comma-separated list"),
+    (["study", "lambda-p", "--systems", "ho+ld,ho+ld"], "must not repeat"),
+    (["study", "lambda-p", "--ps", "0.5"], "p must be a number ≥ 1 or 'mse'"),
+    (["study", "lambda-p", "--lambdas", "0.2,0.5"], "both below and above 1"),
+    (["study", "data-quality", "--steps", "abc"], "--steps must be an integer"),
+    (["study", "data-quality", "--alphas", "0.5,1.5"], "--alphas must be comma-separated numbers in [0, 1]"),
+    (["study", "data-quality", "--betas", "x"], "--betas must be comma-separated numbers in [0, 1]"),
+    (["study", "data-quality", "--wat"], "No such option"),
+]
+
+
+@pytest.mark.parametrize("argv,msg", BAD)
+def test_study_bad_input_exit_2(argv, msg, tmp_path, capsys):
+    out = tmp_path / "never"
+    assert main(argv + ["--out", str(out)]) == 2
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and msg in lines[0], lines
+    assert not out.exists()
+
+
+def test_api_rejects_bad_settings():
+    with pytest.raises(ValueError, match="toy systems"):
+        lambda_p_study(systems=("gw",))
+    with pytest.raises(ValueError, match="below and above 1"):
+        lambda_p_study(lambdas=(2.0, 5.0))
+    with pytest.raises(ValueError, match="alphas"):
+        data_quality_study(alphas=(1.2,))

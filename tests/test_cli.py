@@ -87,7 +87,7 @@ def test_console_script_no_traceback(tmp_path):
 def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     out = tmp_path / "d"
     rc = main(["discover", "--system", "double-pendulum", "--steps", "300", "--sweep-steps", "40", "--sr-time", "1",
-               "--out", str(out)])
+               "--n-steps", "300", "--out", str(out)])
     assert rc == 0
     res = json.loads((out / "double-pendulum" / "results.json").read_text())
     assert [r["quantity"] for r in res["table2"]] == ["Gamma_11", "Gamma_12", "Gamma_21", "Gamma_22"]
@@ -97,7 +97,7 @@ def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     assert set(res["blind"]) == {"sparse", "genetic"}
     for b in res["blind"].values():
         assert set(b["formula"]) == {"theta1_ddot", "theta2_ddot"} and isinstance(b["readable"], bool)
-    assert res["settings"]["trajectory"]["n_steps"] == 300
+    assert res["settings"]["trajectory"]["n_steps"] == 300 and res["settings"]["trajectory"]["paper_n_steps"] == 300
     assert (out / "double-pendulum" / "loss_vs_lambda.png").exists()
     assert "Table II" in capsys.readouterr().out
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from typing import Optional
 
 import typer
@@ -147,7 +148,7 @@ def discover(
     lam: str = typer.Option("0.2", "--lam", help="λ of the constrained training (paper: 0.2)"),
     seed: str = typer.Option("0", "--seed", help="random seed"),
     standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
-    n_steps: str = typer.Option("0", "--n-steps", help="RK4 steps of the trajectory (0: 300/1000/1000; the paper's gw has 300)"),
+    n_steps: str = typer.Option("0", "--n-steps", help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"),
     sr_time: str = typer.Option("20", "--sr-time", help="seconds of genetic symbolic regression per force component (0: skip)"),
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
 ):
@@ -180,8 +181,7 @@ def discover(
     from pathlib import Path
 
     from .discover import discover as run_discover
-    from .discover import write_discovery, write_fig3
-    from .report import write_json
+    from .discover import write_discovery, write_table2
 
     systems_ = DISCOVERY_SYSTEMS if all_ else (system,)
     results = []
@@ -211,8 +211,7 @@ def discover(
                       f"{r['stderr']:.2g}", r["goal"], "yes" if r["goal_met"] else "[red]no[/]")
     console.print(t)
     if all_:
-        write_fig3(results, out)
-        write_json(Path(out) / "table2.json", [{"system": r["system"], "rows": r["table2"], "blind": r["blind"]} for r in results])
+        write_table2(results, out)
         console.print(f"wrote {out}/<system>/results.json, {out}/fig3_loss_vs_lambda.png, {out}/table2.json")
     else:
         console.print(f"wrote {out}/{system}/results.json and loss_vs_lambda.png")
@@ -401,6 +400,42 @@ def study_data_quality(
     if res["cached"]:
         console.print(f"loaded {' and '.join(res['cached'])} from the cache in {out}")
     console.print(f"wrote {out}/results.json and fig6.png ({res['wall_time_s']:.1f} s)")
+
+
+@app.command()
+def reproduce(
+    quick: bool = typer.Option(False, "--quick", help="fewer training steps, same code (a smoke-scale run, ≤ 10 min on 2 cores)"),
+    seed: str = typer.Option("0", "--seed", help="random seed of every experiment"),
+    out: Optional[str] = typer.Option(None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"),
+):
+    """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
+    from .report import ensure_writable_dir
+
+    out = out or ("out/reproduce-quick" if quick else "out/reproduce")
+    try:
+        nseed = _parse_int("--seed", seed, 0)
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+    from .reproduce import reproduce as run_reproduce
+
+    t0 = time.perf_counter()
+    with console.status("reproduce: starting") as status:
+        s = run_reproduce(out=out, quick=quick, seed=nseed,
+                          progress=lambda m: status.update(f"[{time.perf_counter() - t0:5.0f} s] {m}"))
+    t = Table(title=f"nnphd reproduce ({s['mode']}, seed {nseed}): claims")
+    for col in ("experiment", "claim", "paper", "ours", "met"):
+        t.add_column(col, justify="left")
+    for c in s["claims"]:
+        t.add_row(c["experiment"], c["claim"], c["paper"], c["ours"], "yes" if c["met"] else "[red]no[/]")
+    console.print(t)
+    cached = [k for k, r in s["runs"].items() if r["cached"]]
+    if cached:
+        console.print(f"loaded from the cache: {', '.join(cached)}")
+    console.print(f"claims met: {s['claims_met']} of {s['claims_total']}; wall time {s['wall_time_s']:.0f} s "
+                  f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s)")
+    console.print(f"wrote {out}/report.html and {out}/summary.json")
 
 
 def main(argv: list[str] | None = None) -> int:

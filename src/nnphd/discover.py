@@ -12,13 +12,19 @@ radiation law: on it the decomposition with the smallest non-conservative part w
 c_ẏ/c_ẋ = 1.0012 and a remainder fitted by k = 0.001595, m = 4.34 ± 0.38), so no training can reach the ±2% / ±0.03
 goals there. ``discover`` therefore uses 1000 steps (t ≤ 50, four orbits, speed up to 1.07) for ``gw`` by default —
 there the same direct minimisation gives k = 0.001647, m = 3.984 ± 0.013. ``n_steps`` overrides it (300 = paper).
+
+The same holds, more mildly, for the damped double pendulum: on the paper's 300 steps (t ≤ 30) the exact optimum
+of the principle within the pendulum feature family has Γ11 = 0.0192, Γ21 = 0.0009 — the paper's own 0.018 / 0.001
+— so the ±0.0005 goals are met there only by incomplete convergence (one seed gave Γ21 = 0.000501). On 600 steps
+(t ≤ 60) the optimum moves to Γ11 = 0.0198, Γ21 = 1.5e-4 and a full run gives Γ11 = 0.01990, Γ21 = 1.0e-4, so
+``discover`` uses 600 steps for the pendulum by default.
 """
 from __future__ import annotations
 
 import time
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -31,10 +37,11 @@ from .models import ModelConfig
 from .report import ensure_writable_dir, plot_sweep, save_figure, write_json
 from .run import run_sweep
 from .systems import get_system, gw_k
+from .train import PAPER_LAMBDAS
 
 DISCOVERY_SYSTEMS = ("double-pendulum", "neptune", "gw")
 # trajectory lengths (RK4 steps) used by default; the paper's are 300, 1000, 300 (see the module docstring for gw)
-DISCOVERY_N_STEPS = {"double-pendulum": 300, "neptune": 1000, "gw": 1000}
+DISCOVERY_N_STEPS = {"double-pendulum": 600, "neptune": 1000, "gw": 1000}
 
 # Table II of the paper (NNPhD + symbolic column)
 PAPER_TABLE2 = {
@@ -85,6 +92,7 @@ def discover(
     progress: Callable[[str], None] | None = None,
     n_steps: int | None = None,
     sr_time: float = 20.0,
+    sweep_lambdas: Sequence[float] = PAPER_LAMBDAS,
 ) -> dict:
     """Detection sweep, constrained Lagrangian + UAN at ``lam``, parametric Table II row and blind formulas.
 
@@ -99,7 +107,7 @@ def discover(
     sysm = replace(sysm, n_steps=int(n_steps or DISCOVERY_N_STEPS[system]))
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
-    sw = run_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize)
+    sw = run_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize, lambdas=sweep_lambdas)
     say("constrained Lagrangian + UAN at λ = %g" % lam)
     d = trajectory_dataset(sysm)
     fl = FEATURE_SETS[SYSTEM_FEATURES[system]]
@@ -141,7 +149,7 @@ def discover(
                        "rel_rms": fit.rel_rms},
         "table2": rows,
         "blind": blind,
-        "settings": {"steps": steps, "sweep_steps": sweep_steps, "lambda": lam, "seed": seed, "standardize": standardize,
+        "settings": {"steps": steps, "sweep_steps": sweep_steps, "sweep_lambdas": sorted(sw["settings"]["lambdas"]), "lambda": lam, "seed": seed, "standardize": standardize,
                      "sr_time_per_component_s": sr_time,
                      "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps,
                                     "paper_n_steps": paper_n_steps}},
@@ -161,3 +169,9 @@ def write_fig3(results: list[dict], out: str | Path) -> None:
     outdir = ensure_writable_dir(out)
     save_figure(plot_sweep({r["system"]: r["sweep_table"] for r in results}, "Fig. 3: $L_e(\\lambda)$", show_lb=False),
                 outdir / "fig3_loss_vs_lambda.png")
+
+
+def write_table2(results: list[dict], out: str | Path) -> None:
+    """Fig. 3 and our Table II (rows and blind formulas of every system) in ``out``."""
+    write_fig3(results, out)
+    write_json(Path(out) / "table2.json", [{"system": r["system"], "rows": r["table2"], "blind": r["blind"]} for r in results])

@@ -424,11 +424,15 @@ def reproduce(
     with console.status("reproduce: starting") as status:
         s = run_reproduce(out=out, quick=quick, seed=nseed,
                           progress=lambda m: status.update(f"[{time.perf_counter() - t0:5.0f} s] {m}"))
-    t = Table(title=f"nnphd reproduce ({s['mode']}, seed {nseed}): claims")
-    for col in ("experiment", "claim", "paper", "ours", "met"):
+    from .reproduce import EXPERIMENTS, TITLES
+
+    t = Table(title=f"nnphd reproduce ({s['mode']}, seed {nseed}): the paper's claims (details in the report)")
+    for col in ("experiment", "claims met", "not met"):
         t.add_column(col, justify="left")
-    for c in s["claims"]:
-        t.add_row(c["experiment"], c["claim"], c["paper"], c["ours"], "yes" if c["met"] else "[red]no[/]")
+    for exp in EXPERIMENTS:
+        cs = [c for c in s["claims"] if c["experiment"] == exp]
+        t.add_row(TITLES[exp], f"{sum(c['met'] for c in cs)} of {len(cs)}",
+                  "\n".join(f"{c['claim']} — ours: {c['ours']}" for c in cs if not c["met"]) or "—")
     console.print(t)
     cached = [k for k, r in s["runs"].items() if r["cached"]]
     if cached:

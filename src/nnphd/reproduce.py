@@ -44,10 +44,10 @@ FULL: dict[str, dict] = {
     "data-quality": {"steps": 2000},
 }
 QUICK: dict[str, dict] = {
-    "discover": {"systems": ["double-pendulum", "neptune", "gw"], "steps": 400, "sweep_steps": 150, "sr_time": 2.0},
-    "predict": {"steps": 400},
-    "lambda-p": {"steps": 100},
-    "data-quality": {"steps": 300},
+    "discover": {"systems": ["double-pendulum", "neptune", "gw"], "steps": 1000, "sweep_steps": 400, "sr_time": 5.0},
+    "predict": {"steps": 1000},
+    "lambda-p": {"steps": 300},
+    "data-quality": {"steps": 1000},
 }
 
 # the paper's words for each figure (captions and text of sections III.A–III.D)

@@ -18,6 +18,7 @@ from nnphd.systems import System, get_system
 __all__ = [
     "Dataset",
     "rk4_trajectory",
+    "rk4_scan",
     "label",
     "trajectory_dataset",
     "gaussian_dataset",
@@ -67,8 +68,9 @@ class Dataset:
 
 
 # ---- integration --------------------------------------------------------------------------------------------------
-@functools.partial(jax.jit, static_argnames=("f", "n_steps"))
-def _rk4(f, x0, dt, t0, n_steps):
+def rk4_scan(f: Callable, x0, dt, t0, n_steps: int):
+    """Classic RK4 for q̈ = f(q, q̇, t) as one ``lax.scan`` (to be traced inside a jitted caller); returns
+    ``(t (n_steps+1,), q, q̇)`` starting with x0 = (q..., q̇...)."""
     n = x0.shape[0] // 2
 
     def rhs(x, t):
@@ -88,6 +90,11 @@ def _rk4(f, x0, dt, t0, n_steps):
     xs = jnp.concatenate([x0[None], xs], axis=0)
     ts = t0 + dt * jnp.arange(n_steps + 1, dtype=x0.dtype)
     return ts, xs[:, :n], xs[:, n:]
+
+
+@functools.partial(jax.jit, static_argnames=("f", "n_steps"))
+def _rk4(f, x0, dt, t0, n_steps):
+    return rk4_scan(f, x0, dt, t0, n_steps)
 
 
 def rk4_trajectory(f: Callable, x0, dt: float, n_steps: int, t0: float = 0.0):

@@ -39,7 +39,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .data import Dataset, trajectory_dataset
+from .data import Dataset, rk4_scan, trajectory_dataset
 from .models import ModelConfig, _first_layer, _init_mlp, _Z, init_lnn, init_uan, lnn_accel, lnn_derivatives
 from .models import lnn_energy, mlp_apply, uan_force
 from .report import ensure_writable_dir, save_figure, write_json
@@ -127,26 +127,8 @@ def _batch_forces(kind: str, cfg: ModelConfig, uan_time: bool):
 
 @functools.partial(jax.jit, static_argnames=("accel", "n_steps"))
 def _rk4_rollout(accel, params, x0, t0, dt, n_steps):
-    # the same arithmetic, in the same order, as nnphd.data.rk4_trajectory
-    n = x0.shape[0] // 2
-
-    def rhs(x, t):
-        q, qd = x[:n], x[n:]
-        return jnp.concatenate([qd, jnp.asarray(accel(params, q, qd, t), dtype=x.dtype).reshape(n)])
-
-    def step(x, i):
-        t = t0 + i * dt
-        k1 = rhs(x, t)
-        k2 = rhs(x + 0.5 * dt * k1, t + 0.5 * dt)
-        k3 = rhs(x + 0.5 * dt * k2, t + 0.5 * dt)
-        k4 = rhs(x + dt * k3, t + dt)
-        x_new = x + dt / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
-        return x_new, x_new
-
-    _, xs = jax.lax.scan(step, x0, jnp.arange(n_steps, dtype=x0.dtype))
-    xs = jnp.concatenate([x0[None], xs], axis=0)
-    ts = t0 + dt * jnp.arange(n_steps + 1, dtype=x0.dtype)
-    return ts, xs[:, :n], xs[:, n:]
+    # the same integrator as nnphd.data.rk4_trajectory (shared code), with the model's parameters traced
+    return rk4_scan(lambda q, qd, t: accel(params, q, qd, t), x0, dt, t0, n_steps)
 
 
 def rollout(accel: Callable, params, q0, qd0, t0: float, dt: float, n_steps: int):

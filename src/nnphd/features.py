@@ -95,23 +95,68 @@ def train_constrained(
     seed: int = 0,
     p: float | str = 1.0,
     cfg: ModelConfig | None = None,
+    *,
+    c_init=None,
+    coef_scale=None,
+    uan_scale: float | None = None,
 ) -> ConstrainedFit:
-    """Train L = c·φ jointly with the UAN on ``data`` (paper: λ = 0.2, Adam {1e-2…1e-5}, 2000 steps); c starts at 1."""
+    """Train L = c·φ jointly with the UAN on ``data`` (paper: λ = 0.2, Adam {1e-2…1e-5}, 2000 steps); c starts at 1.
+
+    Optional scaling for a faint remainder (all None = the paper's setup, unchanged):
+
+    * ``c_init`` — starting coefficients (default all ones);
+    * ``coef_scale`` — scalar or per-coefficient array s_c: the coefficients are trained as c = c_init + s_c·θ with θ
+      starting at 0, so Adam's steps on c are s_c times the learning rate (Adam's step size does not depend on the
+      size of the gradient, so without this c cannot be resolved below ~the last learning rate, 1e-5);
+    * ``uan_scale`` — the UAN's output is multiplied by it, so f_n starts at and is resolved on that scale instead
+      of O(1) (set it to the size of the remainder when f_n is many orders smaller than f).
+
+    ``L_e``, ``L_b``, ``fc``, ``fn`` and ``coefs`` are always in the data's units.
+    """
     n = data.q.shape[1]
     cfg = cfg or ModelConfig(n=n)
     tcfg = TrainConfig(steps=steps, p=p)
+    n_c = len(fl.names)
+    if c_init is not None:
+        c_init = np.asarray(c_init, dtype=np.float64)
+        if c_init.shape != (n_c,) or not np.all(np.isfinite(c_init)):
+            raise ValueError(f"c_init must be {n_c} finite numbers (one per feature), got {c_init!r}")
+    if coef_scale is not None:
+        coef_scale = np.broadcast_to(np.asarray(coef_scale, dtype=np.float64), (n_c,)).copy()
+        if not np.all(np.isfinite(coef_scale) & (coef_scale > 0)):
+            raise ValueError(f"coef_scale must be positive and finite, got {coef_scale!r}")
+    if uan_scale is not None:
+        uan_scale = float(uan_scale)
+        if not (np.isfinite(uan_scale) and uan_scale > 0):
+            raise ValueError(f"uan_scale must be positive and finite, got {uan_scale!r}")
+    c_start = jnp.ones(n_c) if c_init is None else jnp.asarray(c_init)
+
+    if coef_scale is None:
+        def coefs(params):
+            return params["c"]
+    else:
+        s_c = jnp.asarray(coef_scale)
+
+        def coefs(params):
+            return c_start + s_c * params["dc"]
 
     def forces(params, q, qd, t):
-        return fl.accel(params["c"], q, qd, cfg.guard_eps), uan_force(params["uan"], q, qd, t, cfg)
+        fn = uan_force(params["uan"], q, qd, t, cfg)
+        if uan_scale is not None:
+            fn = uan_scale * fn
+        return fl.accel(coefs(params), q, qd, cfg.guard_eps), fn
 
     def loss(params, q, qd, t, qdd):
         fc, fn = forces(params, q, qd, t)
         return pnorm(fc + fn - qdd, tcfg.p), pnorm(fn, tcfg.p)
 
     k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
-    params = {"c": jnp.ones(len(fl.names)), "uan": init_uan(k_init, cfg)}
+    if coef_scale is None:
+        params = {"c": c_start, "uan": init_uan(k_init, cfg)}
+    else:
+        params = {"dc": jnp.zeros(n_c, c_start.dtype), "uan": init_uan(k_init, cfg)}
     arrays = tuple(jnp.asarray(a) for a in (data.q, data.qd, data.t, data.qdd))
     params, _ = make_trainer(cfg, tcfg, loss_fn=loss)(params, arrays, lam, k_train)
     fc, fn = jax.jit(forces)(params, *arrays[:3])
     le, lb = loss(params, *arrays)
-    return ConstrainedFit(np.asarray(params["c"]), np.asarray(fc), np.asarray(fn), float(le), float(lb))
+    return ConstrainedFit(np.asarray(coefs(params)), np.asarray(fc), np.asarray(fn), float(le), float(lb))

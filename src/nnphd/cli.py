@@ -442,6 +442,83 @@ def reproduce(
     console.print(f"wrote {out}/report.html and {out}/summary.json")
 
 
+@app.command()
+def detect(
+    file: str = typer.Argument(..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"),
+    out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
+    angles: Optional[str] = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
+    seed: str = typer.Option("0", "--seed", help="random seed"),
+    steps: str = typer.Option("1000", "--steps", help="training steps per λ (and per extra round of the checks)"),
+    repeats: str = typer.Option("2", "--repeats", help="repeated seeds (other initialisation and held-out trajectories)"),
+    sr_time: str = typer.Option("10", "--sr-time", help="seconds of genetic symbolic regression per component (0: skip)"),
+):
+    """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, formula."""
+    from .report import ensure_writable_dir
+    from .userdata import DataError, load_trajectories
+
+    try:
+        nseed = _parse_int("--seed", seed, 0)
+        nsteps = _parse_int("--steps", steps, 4)
+        nrep = _parse_int("--repeats", repeats, 1)
+        nsr = _parse_int("--sr-time", sr_time, 0)
+        ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
+        if any(not a for a in ang):
+            raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
+        load_trajectories(file, ang)  # validate the file before anything is created
+        ensure_writable_dir(out)
+    except (ValueError, DataError) as e:
+        raise InputError(str(e)) from None
+
+    from .userdetect import detect_file
+
+    with console.status("detect: starting") as status:
+        rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
+                          progress=status.update)
+    colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
+    console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
+                  f"(net-power statistic {rep['statistic']['value']:.3g}, confidence {rep['confidence']:.2g})", highlight=False)
+    for r in rep["reasons"]:
+        console.print(f"  • {r}", highlight=False)
+    f = rep["formula"]
+    if f is not None:
+        console.print("  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()), highlight=False)
+    elif rep["blind"]:
+        console.print("  formula: nothing readable", highlight=False)
+    console.print(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)")
+
+
+demo_app = typer.Typer(no_args_is_help=True, help="Demonstrations on real data.")
+app.add_typer(demo_app, name="demo")
+
+
+@demo_app.command("neptune")
+def demo_neptune(
+    out: str = typer.Option("out/demo-neptune", "--out", help="output directory (results.json, figures)"),
+    seed: str = typer.Option("0", "--seed", help="random seed"),
+):
+    """Le Verrier again: Neptune located from Uranus' real JPL DE405 orbit by NNPhD."""
+    from .ephemeris import EphemerisUnavailable, available
+    from .report import ensure_writable_dir
+
+    try:
+        nseed = _parse_int("--seed", seed, 0)
+        if not available():
+            raise InputError("the Neptune demo needs the JPL ephemeris packages: pip install de405 jplephem "
+                             "(python3 dev.py setup installs them)")
+        ensure_writable_dir(out)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    from .neptune_demo import print_summary, run_neptune_demo
+
+    try:
+        with console.status("neptune: starting") as status:
+            res = run_neptune_demo(out=out, seed=nseed, progress=status.update)
+    except EphemerisUnavailable as e:
+        raise InputError(str(e)) from None
+    print_summary(res, console)
+    console.print(f"wrote {out}/results.json ({res['wall_time_s']:.0f} s)")
+
+
 def main(argv: list[str] | None = None) -> int:
     cmd = typer.main.get_command(app)
     try:

@@ -86,7 +86,7 @@ def test_console_script_no_traceback(tmp_path):
 
 def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     out = tmp_path / "d"
-    rc = main(["discover", "--system", "double-pendulum", "--steps", "300", "--sweep-steps", "40", "--sr-time", "1",
+    rc = main(["discover", "--system", "double-pendulum", "--steps", "100", "--sweep-steps", "20", "--sr-time", "1",
                "--n-steps", "300", "--out", str(out)])
     assert rc == 0
     res = json.loads((out / "double-pendulum" / "results.json").read_text())

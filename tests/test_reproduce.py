@@ -13,7 +13,7 @@ TINY = {
     "discover": {"systems": ["double-pendulum"], "steps": 30, "sweep_steps": 8, "sr_time": 0.0,
                  "sweep_lambdas": [0.5, 2.0], "n_steps": 100},
     "predict": {"steps": 8, "widths": [16, 16], "n_traj": 400},
-    "lambda-p": {"steps": 8, "systems": ["ho+ld", "ho+mf"], "ps": [1], "lambdas": [0.5, 2.0],
+    "lambda-p": {"steps": 8, "systems": ["ho+ld"], "ps": [1], "lambdas": [0.5, 2.0],
                  "force_lambdas": [0.5, 2.0], "n_train": 200, "n_test": 200},
     "data-quality": {"steps": 8, "alphas": [0.25, 1.0], "betas": [0.5, 1.0], "n_train": 200, "n_test": 200},
 }

@@ -2,8 +2,14 @@
 
     .venv/bin/python benchmarks/detect_noisy_cases.py morse,pendulum,kepler2d-eccentric,magnetic2d,anharmonic+drag,kepler2d+drag,anharmonic+drive,vanderpol
 """
-import sys, time, json, numpy as np
-from nnphd.trust import CASES, make_case
+import os
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from nnphd.trust import make_case
 from nnphd.userdetect import detect_file
 names = sys.argv[1].split(",")
 for name in names:
@@ -11,7 +17,7 @@ for name in names:
     rng = np.random.default_rng(1)
     q = d.q + 1e-3 * d.q.std(axis=0) * rng.standard_normal(d.q.shape)
     cols = [f"q{i+1}" for i in range(d.n)]
-    path = f"/tmp/noisy_{name}.csv"
+    path = os.path.join(tempfile.gettempdir(), f"noisy_{name}.csv")
     with open(path, "w") as fh:
         fh.write("traj,t," + ",".join(cols) + "\n")
         for k, ti, row in zip(traj, d.t, q):

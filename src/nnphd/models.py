@@ -14,6 +14,13 @@ derivatives follow exactly from :math:`\nabla_z^2 L = \sum_l J_l^T \mathrm{diag}
 :func:`lnn_accel_reference` is the plain per-sample ``jax.hessian`` version (as in Cranmer et al.'s LNN code), kept
 as the reference in tests and benchmarks.
 
+Angles: ``ModelConfig.periodic`` lists the coordinates that are angles. The LNN then sees them through the periodic
+embedding :math:`\varphi(q) = (q_{\bar P}, \sin q_P, \cos q_P)` (:func:`embed_periodic`), so L is 2π-periodic in
+each of them and unwrapped angles of any size (±100 rad) stay in the range the network was trained on. With
+:math:`L(q,\dot q) = F(\varphi(q), \dot q)`: :math:`\partial^2 L/\partial\dot q^2` is unchanged,
+:math:`(\partial^2 L/\partial\dot q\,\partial q)\,\dot q = (\partial^2 F/\partial\dot q\,\partial\varphi)\,J_\varphi\dot q`
+(only the first derivative of φ enters) and :math:`\nabla_q L = J_\varphi^T \nabla_\varphi F`.
+
 Both paths finish in :func:`euler_lagrange_solve`, which guards the solve against a singular mass matrix with a
 Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is symmetric). For a well-conditioned H
 (smallest singular value σ) the relative change is ≤ (ε/σ)², and for a singular H the output stays bounded by
@@ -21,6 +28,7 @@ Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is s
 """
 from __future__ import annotations
 
+import operator
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
@@ -54,6 +62,10 @@ class ModelConfig:
     # the raw (q, q̇) and Eq. (3) is unchanged.
     input_shift: tuple[float, ...] | None = None
     input_scale: tuple[float, ...] | None = None
+    # indices of coordinates that are angles: the LNN sees (sin q_i, cos q_i) instead of q_i (see embed_periodic).
+    # Stored sorted. With input standardisation, the shift/scale of these q columns is not used by the LNN (sin/cos
+    # are already O(1)); the q̇ columns and the other q columns are standardised as usual. The UAN is unchanged.
+    periodic: tuple[int, ...] = ()
 
     def __post_init__(self):
         if self.n < 1:
@@ -65,6 +77,7 @@ class ModelConfig:
         if self.dtype not in ("float32", "float64"):
             raise ValueError(f"dtype must be 'float32' or 'float64', got {self.dtype!r}")
         _activation_groups(self.lnn_activation, 2)  # validates the name
+        object.__setattr__(self, "periodic", _check_periodic(self.periodic, self.n))
 
     def replace(self, **kw) -> "ModelConfig":
         return replace(self, **kw)
@@ -75,6 +88,49 @@ class ModelConfig:
         mu, sd = x.mean(axis=0), x.std(axis=0)
         sd = np.where(sd > 1e-12 * max(1.0, float(np.max(np.abs(mu)))), sd, 1.0)
         return replace(self, input_shift=tuple(float(v) for v in mu), input_scale=tuple(float(v) for v in sd))
+
+
+def _check_periodic(periodic, n: int) -> tuple[int, ...]:
+    """Validate periodic-coordinate indices (integers in 0..n−1, no repeats); return them as a sorted tuple."""
+    if isinstance(periodic, (str, bytes)) or not hasattr(periodic, "__iter__"):
+        raise ValueError(f"periodic must be a sequence of coordinate indices, got {periodic!r}")
+    out = []
+    for i in periodic:
+        if isinstance(i, (bool, np.bool_)):
+            raise ValueError(f"periodic indices must be integers, got {i!r} in {tuple(periodic)!r}")
+        try:
+            j = operator.index(i)
+        except TypeError:
+            raise ValueError(f"periodic indices must be integers, got {i!r} in {tuple(periodic)!r}") from None
+        if not 0 <= j < n:
+            raise ValueError(f"periodic index {j} out of range for n = {n} coordinates (valid: 0..{n - 1})")
+        out.append(j)
+    if len(set(out)) != len(out):
+        raise ValueError(f"periodic indices must be unique, got {tuple(out)!r}")
+    return tuple(sorted(out))
+
+
+def _periodic_split(periodic: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(non-periodic indices, periodic indices), both ascending, as static integer arrays."""
+    per = np.asarray(periodic, dtype=int)
+    rest = np.asarray([i for i in range(n) if i not in set(periodic)], dtype=int)
+    return rest, per
+
+
+def embed_periodic(q, periodic=()):
+    r"""The periodic embedding φ(q) = [q_nonperiodic..., sin q_p..., cos q_p...] of q (..., n) → (..., n + len(P)).
+
+    Both index groups are in ascending order (``periodic`` is sorted first). With ``periodic = ()`` q is returned
+    unchanged. This is exactly the q part of the LNN input for ``ModelConfig(periodic=...)``; free networks can feed
+    ``concatenate([embed_periodic(q, cfg.periodic), q̇, ...])`` to see the same embedding.
+    """
+    q = jnp.asarray(q)
+    periodic = _check_periodic(periodic, q.shape[-1])
+    if not periodic:
+        return q
+    rest, per = _periodic_split(periodic, q.shape[-1])
+    qp = q[..., per]
+    return jnp.concatenate([q[..., rest], jnp.sin(qp), jnp.cos(qp)], axis=-1)
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -147,8 +203,34 @@ _Z = slice(0, -1)  # (q, q̇) columns of (q, q̇, t)
 _ALL = slice(None)
 
 
+def _lnn_first_layer(layers: list, cfg: ModelConfig) -> list:
+    """Fold the input standardisation into the LNN's first layer, whose input is [φ(q), q̇] (see embed_periodic).
+
+    The non-periodic q and the q̇ columns get their (x − shift)/scale; the sin/cos columns are left as they are
+    (the shift/scale of a periodic q column is not used). Without periodic coordinates this is ``_first_layer``.
+    """
+    if cfg.input_shift is None or not cfg.periodic:
+        return _first_layer(layers, cfg, _Z)
+    n, n_per = cfg.n, len(cfg.periodic)
+    dt = layers[0]["w"].dtype
+    rest, _ = _periodic_split(cfg.periodic, n)
+    cols = np.concatenate([rest, np.arange(n, 2 * n)])
+    keep = np.concatenate([np.arange(n - n_per), np.arange(n + n_per, 2 * n + n_per)])  # rows of those columns
+    mu = np.zeros(2 * n + n_per)
+    sd = np.ones(2 * n + n_per)
+    mu[keep] = np.asarray(cfg.input_shift, float)[cols]
+    sd[keep] = np.asarray(cfg.input_scale, float)[cols]
+    w = layers[0]["w"] / jnp.asarray(sd, dt)[:, None]
+    return [{"w": w, "b": layers[0]["b"] - jnp.asarray(mu, dt) @ w}, *layers[1:]]
+
+
+def lnn_input_size(cfg: ModelConfig) -> int:
+    """Fan-in of the LNN's first layer: 2n plus one per periodic coordinate (each q_p becomes sin, cos)."""
+    return 2 * cfg.n + len(cfg.periodic)
+
+
 def init_lnn(key, cfg: ModelConfig) -> list:
-    sizes = (2 * cfg.n, *cfg.lnn_widths, 1)
+    sizes = (lnn_input_size(cfg), *cfg.lnn_widths, 1)
     return _init_mlp(key, sizes, jnp.dtype(cfg.dtype), cfg.lnn_out_scale)
 
 
@@ -216,9 +298,9 @@ def accel_from_lagrangian(lagrangian: Callable, q, qd, eps: float = 1e-6):
 
 
 def lnn_value(lnn: list, q, qd, cfg: ModelConfig):
-    """Lagrangian L(q, q̇) = L_NN + a/2 q̇·q̇ for a batch (B, n) → (B,)."""
-    h = jnp.concatenate([q, qd], axis=-1)
-    lnn = _first_layer(lnn, cfg, _Z)
+    """Lagrangian L(q, q̇) = L_NN([φ(q), q̇]) + a/2 q̇·q̇ for a batch (B, n) → (B,); φ = :func:`embed_periodic`."""
+    h = jnp.concatenate([embed_periodic(q, cfg.periodic), qd], axis=-1)
+    lnn = _lnn_first_layer(lnn, cfg)
     for layer in lnn[:-1]:
         h = _act_with_derivs(cfg.lnn_activation, h @ layer["w"] + layer["b"])[0]
     out = (h @ lnn[-1]["w"] + lnn[-1]["b"])[..., 0]
@@ -241,17 +323,33 @@ def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
     because every :math:`a_l` is linear in the previous layer. So only the products :math:`J_l u` along the m = n+1
     directions u ∈ {e_{q̇_1}, …, e_{q̇_n}, (q̇, 0)} are pushed forward (one stacked matrix product per layer, with the
     primal), one backward pass gives g_l and ∇_z L, and the second derivatives are contractions over units.
+
+    Periodic coordinates (``cfg.periodic``): the network input is z = [φ(q), q̇] with φ(q) = [q_rest, sin q_P,
+    cos q_P] (:func:`embed_periodic`), of size d = 2n + |P|. ∂²L/∂q̇² is unchanged; the direction (q̇, 0) becomes
+    (J_φ q̇, 0) = (q̇_rest, cos q_P·q̇_P, −sin q_P·q̇_P, 0), which gives (∂²L/∂q̇∂q) q̇ exactly (φ'' never enters);
+    and ∇_q L = J_φᵀ ∇_φ L, i.e. ∂L/∂q_p = cos q_p ∂L/∂(sin q_p) − sin q_p ∂L/∂(cos q_p).
     """
     n = q.shape[-1]
     bsz = q.shape[0]
     dt = q.dtype
-    z = jnp.concatenate([q, qd], axis=-1)  # (B, 2n)
-    e_v = jnp.concatenate([jnp.zeros((n, n), dt), jnp.eye(n, dtype=dt)], axis=-1)  # (n, 2n)
+    periodic = cfg.periodic
+    if periodic:
+        rest, per = _periodic_split(periodic, n)
+        sin_p, cos_p = jnp.sin(q[:, per]), jnp.cos(q[:, per])
+        phi = jnp.concatenate([q[:, rest], sin_p, cos_p], axis=-1)  # (B, n + |P|)
+        vp = qd[:, per]
+        phi_dot = jnp.concatenate([qd[:, rest], cos_p * vp, -sin_p * vp], axis=-1)  # J_φ q̇
+    else:
+        phi, phi_dot = q, qd
+    nq = phi.shape[-1]  # n + |P|
+    d = nq + n
+    z = jnp.concatenate([phi, qd], axis=-1)  # (B, d)
+    e_v = jnp.concatenate([jnp.zeros((n, nq), dt), jnp.eye(n, dtype=dt)], axis=-1)  # (n, d)
     tan = jnp.concatenate(
-        [jnp.broadcast_to(e_v[:, None, :], (n, bsz, 2 * n)), jnp.concatenate([qd, jnp.zeros_like(qd)], -1)[None]],
+        [jnp.broadcast_to(e_v[:, None, :], (n, bsz, d)), jnp.concatenate([phi_dot, jnp.zeros_like(qd)], -1)[None]],
         axis=0,
-    )  # (m, B, 2n)
-    lnn = _first_layer(lnn, cfg, _Z)
+    )  # (m, B, d)
+    lnn = _lnn_first_layer(lnn, cfg)
     hidden = lnn[:-1]
     x = jnp.concatenate([z[None], tan], axis=0)  # (m+1, B, in): primal and tangents
     cache = []
@@ -268,7 +366,13 @@ def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
         weighted = adot * (g * s2)[None]  # (m, B, width)
         hess = hess + jnp.sum(weighted[:n, None] * adot[None], axis=-1)  # (n, m, B): u_i^T J^T diag(c) J u_j
         g = (g * s1) @ layer["w"].T
-    grad_q = g[:, :n]
+    if periodic:  # ∇_q L = J_φᵀ ∇_φ L
+        n_rest = n - len(periodic)
+        g_rest, g_sin, g_cos = g[:, :n_rest], g[:, n_rest:nq - len(periodic)], g[:, nq - len(periodic):nq]
+        g_per = cos_p * g_sin - sin_p * g_cos
+        grad_q = jnp.zeros((bsz, n), dt).at[:, rest].set(g_rest).at[:, per].set(g_per)
+    else:
+        grad_q = g[:, :n]
     hess = jnp.moveaxis(hess, -1, 0)  # (B, n, m)
     hess_vv = hess[:, :, :n] + cfg.split_mass * jnp.eye(n, dtype=dt)
     mixed = hess[:, :, n]

@@ -476,7 +476,12 @@ def detect(
                           progress=status.update)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
-                  f"(net-power statistic {rep['statistic']['value']:.3g}, confidence {rep['confidence']:.2g})", highlight=False)
+                  f"(confidence {rep['confidence']:.2g})", highlight=False)
+    if rep.get("effect"):
+        console.print(f"  effect: {rep['effect']}", highlight=False)
+    for c, why in rep.get("angle_suggestions") or []:
+        console.print(f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one",
+                      highlight=False)
     for r in rep["reasons"]:
         console.print(f"  • {r}", highlight=False)
     f = rep["formula"]

@@ -99,6 +99,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .data import Dataset
+from .evidence import dominant_period, energy_trend, shooting_fit
 from .detect import verdict as naive_verdict
 from .models import ModelConfig, init_lnn, lnn_accel, lnn_derivatives, lnn_energy, mlp_apply
 from .train import SweepPoint, TrainConfig, make_trainer, pnorm
@@ -135,6 +136,14 @@ TIME_GAIN_MIN = 1.3
 TIME_ABS_MIN = 0.005
 GAP_MIN = 2.0
 STILL_FALLING = 0.15
+Z_BOTH = 3.0  # trajectory-level: energy trend and shooting both at least this, same sign
+Z_ONE = 6.0  # or one of them at least this while the other does not contradict it
+Z_CONTRA = 2.0  # a |z| of the other statistic of opposite sign above this contradicts
+NOISE_REL_MAX = 0.3  # positions with noise/spread above this (every coordinate): no usable dynamics
+MIN_SAMPLES_PER_PERIOD = 6.0
+QDD_ERR_MAX = 0.5  # estimated relative q̈ error above this (every coordinate): no pointwise test
+CLOCK_MIN_TRAJ = 3
+CLOCK_MANY_TRAJ = 8
 N_BOOT = 200
 
 DEFAULT_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
@@ -171,12 +180,19 @@ class Scaling:
         return {"mu_q": self.mu_q.tolist(), "s_q": self.s_q.tolist(), "t0": self.t0, "s_t": self.s_t}
 
 
-def fit_scaling(data: Dataset) -> Scaling:
-    """Per-coordinate mean/std of q; s_t = geometric mean of s_q/rms(q̇) and √(s_q/rms(q̈)) over coordinates."""
+def fit_scaling(data: Dataset, is_angle=None) -> Scaling:
+    """Per-coordinate mean/std of q; s_t = geometric mean of s_q/rms(q̇) and √(s_q/rms(q̈)) over coordinates.
+
+    Angles (``is_angle``, (n,) bools) keep their radians (shift 0, scale 1): they enter the networks as sin, cos.
+    """
     q, qd, qdd = data.q, data.qd, data.qdd
     mu = q.mean(axis=0)
     s_q = q.std(axis=0)
     s_q = np.where(s_q > 1e-12 * np.maximum(1.0, np.abs(mu)), s_q, 1.0)
+    if is_angle is not None:
+        ang = np.asarray(is_angle, bool)
+        mu = np.where(ang, 0.0, mu)
+        s_q = np.where(ang, 1.0, s_q)
     rms_v = np.sqrt(np.mean(qd**2, axis=0))
     rms_a = np.sqrt(np.mean(qdd**2, axis=0))
     logs = [np.log(s_q[i] / rms_v[i]) for i in range(data.n) if rms_v[i] > 0]
@@ -405,6 +421,20 @@ def _mlp(layers, *cols):
     return mlp_apply(layers, jnp.concatenate(cols, axis=-1), "leaky_relu", 0.2)
 
 
+def _net_q(q, cfg: ModelConfig):
+    """The coordinates as the free networks see them: angles as (sin, cos), like the LNN."""
+    periodic = getattr(cfg, "periodic", ())
+    if not periodic:
+        return q
+    from .models import embed_periodic
+
+    return embed_periodic(q, periodic)
+
+
+def _q_width(cfg: ModelConfig) -> int:
+    return cfg.n + len(getattr(cfg, "periodic", ()))
+
+
 @functools.lru_cache(maxsize=64)
 def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
     """Jitted trainers, cached so repeated calls (seeds, tests) compile once. ``t`` carries the time features."""
@@ -412,14 +442,14 @@ def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
 
     if kind == "nnphd":
         def loss(params, q, qd, t, qdd):
-            fn = _mlp(params["uan"], q, qd, t)
+            fn = _mlp(params["uan"], _net_q(q, cfg), qd, t)
             return pnorm(lnn_accel(params["lnn"], q, qd, cfg) + fn - qdd, p), pnorm(fn, p)
     elif kind == "lnn":
         def loss(params, q, qd, t, qdd):
             return pnorm(lnn_accel(params["lnn"], q, qd, cfg) - qdd, p), jnp.zeros((), q.dtype)
     elif kind == "free":
         def loss(params, q, qd, t, qdd):
-            return pnorm(_mlp(params["mlp"], q, qd) - qdd, p), jnp.zeros((), q.dtype)
+            return pnorm(_mlp(params["mlp"], _net_q(q, cfg), qd) - qdd, p), jnp.zeros((), q.dtype)
     else:  # pragma: no cover
         raise ValueError(kind)
     return make_trainer(cfg, tcfg, loss)
@@ -428,7 +458,7 @@ def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
 @functools.partial(jax.jit, static_argnames=("cfg",))
 def _nnphd_eval(params, q, qd, t, cfg):
     fc = lnn_accel(params["lnn"], q, qd, cfg)
-    fn = _mlp(params["uan"], q, qd, t)
+    fn = _mlp(params["uan"], _net_q(q, cfg), qd, t)
     _, hvv, _ = lnn_derivatives(params["lnn"], q, qd, cfg)
     return fc, fn, jnp.einsum("bi,bij,bj->b", qd, hvv, fn), jnp.abs(jnp.einsum("bi,bij,bj->b", qd, hvv, qd))
 
@@ -439,12 +469,20 @@ def _lnn_eval(lnn, q, qd, qdd, cfg):
     _, hvv, _ = lnn_derivatives(lnn, q, qd, cfg)
     power = jnp.einsum("bi,bij,bj->b", qd, hvv, qdd - fc)
     kin = jnp.abs(jnp.einsum("bi,bij,bj->b", qd, hvv, qd))
-    return fc, power, kin, lnn_energy(lnn, q, qd, cfg)
+    return fc, power, kin, lnn_energy(lnn, q, qd, cfg), lnn_energy(lnn, q, jnp.zeros_like(qd), cfg)
 
 
-@jax.jit
-def _free_eval(params, q, qd):
-    return _mlp(params["mlp"], q, qd)
+@functools.partial(jax.jit, static_argnames=("cfg",))
+def _free_eval(params, q, qd, cfg):
+    return _mlp(params["mlp"], _net_q(q, cfg), qd)
+
+
+@functools.lru_cache(maxsize=64)
+def _accel_fn(cfg: ModelConfig):
+    """f_c(params, q, q̇) of an LNN config: one function object per config, so the shooting fit compiles once."""
+    def accel(lnn, q, qd):
+        return lnn_accel(lnn, q, qd, cfg)
+    return accel
 
 
 def _l1(r) -> float:
@@ -455,17 +493,86 @@ def _seg_mean(x, segs):
     return np.asarray([float(np.mean(x[s])) for s in segs])
 
 
+def clock_testable(t, segs) -> tuple[bool, str]:
+    """Can explicit time dependence be told from a trajectory label? Only when the trajectories overlap in time
+    (every one shares some time range with another) and there are at least CLOCK_MIN_TRAJ of them, or there are
+    CLOCK_MANY_TRAJ or more."""
+    K = len(segs)
+    if K < 2:
+        return False, "one trajectory: time and state are confounded along it"
+    t = np.asarray(t, float)
+    rng_ = [(float(t[s].min()), float(t[s].max())) for s in segs]
+    overlaps = [any(i != j and min(b1, b2) > max(a1, a2) for j, (a2, b2) in enumerate(rng_))
+                for i, (a1, b1) in enumerate(rng_)]
+    if K >= CLOCK_MANY_TRAJ:
+        return True, f"{K} trajectories"
+    if K >= CLOCK_MIN_TRAJ and all(overlaps):
+        return True, f"{K} trajectories overlapping in time"
+    if not all(overlaps):
+        return False, (f"{K} trajectories, {sum(not o for o in overlaps)} of them at times no other trajectory "
+                       "covers: t would only tell the trajectories apart")
+    return False, f"only {K} trajectories (at least {CLOCK_MIN_TRAJ} overlapping in time are needed)"
+
+
 # ------------------------------------------------------------------------------------------------------------------
 # one seed
 
 
-def _one_seed(q, qd, tp, qdd, segs, stat_segs, seed, steps, lambdas, width, holdout_frac, long_factor, sc, tick):
+def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick):
+    """The warm-started λ-sweep; then the optimisation check: the training error below λ = 1 (where the UAN is free)
+    must not exceed the one above it. Where it does (beyond 10 %), the λ < 1 points are retrained in decreasing
+    order, warm-started from the largest-λ solution (the UAN then only has to add to a fitted LNN), and the better
+    objective is kept."""
+    lams = sorted(lambdas)
+    pts = {}
+    for lam, k in zip(lams, jax.random.split(k_sweep, len(lams))):
+        params, _ = train(params, A_tr, jnp.asarray(lam, jnp.float64), k)
+        pts[lam] = params
+        tick()
+
+    def evaluate(p):
+        fc, fn, power, kin = (np.asarray(x) for x in _nnphd_eval(p, *arrays[:3], cfg))
+        return fc, fn, power, kin, back(fc + fn - qdd), back(fn)
+
+    evals = {lam: evaluate(pts[lam]) for lam in lams}
+    below = [lam for lam in lams if lam < 1]
+    above = [lam for lam in lams if lam > 1]
+
+    def med_train(ls):
+        return float(np.median([_l1(evals[lam][4][tr]) for lam in ls])) if ls else float("nan")
+
+    check = {"L_e_train_below": med_train(below), "L_e_train_above": med_train(above), "retrained": False}
+    if below and above and check["L_e_train_below"] > 1.1 * check["L_e_train_above"]:
+        check["retrained"] = True
+        p = pts[lams[-1]]
+        for lam, k in zip(sorted(below, reverse=True), jax.random.split(jax.random.fold_in(k_sweep, 1), len(below))):
+            p, _ = train(p, A_tr, jnp.asarray(lam, jnp.float64), k)
+            ev = evaluate(p)
+            obj_new = _l1(ev[4][tr]) + lam * _l1(ev[5][tr])
+            obj_old = _l1(evals[lam][4][tr]) + lam * _l1(evals[lam][5][tr])
+            if obj_new < obj_old:
+                pts[lam], evals[lam] = p, ev
+            else:
+                p = pts[lam]
+        check["L_e_train_below_after"] = med_train(below)
+    table = []
+    for lam in lams:
+        _, _, _, _, r, fnb = evals[lam]
+        table.append({"lam": lam, "L_e": _l1(r[te]), "L_b": _l1(fnb[te]), "L_e_train": _l1(r[tr]),
+                      "L_b_train": _l1(fnb[tr]), "L_e_rel": _l1(r[te]) / fnorm_te, "L_b_rel": _l1(fnb[te]) / fnorm_te})
+    check["ok"] = not below or not above or med_train(below) <= 1.1 * med_train(above)
+    return pts, evals, table, check
+
+
+def _one_seed(ctx: dict, seed: int, tick) -> dict:
+    q, qd, tp, qdd, segs = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"]
+    steps, lambdas, width, long_factor, sc = ctx["steps"], ctx["lambdas"], ctx["width"], ctx["long_factor"], ctx["sc"]
     n = q.shape[1]
-    feats = time_features(tp, float(tp.max() - tp.min()))
+    feats = ctx["feats"]
     rng = np.random.default_rng(seed)
-    tr_segs, te_segs = holdout(segs, holdout_frac, rng)
+    tr_segs, te_segs = holdout(segs, ctx["holdout_frac"], rng)
     tr, te = np.concatenate(tr_segs), np.concatenate(te_segs)
-    cfg = ModelConfig(n=n, lnn_widths=(width, width), uan_widths=(width, width))
+    cfg = ctx["cfg"]
     tcfg = TrainConfig(steps=steps)
     arrays = tuple(jnp.asarray(a) for a in (q, qd, feats, qdd))
     A_tr = tuple(a[tr] for a in arrays)
@@ -475,22 +582,18 @@ def _one_seed(q, qd, tp, qdd, segs, stat_segs, seed, steps, lambdas, width, hold
     fnorm_tr = _l1(back(qdd[tr]))
     key = jax.random.PRNGKey(seed)
     k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
+    qw = _q_width(cfg)
 
-    # (a) NNPhD λ-sweep with warm starts
-    params = {"lnn": init_lnn(k_lnn, cfg), "uan": _init_layers(k_uan, (2 * n + feats.shape[1], width, width, n))}
+    # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
+    params = {"lnn": init_lnn(k_lnn, cfg), "uan": _init_layers(k_uan, (qw + n + feats.shape[1], width, width, n))}
     train = _trainer("nnphd", cfg, tcfg)
-    table, rep = [], None
+    pts, evals, table, opt_check = _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te,
+                                          fnorm_te, tick)
     lams = sorted(lambdas)
-    for lam, k in zip(lams, jax.random.split(k_sweep, len(lams))):
-        params, _ = train(params, A_tr, jnp.asarray(lam, jnp.float64), k)
-        fc, fn, power, kin = (np.asarray(x) for x in _nnphd_eval(params, *arrays[:3], cfg))
-        r = back(fc + fn - qdd)
-        fnb = back(fn)
-        table.append({"lam": lam, "L_e": _l1(r[te]), "L_b": _l1(fnb[te]), "L_e_train": _l1(r[tr]),
-                      "L_b_train": _l1(fnb[tr]), "L_e_rel": _l1(r[te]) / fnorm_te, "L_b_rel": _l1(fnb[te]) / fnorm_te})
-        if lam < 1 and (rep is None or abs(lam - REPRESENTATIVE_LAMBDA) < abs(rep[0] - REPRESENTATIVE_LAMBDA)):
-            rep = (lam, back(fc), fnb, power, kin)
-        tick()
+    lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
+    fc_rep, _, power_rep, kin_rep, _, fn_rep = evals[lam_rep]
+    rep = (lam_rep, back(fc_rep), fn_rep, power_rep, kin_rep)
+    params = pts[lams[-1]]
     points = [SweepPoint(r["lam"], r["L_e"], r["L_b"], r["L_e_train"], r["L_b_train"]) for r in table]
     try:
         nv = naive_verdict(points, fnorm_te)
@@ -512,23 +615,25 @@ def _one_seed(q, qd, tp, qdd, segs, stat_segs, seed, steps, lambdas, width, hold
         hist.append(_l1(r[te]))
         hist_tr.append(_l1(r[tr]) if np.all(np.isfinite(r[tr])) else np.inf)
         if best is None or hist_tr[-1] < hist_tr[best[0]]:
-            best = (i, ev)
-    fc_l, power_l, kin_l, E_l = best[1]
+            best = (i, ev, lp["lnn"])
+    fc_l, power_l, kin_l, E_l, E_rest = best[1]
+    lnn_best = best[2]
     cons_tr, cons_te = hist_tr[best[0]], hist[best[0]]
 
     # (c) the free model of (q, q̇)
-    fp = {"mlp": _init_layers(k_free, (2 * n, width, width, n))}
+    fp = {"mlp": _init_layers(k_free, (qw + n, width, width, n))}
     ft = _trainer("free", cfg, tcfg)
     for k in jax.random.split(k_free, 1 + long_factor):
         fp, _ = ft(fp, A_tr, jnp.asarray(0.0, jnp.float64), k)
         tick()
-    r_free = back(np.asarray(_free_eval(fp, *arrays[:2])) - qdd)
+    r_free = back(np.asarray(_free_eval(fp, *arrays[:2], cfg)) - qdd)
     free_tr, free_te = _l1(r_free[tr]), _l1(r_free[te])
 
     # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
     # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
     resid = qdd - fc_l
-    X_s, X_t = time_design(np.concatenate([q, qd], axis=1), time_features(tp, float(tp.max() - tp.min()), oversample=2))
+    X_s, X_t = time_design(np.concatenate([np.asarray(_net_q(jnp.asarray(q), cfg)), qd], axis=1),
+                           time_features(tp, float(tp.max() - tp.min()), oversample=2))
     errs = {"state": [], "timed": []}
     if len(segs) > 1:
         for k, seg in enumerate(segs):
@@ -542,23 +647,36 @@ def _one_seed(q, qd, tp, qdd, segs, stat_segs, seed, steps, lambdas, width, hold
     e_state, e_timed = (float(np.average(errs[k], weights=w)) for k in ("state", "timed"))
     improved = float(np.mean(np.asarray(errs["timed"]) < np.asarray(errs["state"])))
 
+    # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
+    # the multiple-shooting fit of the positions with a damping probe (nnphd.evidence)
+    period = ctx["period"]
+    trend = energy_trend(E_l, float(np.min(E_rest)), tp, segs, period, seed=seed)
+    if np.all(np.isfinite(power_l)):
+        shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], period, seed=seed)
+    else:
+        shoot = {"valid": False, "reason": "the conservative model diverged"}
+    trend = _trend_units(trend, sc)
+    shoot = _shoot_units(shoot, sc)
+
     # checks
-    osc = oscillations(np.concatenate([q, qd], axis=1), stat_segs)
-    drift = drift_check(power_l, tp, stat_segs, _seg_mean(kin_l, stat_segs), osc, seed=seed)
-    drift["rho_from_energy"] = energy_net_fraction(E_l, stat_segs).tolist()
-    uan_drift = drift_check(rep[3], tp, stat_segs, _seg_mean(rep[4], stat_segs), osc, seed=seed)
+    osc = oscillations(np.concatenate([ctx["q_pos"], qd], axis=1), segs)
+    drift = drift_check(power_l, tp, segs, _seg_mean(kin_l, segs), osc, seed=seed)
+    drift["rho_from_energy"] = energy_net_fraction(E_l, segs).tolist()
+    uan_drift = drift_check(rep[3], tp, segs, _seg_mean(rep[4], segs), osc, seed=seed)
     tchk = time_check(e_state, e_timed, fnorm, improved if len(segs) > 2 else None)
     tchk.update(residual_state=e_state / fnorm, residual_timed=e_timed / fnorm, improved_fraction=improved,
-                valid=len(segs) > 1)
+                valid=ctx["clock"][0], testable=ctx["clock"][1], n_trajectories=len(segs))
     gap = gap_check(cons_tr, free_tr, cons_te, free_te)
     gap.update(conservative_train=cons_tr / fnorm_tr, conservative_test=cons_te / fnorm_te,
                free_train=free_tr / fnorm_tr, free_test=free_te / fnorm_te)
     cap = capacity_check(hist)
     cap.update(errors_rel=(np.asarray(hist) / fnorm_te).tolist(),
                train_errors_rel=(np.asarray(hist_tr) / fnorm_tr).tolist(), chosen_round=best[0])
+    traj = trajectory_evidence(trend, shoot)
+    traj["effect"] = _effect(traj, trend, shoot)
 
     if np.all(np.isfinite(power_l)) and np.isfinite(cons_tr):
-        status, reason, boot_agree = _seed_status(drift, tchk, gap, cap)
+        status, reason, boot_agree = _seed_status(drift, tchk, gap, cap, traj, ctx["quality"], len(segs))
     else:
         status, reason, boot_agree = ("inconclusive", "the conservative model diverged (non-finite forces): "
                                       "lower the learning rates or standardise the data differently", 1.0)
@@ -573,6 +691,10 @@ def _one_seed(q, qd, tp, qdd, segs, stat_segs, seed, steps, lambdas, width, hold
         "time": tchk,
         "gap": gap,
         "capacity": cap,
+        "optimisation": opt_check,
+        "energy_trend": trend,
+        "shooting": shoot,
+        "trajectory_evidence": traj,
         "naive": naive,
         "table": table,
         "forces": (rep[0], rep[1], rep[2]),
@@ -581,37 +703,180 @@ def _one_seed(q, qd, tp, qdd, segs, stat_segs, seed, steps, lambdas, width, hold
     }
 
 
-def _seed_status(drift, tchk, gap, cap) -> tuple[str, str, float]:
-    """(status, reason, agreement of the drift bootstrap with the status) of one seed."""
-    boot = drift["bootstrap_fraction"]
-    work = (f"median |∫P dt|/∫|P| dt = {drift['rho_median']:.2f}, slow ratio Z = {drift['slow_ratio_median']:.2f}, "
-            f"net energy change {100 * drift['magnitude_median']:.1f}% of 2×kinetic")
+def _trend_units(tr: dict, sc: Scaling) -> dict:
+    """Energy-trend rates from model time units to the file's."""
+    out = dict(tr)
+    for k in ("rate", "se"):
+        if k in out and out[k] is not None and np.isfinite(out[k]):
+            out[k] = out[k] / sc.s_t
+    out["period"] = tr["period"] * sc.s_t
+    out["block_t"] = [[sc.t0 + x * sc.s_t for x in b] for b in tr.get("block_t", [])]
+    out.pop("bootstrap_z", None)
+    out["bootstrap_fraction"] = (float(np.mean(np.abs(tr["bootstrap_z"]) >= Z_ONE)) if tr.get("bootstrap_z") else None)
+    out["_bootstrap_z"] = tr.get("bootstrap_z", [])
+    return out
+
+
+def _shoot_units(sh: dict, sc: Scaling) -> dict:
+    out = dict(sh)
+    if not sh.get("valid"):
+        out["_bootstrap_z"] = []
+        return out
+    for k in ("d", "se_d"):
+        out[k] = [x / sc.s_t for x in sh[k]]
+    for k in ("d_mean", "se_d_mean", "se_d_mean_model", "se_d_mean_jackknife"):
+        out[k] = sh[k] / sc.s_t
+    out["rms_residual"] = [x * s for x, s in zip(sh["rms_residual"], sc.s_q)]
+    out["_bootstrap_z"] = sh.pop("bootstrap_z", []) if "bootstrap_z" in sh else []
+    out.pop("bootstrap_z", None)
+    return out
+
+
+def trajectory_evidence(trend: dict, shoot: dict, z_trend=None, z_shoot=None) -> dict:
+    """Combine the energy trend and the shooting fit into one call: ``significant`` when both are valid, agree in
+    sign (energy falls ⇔ damping d̄ > 0) and both reach Z_BOTH, or either alone reaches Z_ONE while the other does
+    not contradict it (same sign or invalid); ``bound``: with no significant evidence, the 95 % upper limit on the
+    decay rate |r| + 2 se of the energy trend (file units) when it is valid. ``bootstrap_fraction``: the share of
+    window/block bootstrap replicas that stay significant (the two bootstraps paired replica by replica)."""
+    zt = trend.get("z", 0.0) if trend.get("valid") else None
+    zs = shoot.get("z", 0.0) if shoot.get("valid") else None
+
+    def rule(a, b):
+        if a is not None and b is not None:
+            if np.sign(a) == np.sign(b) and min(abs(a), abs(b)) >= Z_BOTH:
+                return True
+            if abs(a) >= Z_ONE and (np.sign(a) == np.sign(b) or abs(b) < Z_CONTRA):
+                return True
+            if abs(b) >= Z_ONE and (np.sign(a) == np.sign(b) or abs(a) < Z_CONTRA):
+                return True
+            return False
+        x = a if a is not None else b
+        return x is not None and abs(x) >= Z_ONE
+
+    sig = rule(zt, zs)
+    bt, bs = trend.get("_bootstrap_z", []), shoot.get("_bootstrap_z", [])
+    nb = max(len(bt), len(bs))
+    reps = [rule(bt[i] if i < len(bt) and zt is not None else zt, bs[i] if i < len(bs) and zs is not None else zs)
+            for i in range(nb)]
+    sign = np.sign(zt if zt is not None and (zs is None or abs(zt) >= abs(zs)) else (zs or 0.0))
+    bound = None
+    if trend.get("valid") and np.isfinite(trend.get("se", np.inf)):
+        bound = abs(trend["rate"]) + 2 * trend["se"]
+    return {"significant": bool(sig), "z_energy": zt, "z_shooting": zs,
+            "direction": "loses energy" if sign > 0 else ("gains energy" if sign < 0 else "none"),
+            "valid": zt is not None or zs is not None,
+            "bootstrap_fraction": float(np.mean(reps)) if reps else None, "rate_bound": bound}
+
+
+def _effect(traj: dict, trend: dict, shoot: dict) -> str:
+    """"energy decays 3.2 %/period (r = 0.011/time unit), z = 41" from the evidence."""
+    parts = []
+    if trend.get("valid"):
+        r, rp = trend["rate"], trend.get("rate_per_period", float("nan"))
+        word = "decays" if r > 0 else "grows"
+        parts.append(f"the learned energy {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
+                     f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)")
+    if shoot.get("valid"):
+        parts.append(f"a fit of the positions by integration over {shoot['n_windows']} windows needs damping "
+                     f"d = {shoot['d_mean']:.3g} ± {shoot['se_d_mean']:.2g} per time unit (z = {shoot['z']:.1f})")
+    return "; ".join(parts) if parts else "no trajectory-level statistic could be computed"
+
+
+def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tuple[str, str, float]:
+    """(status, reason, agreement of the bootstrap with the status) of one seed.
+
+    Order: (1) explicit time dependence (only where the clock is testable); (2) trajectory-level evidence (energy
+    trend, shooting) — decisive on single trajectories and when the force is below the derivative noise;
+    (3) net power of the pointwise residual over several trajectories; then "inconclusive" when the derivatives
+    are too noisy for a pointwise test or the conservative model under-fits, else "none" with the upper limit.
+    """
+    traj = traj or {"significant": False, "valid": False, "bootstrap_fraction": None, "rate_bound": None}
+    quality = quality or {"pointwise_ok": True, "usable": True, "reason": ""}
+    eff = traj.get("effect", "")
+    if not quality["usable"]:
+        return ("inconclusive", f"the data cannot decide: {quality['reason']}", 1.0)
     if tchk["significant"] and tchk["valid"]:
         return ("detected", f"the force depends on t explicitly: time features cut the out-of-trajectory error of a "
                 f"regression of the conservative residual x{tchk['gain']:.2f} ({100 * tchk['abs_gain']:.1f}% of the "
-                f"force; better on {100 * tchk['improved_fraction']:.0f}% of the trajectories)",
+                f"force; better on {100 * tchk['improved_fraction']:.0f}% of {tchk['n_trajectories']} trajectories)",
                 1.0)
-    if drift["significant"] and (drift["valid"] or gap["large"]):
+    if traj["significant"]:
+        return ("detected", f"non-conservation accumulates along the record: {eff}", traj["bootstrap_fraction"] or 1.0)
+    boot = drift["bootstrap_fraction"]
+    work = (f"median |∫P dt|/∫|P| dt = {drift['rho_median']:.2f} over {n_traj} trajector"
+            f"{'y' if n_traj == 1 else 'ies'}, net energy change {100 * drift['magnitude_median']:.1f}% of 2×kinetic")
+    multi_ok = n_traj >= 3 and quality["pointwise_ok"]
+    if drift["significant"] and multi_ok and (drift["valid"] or gap["large"]):
         return ("detected", f"the residual of the conservative fit does net work ({work})", boot)
-    if drift["significant"]:  # too few oscillations to trust a drift, and no gap to back it
-        return ("inconclusive", f"the learned energy drifts ({work}) but the trajectories show only "
-                f"{np.median(drift['oscillations']):.1f} oscillations, too few to tell a drift from a slow "
-                f"oscillation, "
-                f"and the conservative model fits the training data (gap x{gap['gap_train']:.2f})", boot)
-    no_t = ("t untested (one trajectory: time and state are confounded)" if not tchk["valid"] else
-            f"t does not help (x{tchk['gain']:.2f})")
-    if not gap["large"]:
-        return ("none", f"a Lagrangian fits the training data as well as a free model (gap x{gap['gap_train']:.2f} "
-                f"< {GAP_MIN:g}), its residual does no net work ({work}); {no_t}", 1.0 - boot)
-    fall = ("still falling with training (x" if cap["still_falling"] else "flat with training (x") + \
-        f"{1 - cap['relative_drop']:.2f} over the extra rounds)"
-    return ("inconclusive", f"the conservative model's training error is x{gap['gap_train']:.1f} the free model's, "
-            f"but its residual does no net work ({work}); {no_t}: under-fitting, or a non-conservative force "
-            f"without net power (e.g. on a limit cycle); conservative held-out error {fall}", 1.0 - boot)
+    clock = (f"t untested ({tchk['testable']})" if not tchk["valid"] else f"t does not help (x{tchk['gain']:.2f})")
+    no_traj = (f"no trend along the record ({eff})" if traj["valid"] else
+               "no trajectory-level statistic (too few oscillations or windows)")
+    if not quality["pointwise_ok"]:
+        return ("inconclusive", f"derivatives too noisy for a pointwise test ({quality['reason']}) and the "
+                f"trajectory-level evidence is weak: {no_traj}", traj["bootstrap_fraction"] or 1.0)
+    if drift["significant"] and not multi_ok:
+        return ("inconclusive", f"the pointwise residual does net work ({work}) but {no_traj}", boot)
+    if gap["large"]:
+        fall = ("still falling with training (x" if cap["still_falling"] else "flat with training (x") + \
+            f"{1 - cap['relative_drop']:.2f} over the extra rounds)"
+        return ("inconclusive", f"the conservative model's training error is x{gap['gap_train']:.1f} the free "
+                f"model's: under-fitting, or a non-conservative force without net power (e.g. on a limit cycle); "
+                f"{no_traj}; {clock}; conservative held-out error {fall}", 1.0 - boot)
+    if not traj["valid"]:
+        return ("inconclusive", f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}) "
+                f"but {no_traj}, so a slow loss of energy cannot be excluded; {clock}", 1.0)
+    bound = traj.get("rate_bound")
+    lim = f"; energy change below {bound:.2g} per time unit (95% bound)" if bound is not None else ""
+    agree = traj["bootstrap_fraction"]
+    return ("none", f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}); {no_traj}"
+            f"{lim}; {clock}", 1.0 - agree if agree is not None else 1.0)
 
 
 # ------------------------------------------------------------------------------------------------------------------
 # the entry point
+
+
+def data_quality(data: Dataset, segs, is_angle, period_samples: float, noise_rel=None, derivative_error=None) -> dict:
+    """Can these data decide at all, and can a pointwise test see anything?
+
+    ``usable`` is False when the positions are mostly noise (σ/std ≥ NOISE_REL_MAX for every coordinate) or the
+    motion is sampled below MIN_SAMPLES_PER_PERIOD samples per oscillation (derivatives, periods and integration
+    all fail there). ``pointwise_ok`` is False when the estimated relative q̈ error (``derivative_error``, per
+    coordinate, from nnphd.userdata) exceeds QDD_ERR_MAX for every coordinate.
+    """
+    from .userdata import noise_level
+
+    n = data.n
+    if noise_rel is None:
+        noise_rel = []
+        for j in range(n):
+            sd = float(np.std(data.q[:, j]))
+            sig = float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs if len(s) > 11])))\
+                if any(len(s) > 11 for s in segs) else 0.0
+            noise_rel.append(sig / sd if sd > 0 else 0.0)
+    noise_rel = np.asarray(noise_rel, float)
+    reasons, usable = [], True
+    if np.all(noise_rel >= NOISE_REL_MAX):
+        usable = False
+        reasons.append(f"the positions are mostly noise (noise/spread σ/std = {np.min(noise_rel):.2f} for every "
+                       f"coordinate, ≥ {NOISE_REL_MAX:g})")
+    if period_samples < MIN_SAMPLES_PER_PERIOD:
+        usable = False
+        reasons.append(f"the motion is sampled far below its time scale ({period_samples:.1f} samples per "
+                       f"oscillation, at least {MIN_SAMPLES_PER_PERIOD:g} are needed)")
+    err = None if derivative_error is None else np.asarray([np.nan if e is None else e for e in derivative_error],
+                                                           float)
+    pointwise_ok = True
+    if err is not None and np.all(np.isfinite(err)) and np.all(err >= QDD_ERR_MAX):
+        pointwise_ok = False
+        reasons.append(f"the estimated relative error of q̈ is {100 * np.min(err):.0f}% or more for every coordinate")
+    if not usable:
+        pointwise_ok = False
+    return {"usable": usable, "pointwise_ok": pointwise_ok, "reason": "; ".join(reasons),
+            "noise_relative": noise_rel.tolist(), "samples_per_period": float(period_samples),
+            "qdd_relative_error": None if err is None else [None if not np.isfinite(e) else float(e) for e in err],
+            "thresholds": {"noise_rel_max": NOISE_REL_MAX, "min_samples_per_period": MIN_SAMPLES_PER_PERIOD,
+                           "qdd_err_max": QDD_ERR_MAX}}
 
 
 def assess(
@@ -625,6 +890,9 @@ def assess(
     width: int = 64,
     holdout_frac: float = 0.25,
     long_factor: int = 3,
+    angles: Sequence[bool] | None = None,
+    position_noise: Sequence[float] | None = None,
+    derivative_error: Sequence[float] | None = None,
 ) -> dict:
     """Is there new physics in trajectory data (q, q̇, t, q̈), with checks against under-fitting?
 
@@ -632,16 +900,22 @@ def assess(
     (None: a single trajectory); ``steps``: training steps per λ and per extra round of the conservative and free
     models; ``n_seeds``: seeds seed, seed+1, … (each with its own held-out trajectories); ``width``: hidden units of
     every network (two layers); ``long_factor``: extra rounds for the conservative model;
+    ``angles``: (n,) bools, coordinates that are angles (enter every network as sin, cos; whole turns are fine);
+    ``position_noise``: (n,) σ of the positions (default: estimated); ``derivative_error``: (n,) relative RMS
+    error of the estimated q̈ (from :func:`nnphd.userdata.to_dataset`; None: q̈ assumed exact);
     ``progress(done, total, message)``: called after every training round. The method: module docstring.
 
     Returns a dict:
 
     * ``status``: "detected" | "none" | "inconclusive"; ``new_physics``: the best call (bool);
-    * ``statistic``: {"name", "value"}: the median net-power fraction ρ of the conservative residual;
-    * ``confidence``: in [0, 1], agreement of the seeds (and of the bootstrap over trajectories) with the status;
+    * ``statistic``: {"name", "value"}: the z of the energy trend along the record (median over seeds);
+    * ``effect``: the effect size and significance in words; ``evidence``: energy trend and shooting numbers of
+      the first seed (file units);
+    * ``confidence``: in [0, 1]: mean over seeds of [seed agrees with the status] × the share of window/block
+      bootstrap replicas of that seed's evidence that reproduce its call;
     * ``reasons``: human-readable, one per seed (first: "seeds disagree" if they do);
-    * ``checks``: every check's numbers per seed (drift, time, gap, capacity, naive, uan_power), ``per_seed`` with
-      everything, the scaling and the thresholds;
+    * ``quality``: whether the data can decide (noise, sampling, derivative error);
+    * ``checks``: every check's numbers per seed, ``per_seed`` with everything, the scaling and the thresholds;
     * ``table``: per λ, L_e and L_b on held-out data (original units; ``_rel``: over ‖f‖) and on the training data,
       median over seeds;
     * ``f_c``, ``f_n``: the learned forces on every row of ``data`` (original units) at λ = ``lambda_forces``
@@ -649,15 +923,35 @@ def assess(
     """
     _validate(data, traj, steps, lambdas, n_seeds)
     t_start = time.perf_counter()
-    sc = fit_scaling(data)
+    n = data.n
+    is_angle = np.zeros(n, bool) if angles is None else np.asarray(angles, bool)
+    if is_angle.shape != (n,):
+        raise ValueError(f"angles must have one flag per coordinate ({n}), got shape {is_angle.shape}")
+    sc = fit_scaling(data, is_angle)
     q, qd, tp, qdd = sc.apply(data)
     segs = segments(traj, data.t)
-    if len(segs) == 1:  # one trajectory: blocks of it for the drift statistics
-        osc_total = float(oscillations(np.concatenate([q, qd], axis=1), segs)[0])
-        nb = int(max(1, min(4, osc_total // 4)))
-        stat_segs = list(np.array_split(segs[0], nb))
-    else:
-        stat_segs = segs
+    q_pos = q.copy()  # positions for integration: angles unwrapped per trajectory
+    for s in segs:
+        q_pos[np.ix_(s, np.flatnonzero(is_angle))] = np.unwrap(q[np.ix_(s, np.flatnonzero(is_angle))], axis=0)
+    period = dominant_period(np.concatenate([q_pos, qd], axis=1), tp, segs)
+    dts = np.concatenate([np.diff(tp[s]) for s in segs])
+    period_samples = period / float(np.median(dts)) if np.isfinite(period) else 0.0
+    if position_noise is None:
+        from .userdata import noise_level
+
+        position_noise = [float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs])))
+                          for j in range(n)]
+    sd = np.std(q_pos * sc.s_q, axis=0)
+    noise_rel = [p / s if s > 0 else 0.0 for p, s in zip(position_noise, sd)]
+    quality = data_quality(data, segs, is_angle, period_samples, noise_rel, derivative_error)
+    cfg_kw = {"periodic": tuple(int(i) for i in np.flatnonzero(is_angle))} if is_angle.any() else {}
+    ctx = {
+        "q": q, "qd": qd, "tp": tp, "qdd": qdd, "segs": segs, "q_pos": q_pos, "sc": sc, "steps": steps,
+        "lambdas": tuple(lambdas), "width": width, "long_factor": long_factor, "holdout_frac": holdout_frac,
+        "feats": time_features(tp, float(tp.max() - tp.min())), "period": period,
+        "sigma": np.asarray(position_noise, float) / sc.s_q, "quality": quality, "clock": clock_testable(tp, segs),
+        "cfg": ModelConfig(n=n, lnn_widths=(width, width), uan_widths=(width, width), **cfg_kw),
+    }
     total = n_seeds * (len(lambdas) + 2 * long_factor + 1)
     done = [0]
 
@@ -666,11 +960,12 @@ def assess(
         if progress:
             progress(done[0], total, "training")
 
-    seeds = []
-    for i in range(n_seeds):
-        seeds.append(_one_seed(q, qd, tp, qdd, segs, stat_segs, seed + i, steps, tuple(lambdas), width,
-                               holdout_frac, long_factor, sc, tick))
-    return _combine(seeds, sc, data, time.perf_counter() - t_start)
+    seeds = [_one_seed(ctx, seed + i, tick) for i in range(n_seeds)]
+    res = _combine(seeds, sc, data, time.perf_counter() - t_start)
+    res["quality"] = quality
+    res["angles"] = [bool(a) for a in is_angle]
+    res["clock"] = {"testable": ctx["clock"][0], "why": ctx["clock"][1]}
+    return res
 
 
 def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict:
@@ -691,7 +986,7 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
     elif status == "none":
         new = False
     else:  # best call when inconclusive
-        new = bool(det > 0.5 or (det == 0.5 and np.median([s["drift"]["rho_median"] for s in seeds]) >= RHO_MIN))
+        new = bool(det > 0.5)
     lams = [r["lam"] for r in seeds[0]["table"]]
     table = []
     for j, lam in enumerate(lams):
@@ -700,7 +995,15 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
             row[key] = float(np.median([s["table"][j][key] for s in seeds]))
         table.append(row)
     lam_rep, fc, fn = seeds[0]["forces"]
+
+    def public(d):
+        return {k: v for k, v in d.items() if not k.startswith("_")}
+
     checks = {
+        "energy_trend": _agg([{"e": public(s["energy_trend"])} for s in seeds], "e",
+                             ("rate", "se", "z", "rate_per_period", "n_blocks", "valid")),
+        "shooting": _agg([{"e": public(s["shooting"])} for s in seeds], "e",
+                         ("d_mean", "se_d_mean", "z", "c", "n_windows", "valid")),
         "drift": _agg(seeds, "drift", ("rho_median", "magnitude_median", "slow_ratio_median", "bootstrap_fraction",
                                        "significant", "valid")),
         "uan_power": _agg(seeds, "uan_power", ("rho_median", "magnitude_median", "significant")),
@@ -708,23 +1011,33 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
         "gap": _agg(seeds, "gap", ("gap_train", "gap_test", "conservative_train", "conservative_test", "free_train",
                                    "free_test", "large")),
         "capacity": _agg(seeds, "capacity", ("relative_drop", "still_falling")),
+        "optimisation": _agg(seeds, "optimisation", ("L_e_train_below", "L_e_train_above", "retrained", "ok")),
         "naive": {"new_physics": [s["naive"]["new_physics"] for s in seeds],
                   "ratio": [s["naive"]["ratio"] for s in seeds]},
-        "per_seed": [{k: v for k, v in s.items() if k not in ("forces", "table")} for s in seeds],
+        "per_seed": [{k: (public(v) if isinstance(v, dict) else v) for k, v in s.items()
+                      if k not in ("forces", "table")} for s in seeds],
         "scaling": sc.to_dict(),
         "thresholds": {"rho_min": RHO_MIN, "rho_low": RHO_LOW, "z_min": Z_MIN, "drift_min": DRIFT_MIN,
-                       "min_oscillations": MIN_OSCILLATIONS,
-                       "time_gain_min": TIME_GAIN_MIN, "time_abs_min": TIME_ABS_MIN, "gap_min": GAP_MIN,
-                       "still_falling": STILL_FALLING},
+                       "min_oscillations": MIN_OSCILLATIONS, "z_both": Z_BOTH, "z_one": Z_ONE,
+                       "z_contradict": Z_CONTRA, "time_gain_min": TIME_GAIN_MIN, "time_abs_min": TIME_ABS_MIN,
+                       "gap_min": GAP_MIN, "still_falling": STILL_FALLING},
         "wall_time_s": wall,
     }
+    zs = [s["energy_trend"]["z"] if s["energy_trend"].get("valid") else float("nan") for s in seeds]
+    first = seeds[0]
     return {
         "status": status,
         "new_physics": new,
-        "statistic": {"name": "median over trajectories of |∫P dt| / ∫|P| dt, P = q̇ᵀ(∂²L/∂q̇²)(q̈ − f_c) of the "
-                              "conservative fit (median over seeds)",
-                      "value": float(np.median([s["drift"]["rho_median"] for s in seeds]))},
+        "statistic": {"name": "z of the energy trend of the learned Lagrangian along the record (decay > 0; median "
+                              "over seeds)",
+                      "value": float(np.nanmedian(zs)) if np.any(np.isfinite(zs)) else None},
+        "effect": first["trajectory_evidence"].get("effect"),
+        "evidence": {"energy_trend": public(first["energy_trend"]), "shooting": public(first["shooting"]),
+                     "combined": first["trajectory_evidence"]},
         "confidence": conf,
+        "confidence_basis": "mean over seeds of [seed agrees] × the share of window/block bootstrap replicas of its "
+                            "trajectory-level evidence (or of trajectories, for the net-power check) that give "
+                            "the same call",
         "reasons": reasons,
         "checks": checks,
         "table": table,
@@ -735,7 +1048,7 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
 
 
 def _agg(seeds, name, keys):
-    return {k: [s[name][k] for s in seeds] for k in keys}
+    return {k: [s[name].get(k) for s in seeds] for k in keys}
 
 
 def _validate(data, traj, steps, lambdas, n_seeds):

@@ -39,8 +39,11 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     data, info = to_dataset(ud, trim=trim)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     say("λ-sweep and trust checks")
+    pc = info["per_coordinate"]
     res = assess(data, traj, seed=seed, steps=steps, n_seeds=n_seeds,
-                 progress=lambda done, total, msg: say(f"training ({done}/{total}): {msg}"), **assess_kw)
+                 progress=lambda done, total, msg: say(f"training ({done}/{total}): {msg}"),
+                 angles=[bool(a) for a in ud.is_angle], position_noise=[pc[c]["noise"] for c in ud.coords],
+                 derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords], **assess_kw)
     coords = list(ud.coords)
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
@@ -61,10 +64,17 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
         "new_physics": bool(res["new_physics"]),
         "status": res["status"],
         "statistic": res["statistic"],
+        "effect": res["effect"],
+        "evidence": res["evidence"],
         "confidence": res["confidence"],
+        "confidence_basis": res["confidence_basis"],
         "reasons": res["reasons"],
+        "quality": res["quality"],
+        "angles": [c for c, a in zip(coords, res["angles"]) if a],
+        "clock": res["clock"],
         "checks": res["checks"],
         "table": res["table"],
+        "lambda_forces": res["lambda_forces"],
         "noise": {c: info["per_coordinate"][c] for c in coords},
         "data": {k: v for k, v in info.items() if k != "per_coordinate"},
         "formula": best,
@@ -122,22 +132,50 @@ def plot_data(data, traj, coords) -> bytes:
     return _png(fig)
 
 
-def plot_loss(table) -> bytes:
+def plot_loss(table, naive_ratio=None) -> bytes:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 4))
     lam = [r["lam"] for r in table]
     ax.loglog(lam, [r["L_e"] for r in table], "o-", label="$L_e$ (held out)")
+    ax.loglog(lam, [max(r.get("L_e_train", float("nan")), 1e-16) for r in table], "^:", alpha=0.6,
+              label="$L_e$ (training)")
     if all("L_b" in r for r in table):
         ax.loglog(lam, [max(r["L_b"], 1e-16) for r in table], "s--", alpha=0.6, label="$L_b$")
     ax.axvline(1.0, color="k", lw=0.8, ls=":")
     ax.set_xlabel("λ")
-    ax.set_ylabel("loss (model units)")
+    ax.set_ylabel("loss (file units)")
     ax.legend()
-    ax.set_title("$L_e(\\lambda)$: a jump at λ = 1 means non-conservative")
+    ratio = "" if naive_ratio is None else f"; median above/below λ=1: ×{naive_ratio:.2g}"
+    ax.set_title(f"pointwise test: $L_e(\\lambda)${ratio}", fontsize=10)
     return _png(fig)
 
 
-def plot_forces(data, traj, coords, fc, fn) -> bytes:
+def plot_energy(trend: dict) -> bytes | None:
+    """Per-period mean of the learned energy above its minimum, with the fitted decay (log scale)."""
+    if not trend.get("block_t"):
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    r = trend.get("rate")
+    for i, (tt, ee) in enumerate(zip(trend["block_t"], trend["block_dE"])):
+        tt, ee = np.asarray(tt), np.asarray(ee)
+        line = ax.semilogy(tt, ee, "o", ms=4, label=f"trajectory {i + 1}" if i < 5 else None)[0]
+        if r is not None and np.isfinite(r) and len(tt) > 1:
+            a = np.mean(np.log(ee) + r * tt)
+            ax.semilogy(tt, np.exp(a - r * tt), "-", color=line.get_color(), lw=1)
+    ax.set_xlabel("t")
+    ax.set_ylabel("learned energy above its minimum (per-period mean)")
+    if trend.get("valid") and r is not None and np.isfinite(r):
+        ax.set_title(f"energy {'decays' if r > 0 else 'grows'} {100 * abs(trend['rate_per_period']):.2g}%/period, "
+                     f"z = {trend['z']:.1f}", fontsize=10)
+    else:
+        ax.set_title("energy trend: not enough whole periods", fontsize=10)
+    if len(trend["block_t"]) > 1:
+        ax.legend(fontsize=8)
+    return _png(fig)
+
+
+def plot_forces(data, traj, coords, fc, fn, lam=None) -> bytes:
     plt = _plt()
     n = len(coords)
     fig, axes = plt.subplots(n, 2, figsize=(11, 2.4 * n), sharex=True, squeeze=False)
@@ -148,8 +186,9 @@ def plot_forces(data, traj, coords, fc, fn) -> bytes:
             axes[j, 0].plot(data.t[m], fc[m, j], lw=0.8)
             axes[j, 1].plot(data.t[m], fn[m, j], lw=0.8)
         axes[j, 0].set_ylabel(f"{c}_ddot")
-    axes[0, 0].set_title("conservative part f_c (grey: q̈ of the data)")
-    axes[0, 1].set_title("non-conservative part f_n")
+    lam = "" if lam is None else f" at λ = {lam:g}"
+    axes[0, 0].set_title("conservative part f_c (grey: estimated q̈)", fontsize=10)
+    axes[0, 1].set_title(f"non-conservative part f_n{lam} (pointwise fit: as noisy as q̈)", fontsize=10)
     axes[-1, 0].set_xlabel("t")
     axes[-1, 1].set_xlabel("t")
     return _png(fig)
@@ -157,10 +196,15 @@ def plot_forces(data, traj, coords, fc, fn) -> bytes:
 
 # ---------------------------------------------------------------------------------------------------- output
 def write_report(out, report: dict, data, traj, coords, fc, fn) -> None:
-    """report.json, data.png, loss_vs_lambda.png, forces.png and a self-contained report.html (each atomic)."""
+    """report.json, the figures and a self-contained report.html (each atomic)."""
     outdir = ensure_writable_dir(out)
-    figs = {"data.png": plot_data(data, traj, coords), "loss_vs_lambda.png": plot_loss(report["table"]),
-            "forces.png": plot_forces(data, traj, coords, fc, fn)}
+    naive = [x for x in report["checks"]["naive"]["ratio"] if x is not None]
+    figs = {"data.png": plot_data(data, traj, coords)}
+    energy = plot_energy(report["evidence"]["energy_trend"])
+    if energy is not None:
+        figs["energy_trend.png"] = energy
+    figs["loss_vs_lambda.png"] = plot_loss(report["table"], float(np.median(naive)) if naive else None)
+    figs["forces.png"] = plot_forces(data, traj, coords, fc, fn, report.get("lambda_forces"))
     for name, png in figs.items():
         atomic_write_bytes(outdir / name, png)
     write_json(outdir / "report.json", report)
@@ -171,11 +215,57 @@ def _e(x) -> str:
     return html.escape(str(x))
 
 
+def _evidence_rows(report: dict) -> str:
+    c = report["checks"]
+    ev = report["evidence"]
+    tr, sh = ev["energy_trend"], ev["shooting"]
+
+    def row(name, value, verdict, note=""):
+        return (f"<tr><td>{_e(name)}</td><td>{_e(value)}</td><td>{_e(verdict)}</td>"
+                f"<td><small>{_e(note)}</small></td></tr>")
+
+    rows = []
+    if tr.get("valid"):
+        rows.append(row("energy trend of the learned Lagrangian (whole record)",
+                        f"{'decays' if tr['rate'] > 0 else 'grows'} {100 * abs(tr['rate_per_period']):.3g}%/period, "
+                        f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
+                        f"z = {tr['z']:.1f}", f"{tr['n_blocks']} whole periods of {tr['period']:.3g}"))
+    else:
+        rows.append(row("energy trend of the learned Lagrangian", "not computed", "—",
+                        f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4) or energy below its floor"))
+    if sh.get("valid"):
+        rows.append(row("multiple shooting: positions integrated over windows, damping probe d",
+                        f"d = {sh['d_mean']:.4g} ± {sh['se_d_mean']:.2g} per time unit (χ² {sh['chi2_conservative']:.4g}"
+                        f" → {sh['chi2']:.4g})", f"z = {sh['z']:.1f}",
+                        f"{sh['n_windows']} windows of ~{sh['window_median_samples']} samples; se = max(jackknife over "
+                        f"{sh['jackknife_groups']} groups, model)"))
+    else:
+        rows.append(row("multiple shooting", "not computed", "—", sh.get("reason", "")))
+    ratio = [x for x in c["naive"]["ratio"] if x is not None]
+    rows.append(row("λ-sweep (paper): L_e above / below λ = 1, held out",
+                    ", ".join(f"×{x:.3g}" for x in ratio) or "—", "pointwise",
+                    "blind to forces below the q̈ error"))
+    rows.append(row("net power of the pointwise residual", ", ".join(f"{x:.2f}" for x in c["drift"]["rho_median"]),
+                    "significant" if any(c["drift"]["significant"]) else "not significant",
+                    "used as evidence only with ≥ 3 trajectories"))
+    rows.append(row("explicit time dependence (leave one trajectory out)",
+                    ", ".join(f"×{x:.2f}" for x in c["time"]["gain"]),
+                    "testable" if report["clock"]["testable"] else "untestable", report["clock"]["why"]))
+    rows.append(row("fit gap: conservative / free model, training data",
+                    ", ".join(f"×{x:.2f}" for x in c["gap"]["gap_train"]), "", "≥ 2 means the Lagrangian under-fits"))
+    opt = c["optimisation"]
+    rows.append(row("optimisation check: L_e(λ<1) ≤ L_e(λ>1) on training data",
+                    ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_train_below"], opt["L_e_train_above"])),
+                    "ok" if all(opt["ok"]) else "violated",
+                    "retrained from the conservative solution" if any(opt["retrained"]) else ""))
+    return "".join(rows)
+
+
 def render_html(report: dict, figs: dict[str, bytes]) -> str:
     status = report["status"]
     colour = {"detected": "#c00", "none": "#070", "inconclusive": "#a60"}.get(status, "#333")
-    rows = "".join(f"<tr><td>{r['lam']:g}</td><td>{r['L_e']:.4g}</td><td>{r.get('L_b', float('nan')):.4g}</td></tr>"
-                   for r in report["table"])
+    rows = "".join(f"<tr><td>{r['lam']:g}</td><td>{r['L_e']:.4g}</td><td>{r.get('L_e_train', float('nan')):.4g}</td>"
+                   f"<td>{r.get('L_b', float('nan')):.4g}</td></tr>" for r in report["table"])
     noise = "".join(
         f"<tr><td>{_e(c)}</td><td>{v['noise']:.3g}</td><td>{100 * v['noise_relative']:.3g}%</td>"
         f"<td>{_e(v['qd']['source'])}, rel. error {_e(_fmt(v['qd'].get('relative_error')))}</td>"
@@ -187,19 +277,34 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         ("nothing readable" if report["blind"] else "— (no non-conservative force detected)")
     img = "".join(f'<figure><img style="max-width:100%" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                   f'<figcaption><a href="{_e(n)}">{_e(n)}</a></figcaption></figure>' for n, b in figs.items())
+    q = report["quality"]
+    angles = ", ".join(report.get("angles", [])) or "none"
+    sugg = report.get("angle_suggestions") or []
+    sugg_html = ("<p><b>Possibly angles, not treated as such:</b> " + "; ".join(
+        f"{_e(c)} ({_e(w)})" for c, w in sugg) + " — rerun with <code>--angles</code>.</p>") if sugg else ""
     return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>nnphd detect: {_e(report['file'])}</title>"
             "<style>body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em}"
             "td,th{border:1px solid #ccc;padding:2px 8px}table{border-collapse:collapse}</style></head><body>"
             f"<h1>nnphd detect: {_e(report['file'])}</h1>"
-            f"<p style='font-size:1.3em;color:{colour}'><b>{_e(status.upper())}</b> — new physics: "
-            f"{'yes' if report['new_physics'] else 'no'}; statistic {report['statistic']['value']:.3g} "
-            f"({_e(report['statistic']['name'])}); confidence "
-            f"{_e(_fmt(report['confidence']))}</p><ul>" + "".join(f"<li>{_e(r)}</li>" for r in report["reasons"]) +
-            f"</ul><h2>Formula of the non-conservative part</h2><p>{formula}</p><h2>Figures</h2>{img}"
-            f"<h2>L_e(λ)</h2><table><tr><th>λ</th><th>L_e</th><th>L_b</th></tr>{rows}</table>"
-            f"<h2>Data and derivatives</h2><table><tr><th>coordinate</th><th>noise σ</th><th>σ / std</th>"
+            f"<p style='font-size:1.4em;color:{colour}'><b>{_e(status.upper())}</b>"
+            f"{' — new physics' if status == 'detected' else ''}</p>"
+            f"<p><b>Effect:</b> {_e(report.get('effect') or '—')}</p>"
+            f"<p><b>Confidence</b> {_e(_fmt(report['confidence']))} <small>({_e(report.get('confidence_basis', ''))})"
+            "</small></p><ul>" + "".join(f"<li>{_e(r)}</li>" for r in report["reasons"]) + "</ul>"
+            f"{sugg_html}<h2>Evidence</h2><table><tr><th>test</th><th>value</th><th>result</th><th>note</th></tr>"
+            f"{_evidence_rows(report)}</table>"
+            f"<h2>Data</h2><p>{report['data']['n_traj']} trajector{'y' if report['data']['n_traj'] == 1 else 'ies'}, "
+            f"{report['data']['n_rows']} rows; angles (sin/cos inside the networks): <b>{_e(angles)}</b>; "
+            f"{q['samples_per_period']:.1f} samples per oscillation; "
+            f"data usable: {'yes' if q['usable'] else 'no'}, pointwise test possible: "
+            f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
+            f"<table><tr><th>coordinate</th><th>noise σ</th><th>σ / std</th>"
             f"<th>q̇</th><th>q̈</th></tr>{noise}</table>"
-            f"<details><summary>checks and settings</summary><pre>{_e(json.dumps(report['checks'], indent=1, default=str))}"
+            f"<h2>Formula of the non-conservative part</h2><p>{formula}</p><h2>Figures</h2>{img}"
+            f"<h2>L_e(λ)</h2><table><tr><th>λ</th><th>L_e held out</th><th>L_e training</th><th>L_b</th></tr>"
+            f"{rows}</table>"
+            f"<details><summary>all checks and settings</summary><pre>"
+            f"{_e(json.dumps(report['checks'], indent=1, default=str))}"
             f"\n{_e(json.dumps(report['settings'], indent=1, default=str))}</pre></details></body></html>")
 
 

@@ -1,0 +1,451 @@
+r"""Evidence that accumulates over the whole record: the energy trend of the learned Lagrangian and a multiple-shooting
+fit of the positions.
+
+Why. On a real recording the non-conservative force is often ~1 % of the total force while the pointwise q̈
+estimated from positions has a ~5 % error, so every pointwise loss (the paper's L_e(λ), a fit gap) is blind to it.
+Its *effect* adds up along the trajectory: a pendulum that loses 1 % of its force to friction loses 64 % of its
+energy over 16 swings. Two statistics read that effect, both from a conservative model (the LNN fitted pointwise):
+
+1. **Energy trend** (:func:`energy_trend`). The learned energy H = q̇·∂L/∂q̇ − L is a function of the state; on
+   recurrent conservative motion its average over one oscillation period is the same in every period however badly
+   the LNN fits, so a trend of the per-period means is non-conservation. Per trajectory the record is cut into
+   blocks of one period (by time; the last partial block is dropped), y_k = log(⟨H⟩_k − H_min) with H_min the learned
+   energy at rest at the lowest point of the data (H(q, 0) minimised over the rows), regressed on the block times
+   with one intercept per trajectory and a common slope −r: r is the relative energy-decay rate (1/time; for linear
+   damping −γq̇ of an oscillator r ≈ γ). Its standard error comes from the residual scatter of the blocks, inflated
+   by √((1+ρ₁)/(1−ρ₁)) for their lag-1 autocorrelation ρ₁ ≥ 0; z = r / se.
+2. **Multiple shooting** (:func:`shooting_fit`). The positions are cut into windows of ≈ 0.75 oscillation periods
+   (so successive windows start at phases 0, 270, 180, 90°, …, which cancels phase-locked biases), each window's
+   initial state (q₀, q̇₀) is free, and the model q̈ = (1 + c)·f_c(q, q̇) − D q̇ is integrated through each window by
+   RK4 at the recorded times (sub-stepped) and fitted to the recorded positions (weighted by the position noise) by
+   Levenberg–Marquardt. c (a common time-scale correction of the conservative model: for a Lagrangian T(q, q̇) − V(q)
+   with T quadratic in q̇, (1 + c)·f_c is the same system on a rescaled clock, so it stays conservative) is a
+   nuisance; D = diag(d) is the probe of the non-conservative force. The per-window initial states are eliminated
+   (Schur complement), so the normal equations of (c, d) are sums of per-window terms; that makes a
+   delete-a-group jackknife over windows (and a bootstrap over windows) one linear solve each. se(d) is the larger of
+   the jackknife and the model-based (reduced-χ² scaled) standard error; z = d̄ / se(d̄) for the kinetic-energy
+   weighted mean d̄ of d (with d in 1/time, energy decays at ≈ d̄).
+
+Window length and noise: the windows are ≈ 0.75 of the dominant period (from mean crossings of q and q̇), at least
+``MIN_WINDOW`` and at most ``MAX_WINDOW`` samples; the residuals are weighted by the estimated position noise of each
+coordinate (floored at 1e-3 of its spread, for noise-free data).
+
+Both statistics are computed in the standardised units of :mod:`nnphd.trust` and reported in the file's units.
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = [
+    "dominant_period",
+    "period_blocks",
+    "energy_trend",
+    "shooting_windows",
+    "shooting_fit",
+    "MIN_WINDOW",
+    "MAX_WINDOW",
+]
+
+MIN_WINDOW = 8
+MAX_WINDOW = 80
+WINDOW_PERIODS = 0.75
+MIN_BLOCKS = 4  # energy trend: at least this many whole periods in all (and 2 per trajectory used)
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# periods and blocks
+
+
+def dominant_period(x, t, segs) -> float:
+    """Time of one oscillation: total duration over the total number of oscillations (mean crossings / 2) of the
+    column of x (N, k) that oscillates most, summed over segments. inf if nothing oscillates."""
+    x = np.asarray(x, float)
+    x = x[:, None] if x.ndim == 1 else x
+    t = np.asarray(t, float)
+    best = 0.0
+    span = 0.0
+    counts = np.zeros(x.shape[1])
+    for s in segs:
+        if len(s) < 3:
+            continue
+        xs = x[s] - x[s].mean(axis=0)
+        sgn = np.sign(xs)
+        counts += np.sum(sgn[1:] * sgn[:-1] < 0, axis=0) / 2.0
+        span += float(t[s][-1] - t[s][0])
+    best = float(np.max(counts)) if counts.size else 0.0
+    return span / best if best >= 1 else math.inf
+
+
+def period_blocks(t, segs, period) -> list[list[np.ndarray]]:
+    """Per segment, the row indices of consecutive whole blocks of duration ``period`` (last partial block dropped)."""
+    t = np.asarray(t, float)
+    out = []
+    for s in segs:
+        ts = t[s]
+        if not np.isfinite(period) or period <= 0:
+            out.append([])
+            continue
+        k = np.floor((ts - ts[0]) / period).astype(int)
+        nfull = int(np.floor((ts[-1] - ts[0]) / period))
+        out.append([s[k == i] for i in range(nfull) if np.sum(k == i) >= 2])
+    return out
+
+
+def _time_mean(y, t) -> float:
+    if len(t) < 2 or t[-1] <= t[0]:
+        return float(np.mean(y))
+    return float(np.sum(0.5 * (y[1:] + y[:-1]) * np.diff(t)) / (t[-1] - t[0]))
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# energy trend
+
+
+def _trend_regression(ys, ts):
+    """Common slope with one intercept per group: (slope, se, dof, residuals, lag-1 autocorrelation)."""
+    rows, cols, y = [], [], []
+    G = len(ys)
+    X = []
+    for g, (yy, tt) in enumerate(zip(ys, ts)):
+        for a, b in zip(yy, tt):
+            e = np.zeros(G + 1)
+            e[g] = 1.0
+            e[G] = b
+            X.append(e)
+            y.append(a)
+    X, y = np.asarray(X), np.asarray(y)
+    dof = len(y) - (G + 1)
+    if dof < 1:
+        return float("nan"), float("inf"), dof, np.zeros(0), 0.0
+    coef, *_ = np.linalg.lstsq(X, y, rcond=None)
+    res = y - X @ coef
+    s2 = float(res @ res) / dof
+    cov = s2 * np.linalg.pinv(X.T @ X)
+    se = math.sqrt(max(cov[G, G], 0.0))
+    # lag-1 autocorrelation of the residuals within groups
+    num = den = 0.0
+    i = 0
+    for yy in ys:
+        r = res[i:i + len(yy)]
+        i += len(yy)
+        num += float(np.sum(r[1:] * r[:-1]))
+        den += float(np.sum(r * r))
+    rho1 = max(0.0, min(0.9, num / den)) if den > 0 else 0.0
+    return float(coef[G]), se * math.sqrt((1 + rho1) / (1 - rho1)), dof, res, rho1
+
+
+def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, seed: int = 0) -> dict:
+    """Relative energy-decay rate r of per-period means of E over whole trajectories, with its significance.
+
+    E (N,) the learned energy at the rows; E_floor its minimum at rest; t (N,) times; segs: row indices per
+    trajectory (sorted by t); period: the oscillation period (same time unit). Returns ``rate`` r (> 0: decay),
+    ``se``, ``z`` = r/se, ``rate_per_period`` = r·period, ``n_blocks``, ``valid`` (≥ MIN_BLOCKS blocks and a positive
+    energy above the floor in every block), per-block ``block_t`` / ``block_dE`` (mean energy above the floor;
+    first 8 trajectories), ``rho1`` and
+    ``bootstrap_z`` (z of the replicas of a block bootstrap within trajectories).
+    """
+    E = np.asarray(E, float)
+    t = np.asarray(t, float)
+    blocks = period_blocks(t, segs, period)
+    ys, ts, raw_t, raw_e = [], [], [], []
+    ok = True
+    for bl in blocks:
+        if len(bl) < 2:
+            continue
+        m = np.array([_time_mean(E[b], t[b]) for b in bl]) - E_floor
+        tt = np.array([float(np.mean(t[b])) for b in bl])
+        if np.any(m <= 0) or not np.all(np.isfinite(m)):
+            ok = False
+            continue
+        ys.append(np.log(m))
+        ts.append(tt)
+        raw_t.append(tt.tolist())
+        raw_e.append(m.tolist())
+    n_blocks = int(sum(len(y) for y in ys))
+    out = {"rate": float("nan"), "se": float("inf"), "z": 0.0, "rate_per_period": float("nan"),
+           "n_blocks": n_blocks, "period": float(period), "valid": False, "rho1": 0.0,
+           "block_t": raw_t[:8], "block_dE": raw_e[:8], "bootstrap_z": [], "all_blocks_positive": ok}
+    if n_blocks < MIN_BLOCKS:
+        return out
+    slope, se, dof, res, rho1 = _trend_regression(ys, ts)
+    if not np.isfinite(slope) or dof < 2:
+        return out
+    rate = -slope
+    z = rate / se if se > 0 else (math.inf if rate != 0 else 0.0)
+    rng = np.random.default_rng(seed)
+    zb = []
+    for _ in range(n_boot):
+        yb, tb = [], []
+        for yy, tt in zip(ys, ts):
+            idx = np.sort(rng.integers(0, len(yy), len(yy)))
+            yb.append(yy[idx])
+            tb.append(tt[idx])
+        sb, seb, _, _, _ = _trend_regression(yb, tb)
+        if np.isfinite(sb) and seb > 0 and np.isfinite(seb):
+            zb.append(-sb / se)  # spread of the estimate in units of the original se
+    out.update(rate=float(rate), se=float(se), z=float(z), rate_per_period=float(rate * period), valid=bool(ok),
+               rho1=float(rho1), dof=int(dof), bootstrap_z=[float(v) for v in zb])
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# multiple shooting
+
+
+def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> list[np.ndarray]:
+    """Row indices of consecutive windows of ≈ WINDOW_PERIODS·period within each segment (MIN_WINDOW…MAX_WINDOW
+    samples; a short remainder is merged into the previous window when that stays ≤ MAX_WINDOW, else dropped)."""
+    t = np.asarray(t, float)
+    if dt_median is None:
+        dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1])
+        dt_median = float(np.median(dts)) if dts.size else 1.0
+    L = WINDOW_PERIODS * period / dt_median if np.isfinite(period) else MAX_WINDOW
+    L = int(min(MAX_WINDOW, max(MIN_WINDOW, round(L))))
+    wins = []
+    for s in segs:
+        k = len(s) // L
+        if k == 0:
+            if len(s) >= MIN_WINDOW:
+                wins.append(s)
+            continue
+        parts = [s[i * L:(i + 1) * L] for i in range(k)]
+        rest = s[k * L:]
+        if len(rest) >= MIN_WINDOW:
+            parts.append(rest)
+        elif len(rest):
+            if len(parts[-1]) + len(rest) <= MAX_WINDOW:
+                parts[-1] = np.concatenate([parts[-1], rest])
+        wins.extend(parts)
+    return wins
+
+
+@functools.partial(jax.jit, static_argnames=("accel", "nsub"))
+def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
+    """Residuals (W, L, n) of the windows and their forward derivatives along every local direction (one direction
+    perturbs the same component of every window's initial state; windows are independent) and every global one."""
+    n = qw.shape[-1]
+
+    def simulate(s, theta):
+        q0, v0 = s[:, :n], s[:, n:]
+
+        def rhs(q, v):
+            return v, (1.0 + theta[0]) * accel(params, q, v) - theta[1:] * v
+
+        def step(carry, dt):
+            q, v = carry
+            h = (dt / nsub)[:, None]
+            for _ in range(nsub):
+                k1q, k1v = rhs(q, v)
+                k2q, k2v = rhs(q + 0.5 * h * k1q, v + 0.5 * h * k1v)
+                k3q, k3v = rhs(q + 0.5 * h * k2q, v + 0.5 * h * k2v)
+                k4q, k4v = rhs(q + h * k3q, v + h * k3v)
+                q = q + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q)
+                v = v + h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v)
+            return (q, v), q
+
+        dts = jnp.diff(tw, axis=1).T  # (L-1, W)
+        _, qs = jax.lax.scan(step, (q0, v0), dts)
+        qs = jnp.concatenate([q0[None], qs], axis=0)  # (L, W, n)
+        return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
+
+    r = simulate(s, theta)
+    P_loc, P_glob = s.shape[1], theta.shape[0]
+    ds = jnp.concatenate([jnp.broadcast_to(jnp.eye(P_loc, dtype=s.dtype)[:, None, :], (P_loc, *s.shape)),
+                          jnp.zeros((P_glob, *s.shape), s.dtype)], axis=0)
+    dth = jnp.concatenate([jnp.zeros((P_loc, P_glob), s.dtype), jnp.eye(P_glob, dtype=s.dtype)], axis=0)
+    jac = jax.vmap(lambda a, b: jax.jvp(simulate, (s, theta), (a, b))[1])(ds, dth)  # (P, W, L, n)
+    return r, jac
+
+
+def _blocks(r, jac, P_loc):
+    """Per-window normal-equation blocks from residuals (W, L, n) and forward derivatives (P, W, L, n)."""
+    W = r.shape[0]
+    R = r.reshape(W, -1)
+    J = jac.reshape(jac.shape[0], W, -1)
+    Jl, Jg = J[:P_loc], J[P_loc:]
+    AtA = np.einsum("iwx,jwx->wij", Jl, Jl)
+    AtB = np.einsum("iwx,kwx->wik", Jl, Jg)
+    BtB = np.einsum("kwx,lwx->wkl", Jg, Jg)
+    Atr = np.einsum("iwx,wx->wi", Jl, R)
+    Btr = np.einsum("kwx,wx->wk", Jg, R)
+    return AtA, AtB, BtB, Atr, Btr, np.sum(R * R, axis=1)
+
+
+def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
+    """Per-window Schur complements (W, G, G), (W, G) over the free global parameters, and the local solves."""
+    W, P, _ = AtA.shape
+    damp = AtA + mu * (np.einsum("wii->wi", AtA)[:, :, None] * np.eye(P)[None] + 1e-12 * np.eye(P)[None])
+    rhs = np.concatenate([AtB[:, :, free], Atr[:, :, None]], axis=2)
+    X = np.linalg.solve(damp, rhs)
+    XB, Xr = X[:, :, :-1], X[:, :, -1]
+    S = BtB[:, free][:, :, free] - np.einsum("wik,wil->wkl", AtB[:, :, free], XB)
+    g = Btr[:, free] - np.einsum("wik,wi->wk", AtB[:, :, free], Xr)
+    return S, g, XB, Xr
+
+
+def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=30, tol=1e-9):
+    """Levenberg–Marquardt over window initial states and the free global parameters."""
+    P_loc = s.shape[1]
+    mu = 1e-3
+    r, jac = (np.asarray(a) for a in _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub))
+    cost = float(np.sum(r * r))
+    if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
+        return s, theta, r, jac, float("nan")
+    for _ in range(iters):
+        AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, P_loc)
+        improved = False
+        for _try in range(8):
+            S, g, XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, mu, free)
+            Stot = S.sum(0)
+            dth_free = -np.linalg.solve(Stot + mu * np.diag(np.diag(Stot)) + 1e-14 * np.eye(len(Stot)), g.sum(0)) \
+                if free.any() else np.zeros(0)
+            ds = -Xr - np.einsum("wik,k->wi", XB, dth_free)
+            dth = np.zeros_like(theta)
+            dth[free] = dth_free
+            s_new, th_new = s + ds, theta + dth
+            r_new, jac_new = (np.asarray(a) for a in
+                              _residuals_and_jac(params, s_new, th_new, tw, qw, mask, inv_sigma, accel, nsub))
+            c_new = float(np.sum(r_new * r_new))
+            if np.isfinite(c_new) and c_new <= cost:
+                rel = (cost - c_new) / max(cost, 1e-300)
+                s, theta, r, jac, cost = s_new, th_new, r_new, jac_new, c_new
+                mu = max(mu / 3.0, 1e-9)
+                improved = True
+                break
+            mu *= 10.0
+        if not improved or rel < tol:
+            break
+    return s, theta, r, jac, cost
+
+
+def _pad_windows(wins, t, q, x0):
+    W = len(wins)
+    L = max(len(w) for w in wins)
+    n = q.shape[1]
+    tw = np.empty((W, L))
+    qw = np.zeros((W, L, n))
+    mask = np.zeros((W, L))
+    for i, w in enumerate(wins):
+        m = len(w)
+        tw[i, :m] = t[w]
+        tw[i, m:] = t[w][-1]  # dt = 0: the state stays put
+        qw[i, :m] = q[w]
+        mask[i, :m] = 1.0
+    s0 = np.concatenate([x0[0][[w[0] for w in wins]], x0[1][[w[0] for w in wins]]], axis=1)
+    return tw, qw, mask, s0
+
+
+def shooting_fit(accel, params, q, qd, t, segs, sigma, period: float, kinetic_weights=None,
+                 n_boot: int = 200, seed: int = 0, max_windows: int = 400) -> dict:
+    """See :func:`_shooting_fit`; a fit that cannot be carried out (the model's trajectories leave the finite
+    numbers, singular normal equations) is reported as ``valid: False`` with the reason, never raised."""
+    try:
+        with np.errstate(all="ignore"):
+            return _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed,
+                                 max_windows)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
+        return {"valid": False, "reason": f"the shooting fit failed ({e.__class__.__name__}: {e})"}
+
+
+def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows):
+    """Multiple-shooting fit of q̈ = (1 + c) f_c(q, q̇) − diag(d) q̇ to the positions (see the module docstring).
+
+    ``accel(params, q, qd)`` is the conservative model (batched, JAX); q, qd (N, n) the positions and the estimated
+    velocities (used only to start the windows); t (N,); segs: rows per trajectory; sigma (n,) the position noise;
+    period: oscillation period (sets the window length). ``kinetic_weights`` (n,): weights of d in d̄ (default
+    mean q̇_j²). Returns the fitted ``c``, ``d`` (n,), ``d_mean`` (= d̄), their standard errors (``se_*``: max of
+    jackknife over groups of windows and model-based), ``z`` = d̄/se(d̄), the χ² with and without d (``chi2``,
+    ``chi2_conservative``; positions weighted by sigma), the window count and length, and ``bootstrap_z`` (d̄ of
+    window-bootstrap replicas over se(d̄)).
+    """
+    q = np.asarray(q, float)
+    qd = np.asarray(qd, float)
+    t = np.asarray(t, float)
+    n = q.shape[1]
+    wins = shooting_windows(segs, t, period)
+    if len(wins) > max_windows:  # evenly spaced subset: bounded cost on very long records
+        keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
+        wins = [wins[i] for i in keep]
+    out = {"valid": False, "n_windows": len(wins)}
+    if len(wins) < 3:
+        out["reason"] = f"only {len(wins)} shooting windows"
+        return out
+    sig = np.asarray(sigma, float)
+    spread = np.array([np.ptp(q[:, j]) for j in range(n)])
+    sig = np.maximum(sig, 1e-3 * np.maximum(spread, 1e-12))
+    tw, qw, mask, s0 = _pad_windows(wins, t, q, (q, qd))
+    tw = tw - tw[:, :1]  # each window on its own clock (the model is autonomous)
+    dtmax = float(np.max(np.diff(tw, axis=1)))
+    vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
+    nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
+    inv_sigma = 1.0 / sig
+    args = (jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma))
+    theta0 = np.zeros(1 + n)
+    r0, j0 = (np.asarray(a) for a in _residuals_and_jac(params, s0, theta0, *args, accel, nsub))
+    bad = ~(np.all(np.isfinite(r0), axis=(1, 2)) & np.all(np.isfinite(j0), axis=(0, 2, 3)))
+    out["dropped_windows"] = int(bad.sum())
+    if bad.any():  # windows where the conservative model leaves the finite numbers from the data's start
+        if (~bad).sum() < 3:
+            out["reason"] = "the conservative model's trajectories leave the finite numbers in almost every window"
+            return out
+        wins = [w_ for w_, b in zip(wins, bad) if not b]
+        tw, qw, mask, s0 = (a[~bad] for a in (tw, qw, mask, s0))
+        args = (jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma))
+    free_c = np.array([True] + [False] * n)
+    free_all = np.ones(1 + n, dtype=bool)
+    s_c, th_c, _, _, chi2_c = _lm(params, accel, s0, theta0, *args, nsub, free_c)
+    s, th, r, jac, chi2 = _lm(params, accel, s_c, th_c, *args, nsub, free_all)
+    if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
+        out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
+        return out
+    AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, 2 * n)
+    S, g, _, _ = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free_all)
+    Stot = S.sum(0)
+    n_res = int(mask.sum()) * n
+    n_par = len(wins) * 2 * n + 1 + n
+    s2 = chi2 / max(n_res - n_par, 1)
+    cov_model = s2 * np.linalg.pinv(Stot)
+    W = len(wins)
+    G = min(W, 20)
+    groups = np.array_split(np.arange(W), G)
+    reps = []
+    for grp in groups:
+        Sg, gg = S[grp].sum(0), g[grp].sum(0)
+        reps.append(th + np.linalg.solve(Stot - Sg + 1e-14 * np.eye(len(Stot)), gg))
+    reps = np.asarray(reps)
+    # jackknife variance (G-1)/G Σ (θ_(g) − θ̄)²; np.cov with bias=True divides by G
+    cov_jack = (G - 1) * np.cov(reps.T, bias=True) if G > 1 else np.zeros_like(Stot)
+    w = np.mean(qd**2, axis=0) if kinetic_weights is None else np.asarray(kinetic_weights, float)
+    w = w / w.sum() if w.sum() > 0 else np.full(n, 1.0 / n)
+    a = np.concatenate([[0.0], w])  # d̄ = a·θ
+    var_model = float(a @ cov_model @ a)
+    var_jack = float(a @ cov_jack @ a)
+    se_mean = math.sqrt(max(var_model, var_jack, 1e-300))
+    se_d = np.sqrt(np.maximum(np.diag(cov_model), np.diag(cov_jack)))
+    d_mean = float(a @ th)
+    rng = np.random.default_rng(seed)
+    zb = []
+    for _ in range(n_boot):
+        idx = rng.integers(0, W, W)
+        Sb, gb = S[idx].sum(0), g[idx].sum(0)
+        try:
+            thb = th - np.linalg.solve(Sb + 1e-14 * np.eye(len(Sb)), gb)
+        except np.linalg.LinAlgError:
+            continue
+        zb.append(float(a @ thb) / se_mean)
+    out.update(
+        valid=bool(np.isfinite(chi2) and np.all(np.isfinite(th))),
+        c=float(th[0]), d=th[1:].tolist(), d_mean=d_mean, se_c=float(se_d[0]), se_d=se_d[1:].tolist(),
+        se_d_mean=se_mean, se_d_mean_model=math.sqrt(max(var_model, 0.0)),
+        se_d_mean_jackknife=math.sqrt(max(var_jack, 0.0)), z=d_mean / se_mean,
+        chi2=float(chi2), chi2_conservative=float(chi2_c), n_residuals=n_res, reduced_chi2=float(s2),
+        window_samples=int(max(len(w_) for w_ in wins)), window_median_samples=int(np.median([len(w_) for w_ in wins])),
+        substeps=nsub, weights=w.tolist(), bootstrap_z=zb, jackknife_groups=G,
+        rms_residual=(np.sqrt(np.sum((r * sig) ** 2, axis=(0, 1)) / mask.sum())).tolist(),
+    )
+    return out

@@ -1,0 +1,67 @@
+"""The verdict on lab-like recordings (tests/fixtures/recordings.py): one noisy, jittered, gappy or quantized
+trajectory per case, positions only, through the whole ``nnphd detect`` pipeline (CSV → derivatives → trust checks)
+at a small configuration. The damped cases must be detected with the energy-decay rate within 10 % of the truth
+(same definition: slope of log(E − E_min), E the exact energy), the conservative ones must not be, and data without
+usable dynamics must give "inconclusive". The full-size table is benchmarks/detect_recordings.py (README)."""
+import sys
+from pathlib import Path
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.fixtures.recordings import make  # noqa: E402
+
+from nnphd.userdetect import detect_file  # noqa: E402
+
+SMALL = dict(steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1)
+
+
+def _detect(name, tmp_path, **kw):
+    rec = make(name)
+    path = rec.write_csv(tmp_path / f"{name}.csv")
+    return rec, detect_file(path, out=None, angles=rec.angles, seed=0, **(SMALL | kw))
+
+
+@pytest.mark.parametrize("name", ["pendulum-damped", "cart", "carts-coupled"])
+def test_damped_recording_is_detected_with_its_decay_rate(name, tmp_path):
+    rec, rep = _detect(name, tmp_path)
+    assert rep["status"] == "detected" and rep["new_physics"]
+    tr = rep["evidence"]["energy_trend"]
+    assert tr["valid"] and tr["z"] > 10
+    assert abs(tr["rate"] / rec.energy_decay_rate - 1) < 0.10
+    # the positions, integrated over windows, need damping too (same sign, significant)
+    sh = rep["evidence"]["shooting"]
+    assert sh["valid"] and sh["z"] > 3 and sh["d_mean"] > 0
+    assert "accumulates along the record" in rep["reasons"][0]
+    assert "decays" in rep["effect"] and "z =" in rep["effect"]
+
+
+@pytest.mark.parametrize("name", ["pendulum", "carts-coupled-free"])
+def test_conservative_recording_is_none(name, tmp_path):
+    rec, rep = _detect(name, tmp_path)
+    assert rec.conservative
+    assert rep["status"] == "none" and not rep["new_physics"]
+    assert abs(rep["evidence"]["energy_trend"]["z"]) < 3 and abs(rep["evidence"]["shooting"]["z"]) < 3
+    assert "95% bound" in rep["reasons"][0]
+
+
+def test_chaotic_double_pendulum_with_whole_turns(tmp_path):
+    rec, rep = _detect("double-pendulum", tmp_path)
+    assert rep["status"] == "detected"
+    assert rep["angles"] == ["theta1", "theta2"]
+    assert rep["evidence"]["energy_trend"]["rate"] > 0  # it loses energy
+
+
+def test_two_trajectories_at_disjoint_times_do_not_test_the_clock(tmp_path):
+    rec, rep = _detect("disjoint-clock", tmp_path)
+    assert rep["status"] != "detected" and not rep["new_physics"]
+    assert not rep["clock"]["testable"] and "tell the trajectories apart" in rep["clock"]["why"]
+    assert rep["checks"]["time"]["valid"] == [False]
+
+
+@pytest.mark.parametrize("name", ["white-noise", "undersampled"])
+def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
+    rec, rep = _detect(name, tmp_path)
+    assert rep["status"] == "inconclusive" and not rep["new_physics"]
+    assert not rep["quality"]["usable"]
+    assert "cannot decide" in rep["reasons"][0]

@@ -44,7 +44,9 @@ def test_positions_only_verdicts(system, expected, tmp_path, capsys):
     for name in ("report.html", "data.png", "loss_vs_lambda.png", "forces.png"):
         assert (out / name).stat().st_size > 1000
     html = (out / "report.html").read_text()
-    assert expected.upper() in html and html.count("data:image/png;base64,") == 3
+    # data, energy trend, L_e(λ), forces; the report leads with the verdict
+    assert expected.upper() in html and html.count("data:image/png;base64,") == 4
+    assert html.index(expected.upper()) < html.index("Evidence") < html.index("Figures")
     if expected == "detected":
         # the blind formula speaks the file's names; HO+LD's f_n = −½ q̇ → a q1_dot term near −0.5
         f = rep["formula"]

@@ -139,25 +139,14 @@ def _trend_regression(ys, ts):
     return float(coef[G]), se * math.sqrt((1 + rho1) / (1 - rho1)), dof, res, rho1
 
 
-def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, seed: int = 0) -> dict:
-    """Relative energy-decay rate r of per-period means of E over whole trajectories, with its significance.
-
-    E (N,) the learned energy at the rows; E_floor its minimum at rest; t (N,) times; segs: row indices per
-    trajectory (sorted by t); period: the oscillation period (same time unit). Returns ``rate`` r (> 0: decay),
-    ``se``, ``z`` = r/se, ``rate_per_period`` = r·period, ``n_blocks``, ``valid`` (≥ MIN_BLOCKS blocks and a positive
-    energy above the floor in every block), per-block ``block_t`` / ``block_dE`` (mean energy above the floor;
-    first 8 trajectories), ``rho1`` and
-    ``bootstrap_z`` (z of the replicas of a block bootstrap within trajectories).
-    """
-    E = np.asarray(E, float)
-    t = np.asarray(t, float)
-    blocks = period_blocks(t, segs, period)
-    ys, ts, raw_t, raw_e = [], [], [], []
+def _block_trend(V, floor: float, t, blocks, period: float, n_boot: int, seed: int) -> dict:
+    """Trend of log(per-period mean of V − floor): rate (> 0: decay), se, z, blocks and bootstrap z's."""
+    ys, ts, raw_t, raw_v = [], [], [], []
     ok = True
     for bl in blocks:
         if len(bl) < 2:
             continue
-        m = np.array([_time_mean(E[b], t[b]) for b in bl]) - E_floor
+        m = np.array([_time_mean(V[b], t[b]) for b in bl]) - floor
         tt = np.array([float(np.mean(t[b])) for b in bl])
         if np.any(m <= 0) or not np.all(np.isfinite(m)):
             ok = False
@@ -165,15 +154,17 @@ def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, s
         ys.append(np.log(m))
         ts.append(tt)
         raw_t.append(tt.tolist())
-        raw_e.append(m.tolist())
+        raw_v.append(m.tolist())
     n_blocks = int(sum(len(y) for y in ys))
     out = {"rate": float("nan"), "se": float("inf"), "z": 0.0, "rate_per_period": float("nan"),
            "n_blocks": n_blocks, "period": float(period), "valid": False, "rho1": 0.0,
-           "block_t": raw_t[:8], "block_dE": raw_e[:8], "bootstrap_z": [], "all_blocks_positive": ok}
+           "block_t": raw_t[:8], "block_dE": raw_v[:8], "bootstrap_z": [], "all_blocks_positive": ok}
     if n_blocks < MIN_BLOCKS:
+        out["reason"] = f"{n_blocks} whole periods (at least {MIN_BLOCKS} are needed)"
         return out
     slope, se, dof, res, rho1 = _trend_regression(ys, ts)
     if not np.isfinite(slope) or dof < 2:
+        out["reason"] = "too few periods per trajectory"
         return out
     rate = -slope
     z = rate / se if se > 0 else (math.inf if rate != 0 else 0.0)
@@ -190,6 +181,48 @@ def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, s
             zb.append(-sb / se)  # spread of the estimate in units of the original se
     out.update(rate=float(rate), se=float(se), z=float(z), rate_per_period=float(rate * period), valid=bool(ok),
                rho1=float(rho1), dof=int(dof), bootstrap_z=[float(v) for v in zb])
+    if not ok:
+        out["reason"] = "the mean is at or below the floor in some period"
+    return out
+
+
+def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, seed: int = 0,
+                 kinetic=None) -> dict:
+    """Relative energy-decay rate r of per-period means of E over whole trajectories, with its significance.
+
+    E (N,) the learned energy at the rows; E_floor its minimum at rest; t (N,) times; segs: row indices per
+    trajectory (sorted by t); period: the oscillation period (same time unit). Returns ``rate`` r (> 0: decay),
+    ``se``, ``z`` = r/se, ``rate_per_period`` = r·period, ``n_blocks``, ``valid`` (≥ MIN_BLOCKS blocks and a positive
+    energy above the floor in every block), per-block ``block_t`` / ``block_dE`` (mean energy above the floor;
+    first 8 trajectories), ``rho1`` and ``bootstrap_z`` (z of the replicas of a block bootstrap within
+    trajectories), ``source``.
+
+    ``kinetic`` (N,), optional: q̇ᵀ(∂²L/∂q̇²)q̇ at the rows. Its per-period mean follows the energy above the minimum
+    on oscillations (virial theorem; exactly for harmonic ones), so its trend cross-checks the learned energy: a
+    learned Lagrangian whose energy does not grow with the size of the motion (a poor fit) can show a trend of the
+    wrong sign. When the learned energy's trend is invalid, or both trends are significant (|z| ≥ 2) with
+    opposite signs, the kinetic trend is used instead (``source`` "kinetic", with the reason); the learned
+    energy's numbers stay under ``energy_*``.
+    """
+    E = np.asarray(E, float)
+    t = np.asarray(t, float)
+    blocks = period_blocks(t, segs, period)
+    out = _block_trend(E, E_floor, t, blocks, period, n_boot, seed)
+    out["source"] = "learned energy"
+    if kinetic is None:
+        return out
+    kin = _block_trend(np.asarray(kinetic, float), 0.0, t, blocks, period, n_boot, seed + 1)
+    out.update(kinetic_rate=kin["rate"], kinetic_se=kin["se"], kinetic_z=kin["z"])
+    if not kin["valid"]:
+        return out
+    clash = out["valid"] and abs(kin["z"]) >= 2 and abs(out["z"]) >= 2 and np.sign(kin["z"]) != np.sign(out["z"])
+    if clash or not out["valid"]:
+        why = (f"the learned energy trends the other way (z = {out['z']:.1f}) from the kinetic energy "
+               f"(z = {kin['z']:.1f}): the learned Lagrangian is not a usable energy here" if clash else
+               f"the learned energy cannot be used ({out.get('reason', 'invalid')})")
+        energy = {f"energy_{k}": out[k] for k in ("rate", "se", "z", "valid")}
+        out = kin | energy | {"source": "kinetic", "source_reason": why, "kinetic_rate": kin["rate"],
+                              "kinetic_se": kin["se"], "kinetic_z": kin["z"]}
     return out
 
 

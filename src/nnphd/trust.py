@@ -650,7 +650,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
     # the multiple-shooting fit of the positions with a damping probe (nnphd.evidence)
     period = ctx["period"]
-    trend = energy_trend(E_l, float(np.min(E_rest)), tp, segs, period, seed=seed)
+    trend = energy_trend(E_l, float(np.min(E_rest)), tp, segs, period, seed=seed, kinetic=kin_l)
     if np.all(np.isfinite(power_l)):
         shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], period, seed=seed)
     else:
@@ -706,7 +706,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
 def _trend_units(tr: dict, sc: Scaling) -> dict:
     """Energy-trend rates from model time units to the file's."""
     out = dict(tr)
-    for k in ("rate", "se"):
+    for k in ("rate", "se", "kinetic_rate", "kinetic_se"):
         if k in out and out[k] is not None and np.isfinite(out[k]):
             out[k] = out[k] / sc.s_t
     out["period"] = tr["period"] * sc.s_t
@@ -774,7 +774,9 @@ def _effect(traj: dict, trend: dict, shoot: dict) -> str:
     if trend.get("valid"):
         r, rp = trend["rate"], trend.get("rate_per_period", float("nan"))
         word = "decays" if r > 0 else "grows"
-        parts.append(f"the learned energy {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
+        what = ("the learned energy" if trend.get("source", "learned energy") == "learned energy" else
+                "the energy (per-period mean kinetic energy; the learned energy was not usable)")
+        parts.append(f"{what} {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
                      f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)")
     if shoot.get("valid"):
         parts.append(f"a fit of the positions by integration over {shoot['n_windows']} windows needs damping "

@@ -24,19 +24,20 @@ Progress = Callable[[str], None]
 
 
 def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed: int = 0, steps: int = 1000,
-                sr_time: float = 10.0, n_seeds: int = 2, progress: Progress | None = None, trim: bool = False,
+                sr_time: float = 10.0, n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
                 **assess_kw) -> dict:
     """Load ``path``, assess it, explain f_n; write report.json / report.html / PNGs to ``out`` if given."""
     from .explain.sparse import sparse_formula
     from .explain.symbolic import genetic_formula
     from .trust import assess
-    from .userdata import load_trajectories, to_dataset
+    from .userdata import load_trajectories, suggest_angles
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
     say("reading the file")
     ud = load_trajectories(path, angles)
-    data, info = to_dataset(ud, trim=trim)
+    data, info, trim = _dataset(ud, trim)
+    info.pop("_rows", None)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     say("λ-sweep and trust checks")
     pc = info["per_coordinate"]
@@ -71,6 +72,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
         "reasons": res["reasons"],
         "quality": res["quality"],
         "angles": [c for c, a in zip(coords, res["angles"]) if a],
+        "angle_suggestions": [list(x) for x in suggest_angles(ud)],
         "clock": res["clock"],
         "checks": res["checks"],
         "table": res["table"],
@@ -87,6 +89,27 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     if out is not None:
         write_report(out, report, data, traj, coords, fc, fn)
     return report
+
+
+def _dataset(ud, trim):
+    """to_dataset with the ends trimmed (``trim="auto"``: drop the half-window at each end of every trajectory,
+    where the one-sided derivative estimates are ~20x worse, unless that would leave a trajectory with less than
+    TRIM_KEEP_MIN of its rows). Returns (dataset, info, the trim actually used)."""
+    from .userdata import DataError, to_dataset
+
+    if trim != "auto":
+        return (*to_dataset(ud, trim=bool(trim)), bool(trim))
+    try:
+        data, info = to_dataset(ud, trim=True)
+    except DataError:
+        return (*to_dataset(ud, trim=False), False)
+    kept = [(b - a) / tr["n_samples"] for tr in info["trajectories"] for a, b in [tr["kept"]]]
+    if min(kept) < TRIM_KEEP_MIN or min(b - a for tr in info["trajectories"] for a, b in [tr["kept"]]) < 12:
+        return (*to_dataset(ud, trim=False), False)
+    return data, info, True
+
+
+TRIM_KEEP_MIN = 0.6
 
 
 def _best_formula(blind: dict) -> dict | None:
@@ -164,7 +187,8 @@ def plot_energy(trend: dict) -> bytes | None:
             a = np.mean(np.log(ee) + r * tt)
             ax.semilogy(tt, np.exp(a - r * tt), "-", color=line.get_color(), lw=1)
     ax.set_xlabel("t")
-    ax.set_ylabel("learned energy above its minimum (per-period mean)")
+    ax.set_ylabel("learned energy above its minimum (per-period mean)" if trend.get("source") != "kinetic" else
+                  "kinetic energy q̇ᵀMq̇ (per-period mean)")
     if trend.get("valid") and r is not None and np.isfinite(r):
         ax.set_title(f"energy {'decays' if r > 0 else 'grows'} {100 * abs(trend['rate_per_period']):.2g}%/period, "
                      f"z = {trend['z']:.1f}", fontsize=10)
@@ -226,10 +250,11 @@ def _evidence_rows(report: dict) -> str:
 
     rows = []
     if tr.get("valid"):
-        rows.append(row("energy trend of the learned Lagrangian (whole record)",
+        rows.append(row(f"energy trend ({tr.get('source', 'learned energy')}; whole record)",
                         f"{'decays' if tr['rate'] > 0 else 'grows'} {100 * abs(tr['rate_per_period']):.3g}%/period, "
                         f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
-                        f"z = {tr['z']:.1f}", f"{tr['n_blocks']} whole periods of {tr['period']:.3g}"))
+                        f"z = {tr['z']:.1f}", f"{tr['n_blocks']} whole periods of {tr['period']:.3g}"
+                        + (f"; {tr['source_reason']}" if tr.get("source_reason") else "")))
     else:
         rows.append(row("energy trend of the learned Lagrangian", "not computed", "—",
                         f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4) or energy below its floor"))

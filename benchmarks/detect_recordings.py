@@ -2,6 +2,8 @@
 written as CSV and run through the whole ``nnphd detect`` pipeline at its default settings; prints the README table.
 
     .venv/bin/python benchmarks/detect_recordings.py [name,name,...] [--seeds 0,1] [--json out.json]
+    .venv/bin/python benchmarks/detect_recordings.py double-pendulum,cart --duration double-pendulum=100,cart=333
+        (longer recordings of the same kind: 10⁴ samples, for the time per file)
 
 Per case: the expected verdict, ours (status and confidence), the energy-decay rate estimated from the learned
 Lagrangian's energy trend against the truth (the same definition, ``true_decay_rate``, applied to the exact energy),
@@ -19,6 +21,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
+from tests.fixtures import recordings  # noqa: E402
 from tests.fixtures.recordings import NAMES, make  # noqa: E402
 
 from nnphd.userdetect import detect_file  # noqa: E402
@@ -33,7 +36,11 @@ def main() -> None:
     ap.add_argument("names", nargs="?", default=",".join(NAMES))
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--json", default=None)
+    ap.add_argument("--duration", default="", help="name=seconds,... : record these cases for longer")
     a = ap.parse_args()
+    for item in filter(None, a.duration.split(",")):
+        name, sec = item.split("=")
+        recordings._PARAMS[name]["duration"] = float(sec)
     rows = []
     print("| case | samples | truth | expected | ours (confidence) | energy-decay rate: ours / truth | shooting z "
           "| s |")

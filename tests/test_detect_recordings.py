@@ -16,10 +16,10 @@ from nnphd.userdetect import detect_file  # noqa: E402
 SMALL = dict(steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1)
 
 
-def _detect(name, tmp_path, **kw):
+def _detect(name, tmp_path, out=None, **kw):
     rec = make(name)
     path = rec.write_csv(tmp_path / f"{name}.csv")
-    return rec, detect_file(path, out=None, angles=rec.angles, seed=0, **(SMALL | kw))
+    return rec, detect_file(path, out=out, angles=rec.angles, seed=0, **(SMALL | kw))
 
 
 @pytest.mark.parametrize("name", ["pendulum-damped", "cart", "carts-coupled"])
@@ -61,7 +61,11 @@ def test_two_trajectories_at_disjoint_times_do_not_test_the_clock(tmp_path):
 
 @pytest.mark.parametrize("name", ["white-noise", "undersampled"])
 def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
-    rec, rep = _detect(name, tmp_path)
+    rec, rep = _detect(name, tmp_path, out=tmp_path / "out")
     assert rep["status"] == "inconclusive" and not rep["new_physics"]
     assert not rep["quality"]["usable"]
     assert "cannot decide" in rep["reasons"][0]
+    why = {"white-noise": "mostly noise", "undersampled": "sampled far below"}[name]
+    assert why in rep["reasons"][0]
+    html = (tmp_path / "out" / "report.html").read_text()
+    assert "INCONCLUSIVE" in html and why in html

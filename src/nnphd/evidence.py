@@ -67,7 +67,6 @@ def dominant_period(x, t, segs) -> float:
     x = np.asarray(x, float)
     x = x[:, None] if x.ndim == 1 else x
     t = np.asarray(t, float)
-    best = 0.0
     span = 0.0
     counts = np.zeros(x.shape[1])
     for s in segs:
@@ -108,7 +107,7 @@ def _time_mean(y, t) -> float:
 
 def _trend_regression(ys, ts):
     """Common slope with one intercept per group: (slope, se, dof, residuals, lag-1 autocorrelation)."""
-    rows, cols, y = [], [], []
+    y = []
     G = len(ys)
     X = []
     for g, (yy, tt) in enumerate(zip(ys, ts)):

@@ -227,8 +227,9 @@ def write_report(out, report: dict, data, traj, coords, fc, fn) -> None:
     energy = plot_energy(report["evidence"]["energy_trend"])
     if energy is not None:
         figs["energy_trend.png"] = energy
-    figs["loss_vs_lambda.png"] = plot_loss(report["table"], float(np.median(naive)) if naive else None)
-    figs["forces.png"] = plot_forces(data, traj, coords, fc, fn, report.get("lambda_forces"))
+    if report["table"]:  # no model is trained on data that cannot decide
+        figs["loss_vs_lambda.png"] = plot_loss(report["table"], float(np.median(naive)) if naive else None)
+        figs["forces.png"] = plot_forces(data, traj, coords, fc, fn, report.get("lambda_forces"))
     for name, png in figs.items():
         atomic_write_bytes(outdir / name, png)
     write_json(outdir / "report.json", report)
@@ -260,13 +261,15 @@ def _evidence_rows(report: dict) -> str:
                         f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4) or energy below its floor"))
     if sh.get("valid"):
         rows.append(row("multiple shooting: positions integrated over windows, damping probe d",
-                        f"d = {sh['d_mean']:.4g} ± {sh['se_d_mean']:.2g} per time unit (χ² {sh['chi2_conservative']:.4g}"
-                        f" → {sh['chi2']:.4g})", f"z = {sh['z']:.1f}",
+                        f"d = {sh['d_mean']:.4g} ± {sh['se_d_mean']:.2g} per time unit "
+                        f"(χ² {sh['chi2_conservative']:.4g} → {sh['chi2']:.4g})", f"z = {sh['z']:.1f}",
                         f"{sh['n_windows']} windows of ~{sh['window_median_samples']} samples; se = max(jackknife over "
                         f"{sh['jackknife_groups']} groups, model)"))
     else:
         rows.append(row("multiple shooting", "not computed", "—", sh.get("reason", "")))
     ratio = [x for x in c["naive"]["ratio"] if x is not None]
+    if not report["table"]:
+        return "".join(rows)
     rows.append(row("λ-sweep (paper): L_e above / below λ = 1, held out",
                     ", ".join(f"×{x:.3g}" for x in ratio) or "—", "pointwise",
                     "blind to forces below the q̈ error"))

@@ -50,7 +50,7 @@ def naive_paper(d, seed):
 
 
 hdr = (f"{'case':20s} {'K':>2s} {'truth':>9s} {'fn/f':>6s} | {'naive':>5s} {'ratio':>6s} {'ho-ratio':>8s} | "
-       f"{'status':12s} {'call':5s} {'conf':>4s} {'rho':>5s} {'drift':>6s} {'t-gain':>6s} {'gap_tr':>6s} | "
+       f"{'status':12s} {'call':5s} {'conf':>4s} {'stat':>5s} {'drift':>6s} {'t-gain':>6s} {'gap_tr':>6s} | "
        f"{'time':>5s}")
 print(hdr)
 print("-" * len(hdr))

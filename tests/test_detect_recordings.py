@@ -69,3 +69,13 @@ def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
     assert why in rep["reasons"][0]
     html = (tmp_path / "out" / "report.html").read_text()
     assert "INCONCLUSIVE" in html and why in html
+
+
+def test_noisy_derivatives_are_warned_about():
+    from nnphd.userdetect import _warnings
+
+    info = {"per_coordinate": {"x": {"qdd": {"relative_error": 0.7}}, "y": {"qdd": {"relative_error": 0.05}},
+                               "z": {"qdd": {"relative_error": None}}}, "trim": True, "n_samples": 10}
+    w = _warnings(info, ["x", "y", "z"])
+    assert len(w) == 1 and "'x'" in w[0] and "70%" in w[0]
+    assert len(_warnings(info | {"trim": False}, ["y"])) == 1

@@ -479,6 +479,8 @@ def detect(
                   f"(confidence {rep['confidence']:.2g})", highlight=False)
     if rep.get("effect"):
         console.print(f"  effect: {rep['effect']}", highlight=False)
+    for w in rep.get("warnings") or []:
+        console.print(f"  [yellow]warning:[/] {w}", highlight=False)
     for c, why in rep.get("angle_suggestions") or []:
         console.print(f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one",
                       highlight=False)

@@ -62,22 +62,29 @@ MIN_BLOCKS = 4  # energy trend: at least this many whole periods in all (and 2 p
 
 
 def dominant_period(x, t, segs) -> float:
-    """Time of one oscillation: total duration over the total number of oscillations (mean crossings / 2) of the
-    column of x (N, k) that oscillates most, summed over segments. inf if nothing oscillates."""
+    """Time of one oscillation of the column of x (N, k) that oscillates most: twice the mean time between
+    consecutive crossings of its mean (crossing times interpolated linearly; from the first to the last crossing of
+    each segment, so the partial oscillations at the ends do not bias it). inf if nothing oscillates."""
     x = np.asarray(x, float)
     x = x[:, None] if x.ndim == 1 else x
     t = np.asarray(t, float)
-    span = 0.0
-    counts = np.zeros(x.shape[1])
+    k = x.shape[1]
+    spans, gaps = np.zeros(k), np.zeros(k)
     for s in segs:
         if len(s) < 3:
             continue
+        ts = t[s]
         xs = x[s] - x[s].mean(axis=0)
-        sgn = np.sign(xs)
-        counts += np.sum(sgn[1:] * sgn[:-1] < 0, axis=0) / 2.0
-        span += float(t[s][-1] - t[s][0])
-    best = float(np.max(counts)) if counts.size else 0.0
-    return span / best if best >= 1 else math.inf
+        for j in range(k):
+            y = xs[:, j]
+            i = np.flatnonzero(np.sign(y[1:]) * np.sign(y[:-1]) < 0)
+            if len(i) < 2:
+                continue
+            tc = ts[i] - y[i] * (ts[i + 1] - ts[i]) / (y[i + 1] - y[i])
+            spans[j] += tc[-1] - tc[0]
+            gaps[j] += len(tc) - 1
+    j = int(np.argmax(gaps))
+    return 2.0 * spans[j] / gaps[j] if gaps[j] >= 2 else math.inf
 
 
 def period_blocks(t, segs, period) -> list[list[np.ndarray]]:

@@ -110,7 +110,7 @@ script (/tmp/trust_table.py, 24 runs at each of the two configs, all correct). S
 * The trajectory-level thresholds Z_BOTH = 3, Z_ONE = 6, Z_CONTRA = 2 are z-scores (standard errors inflated for
   correlated blocks; shooting: max of jackknife and model), set before looking at the stress set; on it
   (tests/fixtures/recordings.py, benchmarks/detect_recordings.py) the conservative recordings gave |z| ≤ 1.3 for
-  both statistics and the damped ones z ≥ 3.9 (shooting) and ≥ 40 (energy). NOISE_REL_MAX = 0.3,
+  both statistics and the damped ones z ≥ 3.9 (shooting) and ≥ 29 (energy). NOISE_REL_MAX = 0.3,
   MIN_SAMPLES_PER_PERIOD = 6, QDD_ERR_MAX = 50 %, CLOCK_MIN_TRAJ = 3 and CLOCK_MANY_TRAJ = 8 are judgement (white
   noise gives σ/std ≈ 1 and q̈ errors > 100 %; a cosine sampled every 2.9 s has 2.2 samples per period).
 """

@@ -73,6 +73,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
         "quality": res["quality"],
         "angles": [c for c, a in zip(coords, res["angles"]) if a],
         "angle_suggestions": [list(x) for x in suggest_angles(ud)],
+        "warnings": _warnings(info, coords),
         "clock": res["clock"],
         "checks": res["checks"],
         "table": res["table"],
@@ -89,6 +90,23 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     if out is not None:
         write_report(out, report, data, traj, coords, fc, fn)
     return report
+
+
+WARN_QDD_ERR = 0.2  # a coordinate whose estimated relative q̈ error exceeds this gets a warning
+
+
+def _warnings(info: dict, coords) -> list[str]:
+    """Plain-language warnings about the derivatives (the verdict itself accounts for them)."""
+    out = []
+    for c in coords:
+        e = info["per_coordinate"][c]["qdd"].get("relative_error")
+        if e is not None and e > WARN_QDD_ERR:
+            out.append(f"q̈ of {c!r} has an estimated relative error of {100 * e:.0f}%: pointwise tests (the λ-sweep, "
+                       "the fit gap) are weak for it; the verdict leans on the trajectory-level evidence")
+    if not info.get("trim") and info.get("n_samples", 0) > 0:
+        out.append("the ends of the trajectories were not trimmed (too short): their derivatives are the least "
+                   "accurate rows")
+    return out
 
 
 def _dataset(ud, trim):
@@ -319,6 +337,7 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
             f"<p><b>Effect:</b> {_e(report.get('effect') or '—')}</p>"
             f"<p><b>Confidence</b> {_e(_fmt(report['confidence']))} <small>({_e(report.get('confidence_basis', ''))})"
             "</small></p><ul>" + "".join(f"<li>{_e(r)}</li>" for r in report["reasons"]) + "</ul>"
+            + "".join(f"<p style='color:#a60'><b>Warning:</b> {_e(w)}</p>" for w in report.get("warnings", [])) +
             f"{sugg_html}<h2>Evidence</h2><table><tr><th>test</th><th>value</th><th>result</th><th>note</th></tr>"
             f"{_evidence_rows(report)}</table>"
             f"<h2>Data</h2><p>{report['data']['n_traj']} trajector{'y' if report['data']['n_traj'] == 1 else 'ies'}, "

@@ -1,0 +1,131 @@
+"""nnphd.evidence on analytic truths: the per-period energy trend and the multiple-shooting damping probe, with an
+exact conservative model (no networks), plus the verdict rules built on them (nnphd.trust)."""
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import nnphd  # noqa: F401  (float64)
+from nnphd.evidence import dominant_period, energy_trend, period_blocks, shooting_fit, shooting_windows
+from nnphd.trust import Z_BOTH, Z_ONE, _seed_status, clock_testable, trajectory_evidence
+
+W0 = 1.1
+
+
+def test_dominant_period_and_blocks():
+    t = np.linspace(0, 100, 2001)
+    x = np.cos(W0 * t)[:, None]
+    P = dominant_period(np.c_[x, -W0 * np.sin(W0 * t)], t, [np.arange(len(t))])
+    assert abs(P / (2 * np.pi / W0) - 1) < 0.005
+    blocks = period_blocks(t, [np.arange(len(t))], P)[0]
+    assert len(blocks) == int(100 // P)
+    assert all(abs((t[b][-1] - t[b][0]) - P) < 2 * (t[1] - t[0]) for b in blocks)
+
+
+def test_energy_trend_recovers_an_exponential_decay_and_sees_none_in_a_constant():
+    rng = np.random.default_rng(0)
+    t = np.linspace(0, 90, 3000)
+    P = 2 * np.pi / W0
+    wobble = 1 + 0.3 * np.cos(2 * W0 * t)  # a state function oscillates within each period
+    E_dec = 2.0 + np.exp(-0.011 * t) * wobble + 1e-3 * rng.standard_normal(t.size)
+    r = energy_trend(E_dec, 2.0, t, [np.arange(t.size)], P)
+    assert r["valid"] and abs(r["rate"] / 0.011 - 1) < 0.02 and r["z"] > 20
+    assert abs(r["rate_per_period"] - 0.011 * P) < 0.002
+    E_con = 2.0 + wobble + 1e-3 * rng.standard_normal(t.size)
+    r0 = energy_trend(E_con, 2.0, t, [np.arange(t.size)], P)
+    assert r0["valid"] and abs(r0["z"]) < 3
+    # a learned energy that falls while the kinetic energy grows is not used; the kinetic trend replaces it
+    K = np.exp(+0.011 * t) * wobble
+    rk = energy_trend(E_dec, 2.0, t, [np.arange(t.size)], P, kinetic=K)
+    assert rk["source"] == "kinetic" and rk["rate"] < 0 and "other way" in rk["source_reason"]
+
+
+def _pendulum(gamma, seed=0, noise=0.0025):
+    rng = np.random.default_rng(seed)
+    T = 15 * 2 * np.pi / W0
+    t = np.sort(np.arange(0, T, 1 / 6) + rng.normal(0, 0.02 / 6, len(np.arange(0, T, 1 / 6))))
+    t = t - t[0]
+    sol = solve_ivp(lambda _, y: [y[1], -W0**2 * np.sin(y[0]) - gamma * y[1]], (t[0], t[-1]), [0.5, 0.0],
+                    t_eval=t, rtol=1e-10, atol=1e-12)
+    q = sol.y[0][:, None] + rng.normal(0, noise, (t.size, 1))
+    qd = sol.y[1][:, None] + rng.normal(0, 2 * noise, (t.size, 1))
+    return t, q, qd
+
+
+def _accel(p, q, v):
+    return -p * jnp.sin(q)
+
+
+@pytest.mark.parametrize("gamma", [0.011, 0.0])
+def test_shooting_fit_measures_the_damping_of_a_noisy_pendulum(gamma):
+    t, q, qd = _pendulum(gamma)
+    segs = [np.arange(t.size)]
+    P = 2 * np.pi / W0
+    # the conservative model is 1 % too stiff: the nuisance c takes it up, d stays the damping
+    r = shooting_fit(_accel, jnp.asarray(1.01 * W0**2), q, qd, t, segs, [0.0025], P)
+    assert r["valid"] and r["n_windows"] >= 15
+    assert abs(r["c"] + 0.01) < 0.003
+    assert abs(r["d_mean"] - gamma) < 3 * r["se_d_mean"] + 1e-4
+    if gamma:
+        assert r["z"] > 10 and r["chi2"] < 0.7 * r["chi2_conservative"]
+    else:
+        assert abs(r["z"]) < 3
+    assert 0.5 < r["reduced_chi2"] < 2  # residuals at the noise level
+
+
+def test_shooting_windows_are_three_quarters_of_a_period():
+    t = np.arange(0, 60, 0.1)
+    wins = shooting_windows([np.arange(t.size)], t, period=4.0)
+    assert all(len(w) == 30 for w in wins[:-1]) and sum(len(w) for w in wins) == t.size
+
+
+def test_clock_is_testable_only_with_overlapping_or_many_trajectories():
+    t = np.r_[np.arange(0, 30, 0.1), np.arange(100, 130, 0.1)]
+    segs = [np.arange(300), np.arange(300, 600)]
+    ok, why = clock_testable(t, segs)
+    assert not ok and "tell the trajectories apart" in why
+    assert not clock_testable(np.arange(0, 30, 0.1), [np.arange(300)])[0]
+    t3 = np.tile(np.arange(0, 30, 0.1), 3)
+    assert clock_testable(t3, [np.arange(300) + 300 * k for k in range(3)])[0]
+    assert not clock_testable(np.tile(np.arange(0, 30, 0.1), 2), [np.arange(300), np.arange(300, 600)])[0]
+
+
+def test_trajectory_evidence_rules():
+    tr = {"valid": True, "z": 0.0, "rate": 0.0, "se": 0.001}
+    sh = {"valid": True, "z": 0.0}
+    assert trajectory_evidence(tr | {"z": Z_BOTH}, sh | {"z": Z_BOTH})["significant"]
+    assert not trajectory_evidence(tr | {"z": Z_BOTH}, sh | {"z": -Z_BOTH})["significant"]  # disagree
+    assert trajectory_evidence(tr | {"z": Z_ONE}, sh | {"z": 1.0})["significant"]
+    assert not trajectory_evidence(tr | {"z": Z_ONE}, sh | {"z": -2.5})["significant"]  # contradicted
+    assert trajectory_evidence(tr | {"z": -Z_ONE}, {"valid": False})["direction"] == "gains energy"
+    assert not trajectory_evidence({"valid": False}, {"valid": False})["valid"]
+    none = trajectory_evidence(tr | {"z": 0.5, "rate": 0.0005}, sh)
+    assert not none["significant"] and abs(none["rate_bound"] - 0.0025) < 1e-12
+
+
+def _checks(rho=0.0, sig=False):
+    drift = {"bootstrap_fraction": 0.0, "rho_median": rho, "magnitude_median": 0.0, "significant": sig,
+             "valid": True}
+    tchk = {"significant": False, "valid": False, "testable": "one trajectory", "gain": 1.0}
+    gap = {"large": False, "gap_train": 1.0}
+    cap = {"still_falling": False, "relative_drop": 0.0}
+    return drift, tchk, gap, cap
+
+
+def test_verdict_refuses_when_derivatives_are_too_noisy_and_the_record_is_silent():
+    weak = {"significant": False, "valid": True, "bootstrap_fraction": 0.0, "rate_bound": 0.01,
+            "effect": "energy flat"}
+    bad_qdd = {"usable": True, "pointwise_ok": False, "reason": "q̈ error 80%"}
+    status, reason, _ = _seed_status(*_checks(rho=0.9, sig=True), weak, bad_qdd, 1)
+    assert status == "inconclusive" and "derivatives too noisy for a pointwise test" in reason
+    good = {"usable": True, "pointwise_ok": True, "reason": ""}
+    status, reason, _ = _seed_status(*_checks(), weak, good, 1)
+    assert status == "none" and "95% bound" in reason
+    # one trajectory: a pointwise net-power signal alone, unconfirmed by the record, is not a detection
+    status, _, _ = _seed_status(*_checks(rho=0.9, sig=True), weak, good, 1)
+    assert status == "inconclusive"
+    strong = weak | {"significant": True, "bootstrap_fraction": 0.97, "effect": "energy decays 6%/period, z = 40"}
+    status, reason, agree = _seed_status(*_checks(), strong, bad_qdd, 1)
+    assert status == "detected" and "z = 40" in reason and agree == 0.97
+    unusable = {"usable": False, "pointwise_ok": False, "reason": "the positions are mostly noise"}
+    assert _seed_status(*_checks(), strong, unusable, 1)[0] == "inconclusive"

@@ -24,4 +24,4 @@ for name in names:
             fh.write(f"{k},{ti:.6f}," + ",".join(f"{v:.10g}" for v in row) + "\n")
     t0 = time.time()
     r = detect_file(path, out=None, sr_time=0)
-    print(f"{name:22s} {r['status']:13s} conf {r['confidence']:.2f} stat {r['statistic']['value']:.3f} {time.time()-t0:.0f}s | {r['reasons'][0][:150]}", flush=True)
+    print(f"{name:22s} {r['status']:13s} conf {r['confidence']:.2f} z {(r['statistic']['value'] if r['statistic']['value'] is not None else float('nan')):.1f} {time.time()-t0:.0f}s | {r['reasons'][0][:150]}", flush=True)

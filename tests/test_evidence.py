@@ -105,7 +105,7 @@ def test_trajectory_evidence_rules():
 
 def _checks(rho=0.0, sig=False):
     drift = {"bootstrap_fraction": 0.0, "rho_median": rho, "magnitude_median": 0.0, "significant": sig,
-             "valid": True}
+             "valid": True, "slow_ratio_median": 0.0}
     tchk = {"significant": False, "valid": False, "testable": "one trajectory", "gain": 1.0}
     gap = {"large": False, "gap_train": 1.0}
     cap = {"still_falling": False, "relative_drop": 0.0}
@@ -127,5 +127,10 @@ def test_verdict_refuses_when_derivatives_are_too_noisy_and_the_record_is_silent
     strong = weak | {"significant": True, "bootstrap_fraction": 0.97, "effect": "energy decays 6%/period, z = 40"}
     status, reason, agree = _seed_status(*_checks(), strong, bad_qdd, 1)
     assert status == "detected" and "z = 40" in reason and agree == 0.97
+    # one trajectory whose energy swings without a trend (a drive off resonance): not "none"
+    swing = _checks()
+    swing[0]["slow_ratio_median"] = 5.0
+    status, reason, _ = _seed_status(*swing, weak, good, 1)
+    assert status == "inconclusive" and "swings slowly" in reason
     unusable = {"usable": False, "pointwise_ok": False, "reason": "the positions are mostly noise"}
     assert _seed_status(*_checks(), strong, unusable, 1)[0] == "inconclusive"

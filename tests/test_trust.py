@@ -267,3 +267,12 @@ def test_single_trajectory_drag_is_detected_and_time_is_not_tested():
     assert abs(ev["shooting"]["d_mean"] - 0.02) < 0.3 * 0.02  # truth: −0.02 q̇
     assert "accumulates along the record" in r["reasons"][0]
     assert calls and calls[-1][0] == calls[-1][1] == len(FAST["lambdas"]) + 2 * FAST["long_factor"] + 1
+
+
+def test_single_trajectory_drive_is_never_a_confident_none():
+    # along one trajectory a periodic drive is confounded with the state (no clock test) and does no net work;
+    # the learned energy swings from oscillation to oscillation, which must keep the verdict from "none"
+    d, _ = make_case("anharmonic+drive", n_traj=1, seed=0, T=60.0)
+    r = assess(d, None, seed=0, **FAST)
+    assert r["status"] != "none"
+    assert r["checks"]["drift"]["slow_ratio_median"][0] >= 2.0

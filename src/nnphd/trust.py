@@ -589,6 +589,9 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
         table.append({"lam": lam, "L_e": _l1(r[te]), "L_b": _l1(fnb[te]), "L_e_train": _l1(r[tr]),
                       "L_b_train": _l1(fnb[tr]), "L_e_rel": _l1(r[te]) / fnorm_te, "L_b_rel": _l1(fnb[te]) / fnorm_te})
     check["ok"] = not below or not above or med_train(below) <= 1.1 * med_train(above)
+    if below and above:  # the same comparison on held-out data: a free UAN that generalises worse than none
+        held = [float(np.median([r["L_e"] for r in table if (r["lam"] < 1) == side])) for side in (True, False)]
+        check.update(L_e_heldout_below=held[0], L_e_heldout_above=held[1], heldout_ok=held[0] <= 1.5 * held[1])
     return pts, evals, table, check
 
 
@@ -734,7 +737,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
 def _trend_units(tr: dict, sc: Scaling) -> dict:
     """Energy-trend rates from model time units to the file's."""
     out = dict(tr)
-    for k in ("rate", "se", "kinetic_rate", "kinetic_se"):
+    for k in ("rate", "se", "kinetic_rate", "kinetic_se", "energy_rate", "energy_se"):
         if k in out and out[k] is not None and np.isfinite(out[k]):
             out[k] = out[k] / sc.s_t
     out["period"] = tr["period"] * sc.s_t
@@ -855,6 +858,12 @@ def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tu
     if not traj["valid"]:
         return ("inconclusive", f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}) "
                 f"but {no_traj}, so a slow loss of energy cannot be excluded; {clock}", 1.0)
+    if n_traj < 3 and drift["slow_ratio_median"] >= Z_MIN:
+        return ("inconclusive", f"no trend of the energy along the record ({eff}), but the learned energy swings "
+                f"slowly from one oscillation to the next (slow ratio Z = {drift['slow_ratio_median']:.1f} ≥ "
+                f"{Z_MIN:g}): a force without net power (a drive, beats) or a Lagrangian that does not fit this "
+                f"orbit; with {n_traj} trajector{'y' if n_traj == 1 else 'ies'} the two cannot be told apart; "
+                f"{clock}", 1.0)
     bound = traj.get("rate_bound")
     lim = f"; energy change below {bound:.2g} per time unit (95% bound)" if bound is not None else ""
     agree = traj["bootstrap_fraction"]
@@ -980,7 +989,10 @@ def assess(
     ctx = {
         "q": q, "qd": qd, "tp": tp, "qdd": qdd, "segs": segs, "q_pos": q_pos, "sc": sc, "steps": steps,
         "lambdas": tuple(lambdas), "width": width, "long_factor": long_factor, "holdout_frac": holdout_frac,
-        "feats": time_features(tp, float(tp.max() - tp.min())), "period": period,
+        # t enters the UAN only where a clock can be told from a trajectory label; along one trajectory (or at
+        # disjoint times) it only lets the UAN fit the training times and extrapolate wildly to held-out ones
+        "feats": (time_features(tp, float(tp.max() - tp.min())) if clock_testable(tp, segs)[0]
+                  else np.zeros((len(tp), 0))), "period": period,
         "sigma": np.asarray(position_noise, float) / sc.s_q, "quality": quality, "clock": clock_testable(tp, segs),
         "cfg": ModelConfig(n=n, lnn_widths=(width, width), uan_widths=(width, width), **cfg_kw),
     }
@@ -1073,7 +1085,8 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
         "gap": _agg(seeds, "gap", ("gap_train", "gap_test", "conservative_train", "conservative_test", "free_train",
                                    "free_test", "large")),
         "capacity": _agg(seeds, "capacity", ("relative_drop", "still_falling")),
-        "optimisation": _agg(seeds, "optimisation", ("L_e_train_below", "L_e_train_above", "retrained", "ok")),
+        "optimisation": _agg(seeds, "optimisation", ("L_e_train_below", "L_e_train_above", "retrained", "ok",
+                                                     "L_e_heldout_below", "L_e_heldout_above", "heldout_ok")),
         "naive": {"new_physics": [s["naive"]["new_physics"] for s in seeds],
                   "ratio": [s["naive"]["ratio"] for s in seeds]},
         "per_seed": [{k: (public(v) if isinstance(v, dict) else v) for k, v in s.items()

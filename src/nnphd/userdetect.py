@@ -304,6 +304,12 @@ def _evidence_rows(report: dict) -> str:
                     ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_train_below"], opt["L_e_train_above"])),
                     "ok" if all(opt["ok"]) else "violated",
                     "retrained from the conservative solution" if any(opt["retrained"]) else ""))
+    if opt.get("L_e_heldout_below"):
+        rows.append(row("generalisation check: L_e(λ<1) ≤ 1.5 × L_e(λ>1) on held-out data",
+                        ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_heldout_below"],
+                                                                         opt["L_e_heldout_above"])),
+                        "ok" if all(opt["heldout_ok"]) else "violated: the free UAN generalises worse than none",
+                        "t enters the UAN only where the clock is testable"))
     return "".join(rows)
 
 

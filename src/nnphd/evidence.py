@@ -201,34 +201,30 @@ def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, s
     ``se``, ``z`` = r/se, ``rate_per_period`` = r·period, ``n_blocks``, ``valid`` (≥ MIN_BLOCKS blocks and a positive
     energy above the floor in every block), per-block ``block_t`` / ``block_dE`` (mean energy above the floor;
     first 8 trajectories), ``rho1`` and ``bootstrap_z`` (z of the replicas of a block bootstrap within
-    trajectories), ``source``.
+    trajectories).
 
-    ``kinetic`` (N,), optional: q̇ᵀ(∂²L/∂q̇²)q̇ at the rows. Its per-period mean follows the energy above the minimum
-    on oscillations (virial theorem; exactly for harmonic ones), so its trend cross-checks the learned energy: a
-    learned Lagrangian whose energy does not grow with the size of the motion (a poor fit) can show a trend of the
-    wrong sign. When the learned energy's trend is invalid, or both trends are significant (|z| ≥ 2) with
-    opposite signs, the kinetic trend is used instead (``source`` "kinetic", with the reason); the learned
-    energy's numbers stay under ``energy_*``.
+    ``kinetic`` (N,), optional: q̇ᵀ(∂²L/∂q̇²)q̇ at the rows. On oscillations its per-period mean follows the energy
+    above the minimum (virial theorem: ⟨T⟩ = kE/(k+2) for V ∝ rᵏ, k > 0), so its trend cross-checks the learned
+    energy: a learned Lagrangian whose energy does not grow with the size of the motion (a poor fit) shows a trend
+    of the wrong sign. When both trends are significant (|z| ≥ 2) with opposite signs, the energy trend is marked
+    invalid (``consistent`` False, with the reason) — not replaced by the kinetic one, whose relation to the
+    energy flips sign for attractive potentials like 1/r (⟨T⟩ = −E). ``kinetic_rate``/``kinetic_z`` are reported.
     """
     E = np.asarray(E, float)
     t = np.asarray(t, float)
     blocks = period_blocks(t, segs, period)
     out = _block_trend(E, E_floor, t, blocks, period, n_boot, seed)
-    out["source"] = "learned energy"
+    out["consistent"] = True
     if kinetic is None:
         return out
     kin = _block_trend(np.asarray(kinetic, float), 0.0, t, blocks, period, n_boot, seed + 1)
     out.update(kinetic_rate=kin["rate"], kinetic_se=kin["se"], kinetic_z=kin["z"])
-    if not kin["valid"]:
-        return out
-    clash = out["valid"] and abs(kin["z"]) >= 2 and abs(out["z"]) >= 2 and np.sign(kin["z"]) != np.sign(out["z"])
-    if clash or not out["valid"]:
-        why = (f"the learned energy trends the other way (z = {out['z']:.1f}) from the kinetic energy "
-               f"(z = {kin['z']:.1f}): the learned Lagrangian is not a usable energy here" if clash else
-               f"the learned energy cannot be used ({out.get('reason', 'invalid')})")
-        energy = {f"energy_{k}": out[k] for k in ("rate", "se", "z", "valid")}
-        out = kin | energy | {"source": "kinetic", "source_reason": why, "kinetic_rate": kin["rate"],
-                              "kinetic_se": kin["se"], "kinetic_z": kin["z"]}
+    if kin["valid"] and out["valid"] and abs(kin["z"]) >= 2 and abs(out["z"]) >= 2 and \
+            np.sign(kin["z"]) != np.sign(out["z"]):
+        out.update(valid=False, consistent=False,
+                   reason=f"the learned energy trends the other way (z = {out['z']:.1f}) from the kinetic energy "
+                          f"(z = {kin['z']:.1f}): either the learned Lagrangian is not a usable energy, or the "
+                          "potential is attractive like 1/r (there ⟨T⟩ = −E); the energy trend is not used")
     return out
 
 

@@ -109,8 +109,8 @@ script (/tmp/trust_table.py, 24 runs at each of the two configs, all correct). S
 * STILL_FALLING = 15 % and MIN_OSCILLATIONS = 2 are judgement, not tuned.
 * The trajectory-level thresholds Z_BOTH = 3, Z_ONE = 6, Z_CONTRA = 2 are z-scores (standard errors inflated for
   correlated blocks; shooting: max of jackknife and model), set before looking at the stress set; on it
-  (tests/fixtures/recordings.py, benchmarks/detect_recordings.py) the conservative recordings gave |z| ≤ 1.3 for
-  both statistics and the damped ones z ≥ 3.9 (shooting) and ≥ 29 (energy). NOISE_REL_MAX = 0.3,
+  (tests/fixtures/recordings.py, benchmarks/detect_recordings.py) the conservative recordings gave |z| ≤ 1.7 for
+  both statistics and the damped ones z ≥ 4.1 (shooting) and ≥ 34 (energy). NOISE_REL_MAX = 0.3,
   MIN_SAMPLES_PER_PERIOD = 6, QDD_ERR_MAX = 50 %, CLOCK_MIN_TRAJ = 3 and CLOCK_MANY_TRAJ = 8 are judgement (white
   noise gives σ/std ≈ 1 and q̈ errors > 100 %; a cosine sampled every 2.9 s has 2.2 samples per period).
 """
@@ -763,7 +763,7 @@ def _shoot_units(sh: dict, sc: Scaling) -> dict:
     return out
 
 
-def trajectory_evidence(trend: dict, shoot: dict, z_trend=None, z_shoot=None) -> dict:
+def trajectory_evidence(trend: dict, shoot: dict) -> dict:
     """Combine the energy trend and the shooting fit into one call: ``significant`` when both are valid, agree in
     sign (energy falls ⇔ damping d̄ > 0) and both reach Z_BOTH, or either alone reaches Z_ONE while the other does
     not contradict it (same sign or invalid); ``bound``: with no significant evidence, the 95 % upper limit on the
@@ -805,9 +805,7 @@ def _effect(traj: dict, trend: dict, shoot: dict) -> str:
     if trend.get("valid"):
         r, rp = trend["rate"], trend.get("rate_per_period", float("nan"))
         word = "decays" if r > 0 else "grows"
-        what = ("the learned energy" if trend.get("source", "learned energy") == "learned energy" else
-                "the energy (per-period mean kinetic energy; the learned energy was not usable)")
-        parts.append(f"{what} {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
+        parts.append(f"the learned energy {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
                      f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)")
     if shoot.get("valid"):
         parts.append(f"a fit of the positions by integration over {shoot['n_windows']} windows needs damping "

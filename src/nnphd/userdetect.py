@@ -205,13 +205,13 @@ def plot_energy(trend: dict) -> bytes | None:
             a = np.mean(np.log(ee) + r * tt)
             ax.semilogy(tt, np.exp(a - r * tt), "-", color=line.get_color(), lw=1)
     ax.set_xlabel("t")
-    ax.set_ylabel("learned energy above its minimum (per-period mean)" if trend.get("source") != "kinetic" else
-                  "kinetic energy q̇ᵀMq̇ (per-period mean)")
+    ax.set_ylabel("learned energy above its minimum (per-period mean)")
     if trend.get("valid") and r is not None and np.isfinite(r):
         ax.set_title(f"energy {'decays' if r > 0 else 'grows'} {100 * abs(trend['rate_per_period']):.2g}%/period, "
                      f"z = {trend['z']:.1f}", fontsize=10)
     else:
-        ax.set_title("energy trend: not enough whole periods", fontsize=10)
+        ax.set_title("energy trend not used: " + ("contradicted by the kinetic energy" if not trend.get(
+            "consistent", True) else "not enough whole periods"), fontsize=10)
     if len(trend["block_t"]) > 1:
         ax.legend(fontsize=8)
     return _png(fig)
@@ -269,14 +269,13 @@ def _evidence_rows(report: dict) -> str:
 
     rows = []
     if tr.get("valid"):
-        rows.append(row(f"energy trend ({tr.get('source', 'learned energy')}; whole record)",
+        rows.append(row("energy trend of the learned Lagrangian (whole record)",
                         f"{'decays' if tr['rate'] > 0 else 'grows'} {100 * abs(tr['rate_per_period']):.3g}%/period, "
                         f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
-                        f"z = {tr['z']:.1f}", f"{tr['n_blocks']} whole periods of {tr['period']:.3g}"
-                        + (f"; {tr['source_reason']}" if tr.get("source_reason") else "")))
+                        f"z = {tr['z']:.1f}", f"{tr['n_blocks']} whole periods of {tr['period']:.3g}"))
     else:
-        rows.append(row("energy trend of the learned Lagrangian", "not computed", "—",
-                        f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4) or energy below its floor"))
+        rows.append(row("energy trend of the learned Lagrangian", "not used", "—",
+                        tr.get("reason", f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4)")))
     if sh.get("valid"):
         rows.append(row("multiple shooting: positions integrated over windows, damping probe d",
                         f"d = {sh['d_mean']:.4g} ± {sh['se_d_mean']:.2g} per time unit "

@@ -496,8 +496,8 @@ def _lnn_eval(lnn, q, qd, qdd, cfg):
     fc = lnn_accel(lnn, q, qd, cfg)
     _, hvv, _ = lnn_derivatives(lnn, q, qd, cfg)
     power = jnp.einsum("bi,bij,bj->b", qd, hvv, qdd - fc)
-    kin = jnp.abs(jnp.einsum("bi,bij,bj->b", qd, hvv, qd))
-    return fc, power, kin, lnn_energy(lnn, q, qd, cfg), lnn_energy(lnn, q, jnp.zeros_like(qd), cfg)
+    kin = jnp.einsum("bi,bij,bj->b", qd, hvv, qd)
+    return fc, power, jnp.abs(kin), lnn_energy(lnn, q, qd, cfg), lnn_energy(lnn, q, jnp.zeros_like(qd), cfg), kin
 
 
 @functools.partial(jax.jit, static_argnames=("cfg",))
@@ -647,7 +647,10 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
         hist_tr.append(_l1(r[tr]) if np.all(np.isfinite(r[tr])) else np.inf)
         if best is None or hist_tr[-1] < hist_tr[best[0]]:
             best = (i, ev, lp["lnn"])
-    fc_l, power_l, kin_l, E_l, E_rest = best[1]
+    fc_l, power_l, kin_l, E_l, E_rest, kin_signed = best[1]
+    # L and −L give the same motion: orient the learned Lagrangian so that its kinetic term is positive (else its
+    # "energy" is −E and a decay reads as growth)
+    orient = -1.0 if np.median(kin_signed) < 0 else 1.0
     lnn_best = best[2]
     cons_tr, cons_te = hist_tr[best[0]], hist[best[0]]
 
@@ -681,7 +684,8 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
     # the multiple-shooting fit of the positions with a damping probe (nnphd.evidence)
     period = ctx["period"]
-    trend = energy_trend(E_l, float(np.min(E_rest)), tp, segs, period, seed=seed, kinetic=kin_l)
+    trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, period, seed=seed, kinetic=kin_l)
+    trend["orientation"] = orient
     if np.all(np.isfinite(power_l)):
         shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], period, seed=seed)
     else:

@@ -297,6 +297,17 @@ def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
     return r, jac
 
 
+def _solve(A, b):
+    """A⁻¹b for one matrix or a stack; least squares where a matrix is singular (a window or parameter the data
+    do not constrain)."""
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        if A.ndim == 2:
+            return np.linalg.lstsq(A, b, rcond=None)[0]
+        return np.stack([np.linalg.lstsq(a, bb, rcond=None)[0] for a, bb in zip(A, b)])
+
+
 def _blocks(r, jac, P_loc):
     """Per-window normal-equation blocks from residuals (W, L, n) and forward derivatives (P, W, L, n)."""
     W = r.shape[0]
@@ -314,16 +325,18 @@ def _blocks(r, jac, P_loc):
 def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
     """Per-window Schur complements (W, G, G), (W, G) over the free global parameters, and the local solves."""
     W, P, _ = AtA.shape
-    damp = AtA + mu * (np.einsum("wii->wi", AtA)[:, :, None] * np.eye(P)[None] + 1e-12 * np.eye(P)[None])
+    diag = np.einsum("wii->wi", AtA)
+    scale = np.maximum(diag.mean(axis=1), 1e-300)[:, None, None]
+    damp = AtA + mu * diag[:, :, None] * np.eye(P)[None] + 1e-10 * scale * np.eye(P)[None]
     rhs = np.concatenate([AtB[:, :, free], Atr[:, :, None]], axis=2)
-    X = np.linalg.solve(damp, rhs)
+    X = _solve(damp, rhs)
     XB, Xr = X[:, :, :-1], X[:, :, -1]
     S = BtB[:, free][:, :, free] - np.einsum("wik,wil->wkl", AtB[:, :, free], XB)
     g = Btr[:, free] - np.einsum("wik,wi->wk", AtB[:, :, free], Xr)
     return S, g, XB, Xr
 
 
-def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=30, tol=1e-9):
+def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
     """Levenberg–Marquardt over window initial states and the free global parameters."""
     P_loc = s.shape[1]
     mu = 1e-3
@@ -337,8 +350,7 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=30, 
         for _try in range(8):
             S, g, XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, mu, free)
             Stot = S.sum(0)
-            dth_free = -np.linalg.solve(Stot + mu * np.diag(np.diag(Stot)) + 1e-14 * np.eye(len(Stot)), g.sum(0)) \
-                if free.any() else np.zeros(0)
+            dth_free = -_solve(Stot + mu * np.diag(np.diag(Stot)), g.sum(0)) if free.any() else np.zeros(0)
             ds = -Xr - np.einsum("wik,k->wi", XB, dth_free)
             dth = np.zeros_like(theta)
             dth[free] = dth_free
@@ -438,6 +450,9 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
     if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
         out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
         return out
+    if np.array_equal(th[1:], th_c[1:]):
+        out["reason"] = "the shooting fit made no progress (no step lowered χ²): not converged"
+        return out
     AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, 2 * n)
     S, g, _, _ = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free_all)
     Stot = S.sum(0)
@@ -451,7 +466,7 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
     reps = []
     for grp in groups:
         Sg, gg = S[grp].sum(0), g[grp].sum(0)
-        reps.append(th + np.linalg.solve(Stot - Sg + 1e-14 * np.eye(len(Stot)), gg))
+        reps.append(th + _solve(Stot - Sg, gg))
     reps = np.asarray(reps)
     # jackknife variance (G-1)/G Σ (θ_(g) − θ̄)²; np.cov with bias=True divides by G
     cov_jack = (G - 1) * np.cov(reps.T, bias=True) if G > 1 else np.zeros_like(Stot)
@@ -468,10 +483,7 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
     for _ in range(n_boot):
         idx = rng.integers(0, W, W)
         Sb, gb = S[idx].sum(0), g[idx].sum(0)
-        try:
-            thb = th - np.linalg.solve(Sb + 1e-14 * np.eye(len(Sb)), gb)
-        except np.linalg.LinAlgError:
-            continue
+        thb = th - _solve(Sb, gb)
         zb.append(float(a @ thb) / se_mean)
     out.update(
         valid=bool(np.isfinite(chi2) and np.all(np.isfinite(th))),

@@ -746,9 +746,7 @@ def _trend_units(tr: dict, sc: Scaling) -> dict:
             out[k] = out[k] / sc.s_t
     out["period"] = tr["period"] * sc.s_t
     out["block_t"] = [[sc.t0 + x * sc.s_t for x in b] for b in tr.get("block_t", [])]
-    out.pop("bootstrap_z", None)
-    out["bootstrap_fraction"] = (float(np.mean(np.abs(tr["bootstrap_z"]) >= Z_ONE)) if tr.get("bootstrap_z") else None)
-    out["_bootstrap_z"] = tr.get("bootstrap_z", [])
+    out["_bootstrap_z"] = out.pop("bootstrap_z", [])
     return out
 
 
@@ -762,8 +760,7 @@ def _shoot_units(sh: dict, sc: Scaling) -> dict:
     for k in ("d_mean", "se_d_mean", "se_d_mean_model", "se_d_mean_jackknife"):
         out[k] = sh[k] / sc.s_t
     out["rms_residual"] = [x * s for x, s in zip(sh["rms_residual"], sc.s_q)]
-    out["_bootstrap_z"] = sh.pop("bootstrap_z", []) if "bootstrap_z" in sh else []
-    out.pop("bootstrap_z", None)
+    out["_bootstrap_z"] = out.pop("bootstrap_z", [])
     return out
 
 
@@ -877,24 +874,15 @@ def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tu
 # the entry point
 
 
-def data_quality(data: Dataset, segs, is_angle, period_samples: float, noise_rel=None, derivative_error=None) -> dict:
+def data_quality(period_samples: float, noise_rel, derivative_error=None) -> dict:
     """Can these data decide at all, and can a pointwise test see anything?
 
-    ``usable`` is False when the positions are mostly noise (σ/std ≥ NOISE_REL_MAX for every coordinate) or the
-    motion is sampled below MIN_SAMPLES_PER_PERIOD samples per oscillation (derivatives, periods and integration
-    all fail there). ``pointwise_ok`` is False when the estimated relative q̈ error (``derivative_error``, per
-    coordinate, from nnphd.userdata) exceeds QDD_ERR_MAX for every coordinate.
+    ``noise_rel`` (n,): position noise over the spread of each coordinate. ``usable`` is False when the positions
+    are mostly noise (σ/std ≥ NOISE_REL_MAX for every coordinate) or the motion is sampled below
+    MIN_SAMPLES_PER_PERIOD samples per oscillation (derivatives, periods and integration all fail there).
+    ``pointwise_ok`` is False when the estimated relative q̈ error (``derivative_error``, per coordinate, from
+    nnphd.userdata) exceeds QDD_ERR_MAX for every coordinate.
     """
-    from .userdata import noise_level
-
-    n = data.n
-    if noise_rel is None:
-        noise_rel = []
-        for j in range(n):
-            sd = float(np.std(data.q[:, j]))
-            sig = float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs if len(s) > 11])))\
-                if any(len(s) > 11 for s in segs) else 0.0
-            noise_rel.append(sig / sd if sd > 0 else 0.0)
     noise_rel = np.asarray(noise_rel, float)
     reasons, usable = [], True
     if np.all(noise_rel >= NOISE_REL_MAX):
@@ -984,18 +972,18 @@ def assess(
                           for j in range(n)]
     sd = np.std(q_pos * sc.s_q, axis=0)
     noise_rel = [p / s if s > 0 else 0.0 for p, s in zip(position_noise, sd)]
-    quality = data_quality(data, segs, is_angle, period_samples, noise_rel, derivative_error)
+    quality = data_quality(period_samples, noise_rel, derivative_error)
+    clock = clock_testable(tp, segs)
     if not quality["usable"]:  # nothing to learn from: say so at once instead of training on noise
-        return _unusable(quality, sc, data, is_angle, clock_testable(tp, segs), time.perf_counter() - t_start)
+        return _unusable(quality, sc, data, is_angle, clock, time.perf_counter() - t_start)
     cfg_kw = {"periodic": tuple(int(i) for i in np.flatnonzero(is_angle))} if is_angle.any() else {}
     ctx = {
         "q": q, "qd": qd, "tp": tp, "qdd": qdd, "segs": segs, "q_pos": q_pos, "sc": sc, "steps": steps,
         "lambdas": tuple(lambdas), "width": width, "long_factor": long_factor, "holdout_frac": holdout_frac,
         # t enters the UAN only where a clock can be told from a trajectory label; along one trajectory (or at
         # disjoint times) it only lets the UAN fit the training times and extrapolate wildly to held-out ones
-        "feats": (time_features(tp, float(tp.max() - tp.min())) if clock_testable(tp, segs)[0]
-                  else np.zeros((len(tp), 0))), "period": period,
-        "sigma": np.asarray(position_noise, float) / sc.s_q, "quality": quality, "clock": clock_testable(tp, segs),
+        "feats": time_features(tp, float(tp.max() - tp.min())) if clock[0] else np.zeros((len(tp), 0)),
+        "period": period, "sigma": np.asarray(position_noise, float) / sc.s_q, "quality": quality, "clock": clock,
         "cfg": ModelConfig(n=n, lnn_widths=(width, width), uan_widths=(width, width), **cfg_kw),
     }
     total = n_seeds * (len(lambdas) + 2 * long_factor + 1)

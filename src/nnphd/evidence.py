@@ -42,13 +42,13 @@ import jax.numpy as jnp
 import numpy as np
 
 __all__ = [
-    "dominant_period",
-    "period_blocks",
-    "energy_trend",
-    "shooting_windows",
-    "shooting_fit",
-    "MIN_WINDOW",
     "MAX_WINDOW",
+    "MIN_WINDOW",
+    "dominant_period",
+    "energy_trend",
+    "period_blocks",
+    "shooting_fit",
+    "shooting_windows",
 ]
 
 MIN_WINDOW = 8
@@ -168,7 +168,7 @@ def _block_trend(V, floor: float, t, blocks, period: float, n_boot: int, seed: i
     if n_blocks < MIN_BLOCKS:
         out["reason"] = f"{n_blocks} whole periods (at least {MIN_BLOCKS} are needed)"
         return out
-    slope, se, dof, res, rho1 = _trend_regression(ys, ts)
+    slope, se, dof, _res, rho1 = _trend_regression(ys, ts)
     if not np.isfinite(slope) or dof < 2:
         out["reason"] = "too few periods per trajectory"
         return out
@@ -252,9 +252,8 @@ def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> 
         rest = s[k * L:]
         if len(rest) >= MIN_WINDOW:
             parts.append(rest)
-        elif len(rest):
-            if len(parts[-1]) + len(rest) <= MAX_WINDOW:
-                parts[-1] = np.concatenate([parts[-1], rest])
+        elif len(rest) and len(parts[-1]) + len(rest) <= MAX_WINDOW:
+            parts[-1] = np.concatenate([parts[-1], rest])
         wins.extend(parts)
     return wins
 
@@ -324,7 +323,7 @@ def _blocks(r, jac, P_loc):
 
 def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
     """Per-window Schur complements (W, G, G), (W, G) over the free global parameters, and the local solves."""
-    W, P, _ = AtA.shape
+    _W, P, _ = AtA.shape
     diag = np.einsum("wii->wi", AtA)
     scale = np.maximum(diag.mean(axis=1), 1e-300)[:, None, None]
     damp = AtA + mu * diag[:, :, None] * np.eye(P)[None] + 1e-10 * scale * np.eye(P)[None]
@@ -338,9 +337,18 @@ def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
 
 def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
     """Levenberg–Marquardt over window initial states and the free global parameters."""
+    def resjac(s_, th_):
+        return _residuals_and_jac(params, s_, th_, tw, qw, mask, inv_sigma, accel, nsub)
+    return lm_windows(resjac, s, theta, free, iters, tol)
+
+
+def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8):
+    """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
+    ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
+    window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²)."""
     P_loc = s.shape[1]
     mu = 1e-3
-    r, jac = (np.asarray(a) for a in _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub))
+    r, jac = (np.asarray(a) for a in resjac(s, theta))
     cost = float(np.sum(r * r))
     if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
         return s, theta, r, jac, float("nan")
@@ -355,8 +363,7 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, 
             dth = np.zeros_like(theta)
             dth[free] = dth_free
             s_new, th_new = s + ds, theta + dth
-            r_new, jac_new = (np.asarray(a) for a in
-                              _residuals_and_jac(params, s_new, th_new, tw, qw, mask, inv_sigma, accel, nsub))
+            r_new, jac_new = (np.asarray(a) for a in resjac(s_new, th_new))
             c_new = float(np.sum(r_new * r_new))
             if np.isfinite(c_new) and c_new <= cost:
                 rel = (cost - c_new) / max(cost, 1e-300)
@@ -368,6 +375,49 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, 
         if not improved or rel < tol:
             break
     return s, theta, r, jac, cost
+
+
+@functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
+def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+    """Like :func:`_residuals_and_jac` for any model q̈ = rhs(theta, q, v, t, aux) (batched over windows; t the
+    absolute time: window start ``t0w`` plus the window clock ``tw``; ``aux`` any data the model needs, not
+    differentiated — so one compiled function serves many models that differ only in data)."""
+    n = qw.shape[-1]
+
+    def simulate(s, theta):
+        q0, v0 = s[:, :n], s[:, n:]
+
+        def f(q, v, tt):
+            return v, rhs(theta, q, v, tt, aux)
+
+        def step(carry, x):
+            h = x / nsub
+            hh = h[:, None]
+
+            def sub(_, c):  # one RK4 sub-step (a loop, not unrolled: the graph stays small to compile)
+                q, v, tt = c
+                k1q, k1v = f(q, v, tt)
+                k2q, k2v = f(q + 0.5 * hh * k1q, v + 0.5 * hh * k1v, tt + 0.5 * h)
+                k3q, k3v = f(q + 0.5 * hh * k2q, v + 0.5 * hh * k2v, tt + 0.5 * h)
+                k4q, k4v = f(q + hh * k3q, v + hh * k3v, tt + h)
+                return (q + hh / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
+                        v + hh / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v), tt + h)
+
+            q, v, tt = jax.lax.fori_loop(0, nsub, sub, carry)
+            return (q, v, tt), q
+
+        dts = jnp.diff(tw, axis=1).T  # (L-1, W)
+        _, qs = jax.lax.scan(step, (q0, v0, t0w + tw[:, 0]), dts)
+        qs = jnp.concatenate([q0[None], qs], axis=0)
+        return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
+
+    r = simulate(s, theta)
+    P_loc, P_glob = s.shape[1], theta.shape[0]
+    ds = jnp.concatenate([jnp.broadcast_to(jnp.eye(P_loc, dtype=s.dtype)[:, None, :], (P_loc, *s.shape)),
+                          jnp.zeros((P_glob, *s.shape), s.dtype)], axis=0)
+    dth = jnp.concatenate([jnp.zeros((P_loc, P_glob), s.dtype), jnp.eye(P_glob, dtype=s.dtype)], axis=0)
+    jac = jax.vmap(lambda a, b: jax.jvp(simulate, (s, theta), (a, b))[1])(ds, dth)
+    return r, jac
 
 
 def _pad_windows(wins, t, q, x0):
@@ -446,7 +496,7 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
     free_c = np.array([True] + [False] * n)
     free_all = np.ones(1 + n, dtype=bool)
     s_c, th_c, _, _, chi2_c = _lm(params, accel, s0, theta0, *args, nsub, free_c)
-    s, th, r, jac, chi2 = _lm(params, accel, s_c, th_c, *args, nsub, free_all)
+    _s, th, r, jac, chi2 = _lm(params, accel, s_c, th_c, *args, nsub, free_all)
     if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
         out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
         return out

@@ -451,8 +451,13 @@ def detect(
     steps: str = typer.Option("1000", "--steps", help="training steps per λ (and per extra round of the checks)"),
     repeats: str = typer.Option("2", "--repeats", help="repeated seeds (other initialisation and held-out trajectories)"),
     sr_time: str = typer.Option("10", "--sr-time", help="seconds of genetic symbolic regression per component (0: skip)"),
+    law: Optional[list[str]] = typer.Option(None, "--law", help="a candidate law of your own, as a formula in the "
+                                            "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
+                                            "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)"),
+    law_level: str = typer.Option("auto", "--law-fit", help="auto | pointwise | trajectory: how the candidate laws "
+                                  "are ranked (trajectory: multiple shooting on the positions)"),
 ):
-    """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, formula."""
+    """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
     from .report import ensure_writable_dir
     from .userdata import DataError, load_trajectories
 
@@ -464,7 +469,13 @@ def detect(
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
-        load_trajectories(file, ang)  # validate the file before anything is created
+        ud = load_trajectories(file, ang)  # validate the file before anything is created
+        if law_level not in ("auto", "pointwise", "trajectory"):
+            raise InputError(f"--law-fit must be auto, pointwise or trajectory, got {law_level!r}")
+        from .explain.laws import parse_law
+
+        for x in law or []:
+            parse_law(x, ud.coords)
         ensure_writable_dir(out)
     except (ValueError, DataError) as e:
         raise InputError(str(e)) from None
@@ -473,7 +484,7 @@ def detect(
 
     with console.status("detect: starting") as status:
         rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
-                          progress=status.update)
+                          progress=status.update, laws=tuple(law or ()), law_level=law_level)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
                   f"(confidence {rep['confidence']:.2g})", highlight=False)
@@ -487,9 +498,19 @@ def detect(
     for r in rep["reasons"]:
         console.print(f"  • {r}", highlight=False)
     f = rep["formula"]
-    if f is not None:
-        console.print("  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()), highlight=False)
-    elif rep["blind"]:
+    lw = rep.get("law") or {}
+    if lw.get("law"):
+        w = lw["law"]
+        console.print(f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items()),
+                      highlight=False)
+        console.print("       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items()),
+                      highlight=False)
+    elif f is not None:
+        console.print("  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items())
+                      + f"  [{f['method']}]", highlight=False)
+    if lw.get("reason") and not lw.get("law"):
+        console.print(f"  law: none — {lw['reason']}", highlight=False)
+    elif rep["blind"] and f is None:
         console.print("  formula: nothing readable", highlight=False)
     console.print(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)")
 

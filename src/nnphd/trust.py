@@ -735,6 +735,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
         "forces": (rep[0], rep[1], rep[2]),
         "holdout": [int(len(s)) for s in te_segs],
         "force_norm": fnorm,
+        "_conservative": {"lnn": lnn_best, "cfg": cfg, "fc": back(fc_l)},
     }
 
 
@@ -1080,7 +1081,7 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
         "naive": {"new_physics": [s["naive"]["new_physics"] for s in seeds],
                   "ratio": [s["naive"]["ratio"] for s in seeds]},
         "per_seed": [{k: (public(v) if isinstance(v, dict) else v) for k, v in s.items()
-                      if k not in ("forces", "table")} for s in seeds],
+                      if k not in ("forces", "table", "_conservative")} for s in seeds],
         "scaling": sc.to_dict(),
         "thresholds": {"rho_min": RHO_MIN, "rho_low": RHO_LOW, "z_min": Z_MIN, "drift_min": DRIFT_MIN,
                        "min_oscillations": MIN_OSCILLATIONS, "z_both": Z_BOTH, "z_one": Z_ONE,
@@ -1109,7 +1110,20 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
         "lambda_forces": lam_rep,
         "f_c": fc,
         "f_n": fn,
+        "_conservative": {**first["_conservative"], "scaling": sc},
     }
+
+
+def conservative_fn(cons: dict):
+    """The LNN's conservative acceleration f_c(q, q̇) in the file's units as a JAX function (batched), from
+    ``assess(...)["_conservative"]`` — for fits that integrate the model (the laws' trajectory-level ranking)."""
+    accel = _accel_fn(cons["cfg"])
+    lnn, sc = cons["lnn"], cons["scaling"]
+    mu, s_q, s_t = jnp.asarray(sc.mu_q), jnp.asarray(sc.s_q), float(sc.s_t)
+
+    def fc(q, qd):
+        return accel(lnn, (q - mu) / s_q, qd * s_t / s_q) * s_q / s_t**2
+    return fc
 
 
 def _agg(seeds, name, keys):

@@ -14,7 +14,7 @@ import io
 import json
 import time
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -25,19 +25,29 @@ Progress = Callable[[str], None]
 
 def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed: int = 0, steps: int = 1000,
                 sr_time: float = 10.0, n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
-                **assess_kw) -> dict:
-    """Load ``path``, assess it, explain f_n; write report.json / report.html / PNGs to ``out`` if given."""
+                laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> dict:
+    """Load ``path``, assess it, find the law of f_n; write report.json / report.html / PNGs to ``out`` if given.
+
+    ``laws``: user candidate laws (SymPy strings, :func:`nnphd.explain.laws.parse_law`), ranked with the built-in
+    ones; ``law_level``: "pointwise" (fits to the estimated q̈ only), "trajectory" (re-ranked by multiple shooting
+    on the positions) or "auto" (trajectory whenever the data oscillate enough for shooting windows).
+    """
+    from .explain.laws import parse_law
     from .explain.sparse import sparse_formula
     from .explain.symbolic import genetic_formula
     from .trust import assess
     from .userdata import load_trajectories, suggest_angles
 
     say = progress or (lambda msg: None)
+    if law_level not in ("auto", "pointwise", "trajectory"):
+        raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
     t0 = time.perf_counter()
     say("reading the file")
     ud = load_trajectories(path, angles)
+    for x in laws:  # fail on a bad --law before any work
+        parse_law(x, ud.coords)
     data, info, trim = _dataset(ud, trim)
-    info.pop("_rows", None)
+    row_err = info.pop("_rows", None)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     say("λ-sweep and trust checks")
     pc = info["per_coordinate"]
@@ -48,8 +58,9 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     coords = list(ud.coords)
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
+    law = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, say)
     blind = {}
-    if res["status"] == "detected":
+    if res["status"] == "detected" and law.get("law") is None:  # fallback: no candidate family fits
         names = coords + [f"{c}_dot" for c in coords]
         inputs = {n: col for n, col in zip(names, np.concatenate([data.q, data.qd], axis=1).T)}
         inputs["t"] = data.t
@@ -59,7 +70,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
         if sr_time > 0:
             say("blind explanation (genetic symbolic regression)")
             blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
-    best = _best_formula(blind)
+    best = _law_formula(law) or _best_formula(blind)
     report = {
         "file": str(path),
         "new_physics": bool(res["new_physics"]),
@@ -81,6 +92,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
         "noise": {c: info["per_coordinate"][c] for c in coords},
         "data": {k: v for k, v in info.items() if k != "per_coordinate"},
         "formula": best,
+        "law": law,
         "blind": blind,
         "settings": {"seed": seed, "steps": steps, "n_seeds": n_seeds, "sr_time_per_component_s": sr_time,
                      "trim": trim, **assess_kw, **res.get("settings", {})},
@@ -131,12 +143,68 @@ TRIM_KEEP_MIN = 0.6
 
 
 def _best_formula(blind: dict) -> dict | None:
-    """The readable blind formula with the smaller residual (sparse wins ties: fewer, library terms)."""
+    """The readable blind formula with the smaller residual (sparse wins ties: fewer, library terms) — the fallback
+    when no candidate law fits; marked as such."""
     ok = [(b["rel_rms"], i, name, b) for i, (name, b) in enumerate(blind.items()) if b.get("readable")]
     if not ok:
         return None
     _, _, name, b = min(ok)
-    return {"method": name, "formula": b["formula"], "rel_rms": b["rel_rms"]}
+    return {"method": f"{name} (fallback: blind regression of the UAN output, not a candidate law)",
+            "formula": b["formula"], "rel_rms": b["rel_rms"]}
+
+
+def _law_formula(law: dict) -> dict | None:
+    w = law.get("law")
+    if not w:
+        return None
+    return {"method": f"candidate law: {w['title']} ({w['method']} fit)", "formula": w["formula"],
+            "heldout_ratio": w["heldout_ratio"], "params": w["params"], "stderr": w["stderr"]}
+
+
+def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, say) -> dict:
+    """The ranked candidate laws with the LNN's f_c as the conservative base; a law is claimed only when the verdict
+    is "detected"."""
+    from .trust import conservative_fn
+
+    cons = res.get("_conservative")
+    if cons is None:
+        return {"law": None, "reason": "no law fitted: " + (res["quality"].get("reason") or "the data cannot decide"),
+                "candidates": []}
+    fc = np.asarray(cons["fc"])
+    ok = bool(np.all(np.isfinite(fc)))
+    table = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, fc=fc if ok else None,
+                     fc_fn=conservative_fn(cons) if ok else None, laws=laws, level=level, seed=seed, progress=say)
+    out = table.to_dict()
+    if res["status"] != "detected" and out["law"] is not None:
+        out["candidate_law"] = out["law"]
+        out["law"] = None
+        out["reason"] = (f"the verdict is {res['status']!r}, so no law is claimed (the best candidate, "
+                         f"{out['candidate_law']['title']}, would beat zero: {table.reason})")
+    return out
+
+
+def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn=None, laws=(), level="auto",
+             seed=0, progress: Progress | None = None):
+    """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.userdata.to_dataset`
+    (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
+    the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
+    shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
+    (on the rows / as a JAX function); without it the conservative library alone. Returns a LawTable."""
+    from .evidence import dominant_period
+    from .explain.laws import _segments, rank_laws, rank_trajectory
+
+    say = progress or (lambda msg: None)
+    say("candidate laws (pointwise joint fits)")
+    err = None if row_err is None else row_err["qdd_err"]
+    table = rank_laws(data.q, data.qd, data.qdd, data.t, traj, names=coords, angles=is_angle, qdd_err=err, fc=fc,
+                      user_laws=laws, seed=seed)
+    period = dominant_period(np.concatenate([data.q, data.qd], axis=1), data.t, _segments(traj))
+    if level != "pointwise" and np.isfinite(period):
+        say("candidate laws (trajectory level: multiple shooting on the positions)")
+        sigma = [info["per_coordinate"][c]["noise"] for c in coords]
+        table = rank_trajectory(table, data.q, data.qd, data.t, traj, sigma=sigma, period=period, angles=is_angle,
+                                fc_fn=fc_fn if fc is not None else None, seed=seed)
+    return table
 
 
 # ---------------------------------------------------------------------------------------------------- figures
@@ -324,8 +392,9 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         for c, v in report["noise"].items())
     f = report["formula"]
     formula = ("<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in f["formula"].items())
-               + f"<br><small>{_e(f['method'])}, {100 * f['rel_rms']:.3g}% rms of f_n left</small>") if f else \
-        ("nothing readable" if report["blind"] else "— (no non-conservative force detected)")
+               + f"<br><small>{_e(f['method'])}</small>") if f else \
+        ("nothing readable" if report["blind"] else "— (no law claimed)")
+    formula += _law_html(report.get("law") or {})
     img = "".join(f'<figure><img style="max-width:100%" src="data:image/png;base64,{base64.b64encode(b).decode()}">'
                   f'<figcaption><a href="{_e(n)}">{_e(n)}</a></figcaption></figure>' for n, b in figs.items())
     q = report["quality"]
@@ -352,12 +421,35 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
             f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
             f"<table><tr><th>coordinate</th><th>noise σ</th><th>σ / std</th>"
             f"<th>q̇</th><th>q̈</th></tr>{noise}</table>"
-            f"<h2>Formula of the non-conservative part</h2><p>{formula}</p><h2>Figures</h2>{img}"
+            f"<h2>Law of the non-conservative part</h2><p>{formula}</p><h2>Figures</h2>{img}"
             f"<h2>L_e(λ)</h2><table><tr><th>λ</th><th>L_e held out</th><th>L_e training</th><th>L_b</th></tr>"
             f"{rows}</table>"
             f"<details><summary>all checks and settings</summary><pre>"
             f"{_e(json.dumps(report['checks'], indent=1, default=str))}"
             f"\n{_e(json.dumps(report['settings'], indent=1, default=str))}</pre></details></body></html>")
+
+
+def _law_html(law: dict) -> str:
+    """The ranked table of candidate laws (winner first)."""
+    cands = law.get("candidates") or []
+    if not cands:
+        return f"<p><small>{_e(law.get('reason', ''))}</small></p>"
+    rows = []
+    for i, c in enumerate(cands):
+        params = "<br>".join(f"{_e(k)} = {v:.4g} ± {c['stderr'].get(k, float('nan')):.2g}"
+                             for k, v in c["params"].items())
+        formula = "<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in c["formula"].items())
+        style = " style='font-weight:bold'" if i == 0 else ""
+        flag = "" if c.get("significant", True) else " (a term within 2 se of zero: not eligible)"
+        rows.append(f"<tr{style}><td>{i + 1}</td><td>{_e(c['title'])}{_e(flag)}</td><td>{formula}</td>"
+                    f"<td>{params}</td><td>{c['heldout_ratio']:.4f}</td><td>{c['delta_ic']:+.1f}</td>"
+                    f"<td>{c['k']}</td></tr>")
+    return (f"<p><b>{_e(law.get('reason', ''))}</b></p><p><small>Each candidate is fitted jointly with the "
+            f"conservative model ({_e(law.get('settings', {}).get('method', ''))} fit); held-out error relative to no "
+            f"law, on {_e(law.get('folds', ''))}; ΔIC = IC − IC(no law), IC = N_eff log(held-out MSE) + k log N_eff, "
+            f"N_eff = {law.get('n_eff', float('nan')):.4g}; ± = bootstrap standard errors.</small></p>"
+            "<table><tr><th>#</th><th>law</th><th>formula</th><th>coefficients</th><th>held-out error (rel.)"
+            "</th><th>ΔIC</th><th>k</th></tr>" + "".join(rows) + "</table>")
 
 
 def _fmt(x) -> str:

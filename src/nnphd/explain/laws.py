@@ -61,7 +61,7 @@ __all__ = [
 ]
 
 MU = 1e-6  # weight of the minimal-f_n penalty (the paper's λ < 1; tiny: it only decides between exact ties)
-IC_TIE = 2.0  # candidates within this IC of the best count as equally good: the simplest wins
+IC_TIE = 6.0  # candidates within this IC of the best count as equally good: the simplest wins (ΔIC < 6: no strong preference)
 N_FOLDS = 5  # held-out folds per trajectory when there are fewer than 3 trajectories
 N_BOOT = 200
 Z_TERM = 2.0  # a term whose coefficient is within Z_TERM standard errors of zero makes its candidate ineligible
@@ -291,7 +291,15 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
     if not params:
         raise ValueError(f"law {text!r} has no free parameter to fit (symbols other than the coordinates, "
                          f"their _dot velocities and t are parameters)")
-    lin = [p for p in params if all(not (sp.diff(e, p).free_symbols & set(params)) for e in exprs)]
+    bad = [p.name for p in params if p.name.endswith("_dot")]
+    if bad:
+        raise ValueError(f"law {text!r}: {bad[0]!r} is not the velocity of a coordinate (coordinates: "
+                         f"{', '.join(coords)})")
+    lin: list = []  # parameters the law is jointly linear in (their coefficients may hold the others)
+    for p in params:
+        if all(sp.simplify(sp.diff(e, p, 2)) == 0 and all(sp.simplify(sp.diff(e, p, p2)) == 0 for p2 in lin)
+               for e in exprs):
+            lin.append(p)
     nl = [p for p in params if p not in lin]
     base = [[sp.diff(e, p) for p in lin] for e in exprs]
     rest = [sp.simplify(e - sum((p * b for p, b in zip(lin, row)), sp.Integer(0))) for e, row in zip(exprs, base)]
@@ -348,11 +356,14 @@ def user_family(text: str, coords: Sequence[str]) -> Family:
 
 
 # ------------------------------------------------------------------------------------------------- conservative part
-def _position_features(xp, q, angles):
+def _position_features(xp, q, angles, center=None):
+    """sin θ, cos θ of angles; other coordinates centred and scaled by ``center`` = (mean, std) (n,) each."""
     feats = []
     for j in range(q.shape[1]):
         if angles[j]:
             feats += [xp.sin(q[:, j]), xp.cos(q[:, j])]
+        elif center is not None:
+            feats.append((q[:, j] - center[0][j]) / center[1][j])
         else:
             feats.append(q[:, j])
     return xp.stack(feats, axis=1)
@@ -366,7 +377,7 @@ def _pos_monomials(d: int) -> list[tuple[int, ...]]:
                   key=lambda e: (sum(e), e[::-1]))
 
 
-def conservative_basis(xp, q, v, angles, fc=None):
+def conservative_basis(xp, q, v, angles, fc=None, center=None):
     """(N, n, Kc) columns of the conservative model (see the module docstring): per-coordinate scale of ``fc``
     (if given), position monomials (degree ≤ 3; ≤ 2 beyond two position features) and, for angles, sin 2θ, cos 2θ,
     quadratic velocity terms, and the antisymmetric gyroscopic term (n ≥ 2)."""
@@ -374,7 +385,7 @@ def conservative_basis(xp, q, v, angles, fc=None):
     cols = []
     if fc is not None:
         cols.append(_eye_cols(xp, fc))
-    u = _position_features(xp, q, angles)
+    u = _position_features(xp, q, angles, center)
     pm = _pos_monomials(u.shape[1])
     pc = []
     for e in pm:
@@ -719,7 +730,9 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
         fc = None if fc is None else np.asarray(fc, float)[keep]
         N = len(keep)
     segs = _segments(traj)
-    C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float))
+    sd = q.std(axis=0)
+    center = (q.mean(axis=0), np.where(sd > 0, sd, 1.0))  # positions enter the conservative library standardised
+    C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float), center)
     prob = _Problem(q, qd, qdd, t, w, C, angles)
     folds, fold_desc = _folds(segs)
     v_rms = np.sqrt(np.mean(qd**2, axis=0))
@@ -755,7 +768,7 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
         mse, se_b, se_m = _linear_stats(J, R, folds, segs, tau, n_boot if f is not None else 0, seed, law_idx)
         se = np.maximum(se_b, se_m)
         k = 0 if f is None else f.k
-        stats.append((mse, k, _overdispersion(se_b, se_m)))
+        stats.append((mse, k, _overdispersion(se_b, se_m, np.concatenate([fit['beta'], fit['theta']]))))
         ic = 0.0  # set below, once the overdispersion of all candidates is known
         if f is None:
             rows.append(LawFit("none", "no law (conservative model alone)", 0, {}, {}, {f"{c}_ddot": "0" for c in names},
@@ -799,12 +812,12 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
     rows = [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
     settings = {"mu": MU, "ic_tie": IC_TIE, "n_boot": n_boot, "seed": seed, "rows": int(N), "method": "pointwise",
                 "conservative_columns": int(Kc), "conservative_base": fc is not None, "names": names,
-                "_alpha": alphas}
+                "_alpha": alphas, "_center": center}
     return _select(rows, n_eff, tau, fold_desc, settings)
 
 
 # ------------------------------------------------------------------------------------------- trajectory-level ranking
-def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn):
+def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center):
     """q̈ = f_c + Σ_families gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…): every candidate is this
     model with the other families' gates at 0 — one compiled shooting function for all of them. The parameters
     actually fitted are u, with θ = base + u·D (``aux`` = (base, D))."""
@@ -816,7 +829,7 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn):
         base, D = aux
         theta = base + u @ D
         fc = None if fc_fn is None else fc_fn(q, v)
-        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc), theta[:Kc])
+        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center), theta[:Kc])
         off = Kc
         for f, (K, m) in zip(fams, sizes):
             b, th, gate = theta[off:off + K], theta[off + K:off + K + m], theta[off + K + m]
@@ -888,7 +901,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
         off += K + m + 1
     P_glob = off
     P_dir = Kc + max([K + m for _, K, m in slots], default=0)
-    rhs = _universal_rhs(fams, Kc, angles, fc_fn)
+    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"])
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):
         if m:
@@ -961,7 +974,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
         se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
         R = r.reshape(W, -1)
         rho = float(np.sum(R[:, n:] * R[:, :-n]) / max(np.sum(R * R), 1e-300))
-        results.append((row, th, max(cv, 1e-300), np.maximum(se_b, se_m), rho, _overdispersion(se_b, se_m)))
+        results.append((row, th, max(cv, 1e-300), np.maximum(se_b, se_m), rho, _overdispersion(se_b, se_m, th[Kc:])))
     if len(results) < 2 or results[0][0].key != "none":
         return table
     rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
@@ -1003,10 +1016,15 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
                     "pointwise_candidates": [r.to_dict() for r in table.rows]})
 
 
-def _overdispersion(se_boot, se_model) -> float | None:
-    """Mean (bootstrap se / model se)² over a candidate's law parameters (None without any)."""
-    ok = np.isfinite(se_boot) & np.isfinite(se_model) & (se_model > 0)
-    return float(np.mean((se_boot[ok] / se_model[ok]) ** 2)) if ok.any() else None
+C_HAT_MAX = 20.0
+
+
+def _overdispersion(se_boot, se_model, values=None) -> float | None:
+    """Mean (bootstrap se / model se)² over a candidate's law parameters, at most C_HAT_MAX (None without any, or
+    when the model error is at rounding level: exact data carry no information about overdispersion)."""
+    scale = np.abs(values) if values is not None else np.zeros_like(se_model)
+    ok = np.isfinite(se_boot) & np.isfinite(se_model) & (se_model > 1e-9 * scale) & (se_model > 0)
+    return float(min(C_HAT_MAX, np.mean((se_boot[ok] / se_model[ok]) ** 2))) if ok.any() else None
 
 
 def _c_hat(ratios, errors) -> float:
@@ -1020,6 +1038,9 @@ def _c_hat(ratios, errors) -> float:
 
 def _significance(rows: list[LawFit]) -> None:
     for r in rows:
+        if r.family is not None and r.fn_rel < 1e-9:  # a law at the rounding level of the data is no law
+            r.significant = False
+            continue
         if r.family is not None and r.family.per_term:
             z = [abs(r.params[p]) / r.stderr[p] if r.stderr[p] > 0 else np.inf for p in r.family.coef_names]
             r.significant = bool(min(z) >= Z_TERM) if z else True

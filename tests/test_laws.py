@@ -94,25 +94,24 @@ def test_families_are_odd_in_velocity_or_explicitly_timed():
             np.testing.assert_allclose(b, -b_rev, atol=1e-12)
 
 
-def _from_positions(name):
-    """A constructed case through the user-data path: positions only → derivatives → find_law (no LNN)."""
+def _law_from_csv(path, angles=()):
+    """A recording through the user-data path: positions only → derivatives → find_law (no LNN)."""
     from nnphd.userdata import load_trajectories
     from nnphd.userdetect import _dataset, find_law
 
-    return load_trajectories, _dataset, find_law
+    ud = load_trajectories(path, angles)
+    data, info, _ = _dataset(ud, "auto")
+    rows = info.pop("_rows")
+    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
+    return find_law(data, traj, list(ud.coords), [bool(x) for x in ud.is_angle], info, rows)
 
 
 @pytest.mark.parametrize("name", ["dry-friction", "van-der-pol"])
 def test_trajectory_level_law_from_positions(name, tmp_path):
     """Positions only (0.1% noise): the pointwise derivatives smear the sign jump / bias the cubic terms, and the
     multiple-shooting ranking on the positions finds the right family within 20% of the true force."""
-    load_trajectories, _dataset, find_law = _from_positions(name)
     c = cases.make(name)
-    ud = load_trajectories(c.write_csv(tmp_path / "d.csv"))
-    data, info, _ = _dataset(ud, "auto")
-    rows = info.pop("_rows")
-    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
-    tab = find_law(data, traj, list(ud.coords), [False], info, rows)
+    tab = _law_from_csv(c.write_csv(tmp_path / "d.csv"))
     assert tab.settings["method"] == "trajectory"
     assert cases.form_right(c, tab.law.key if tab.law else None)
     assert cases.score(c, tab.law.predict) < 0.2
@@ -123,13 +122,8 @@ def test_pendulum_recording_damping_within_10_percent(tmp_path):
     and γ is within 10% of the truth with a 2-se interval that covers it."""
     from tests.fixtures.recordings import make
 
-    load_trajectories, _dataset, find_law = _from_positions("")
     rec = make("pendulum-damped")
-    ud = load_trajectories(rec.write_csv(tmp_path / "p.csv"), rec.angles)
-    data, info, _ = _dataset(ud, "auto")
-    rows = info.pop("_rows")
-    traj = np.zeros(len(data), int)
-    tab = find_law(data, traj, list(ud.coords), [True], info, rows)
+    tab = _law_from_csv(rec.write_csv(tmp_path / "p.csv"), rec.angles)
     assert tab.law.key == "linear"
     g, se = tab.law.params["gamma"], tab.law.stderr["gamma"]
     truth = rec.truth["gamma"]

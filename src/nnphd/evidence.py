@@ -258,42 +258,22 @@ def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> 
     return wins
 
 
-@functools.partial(jax.jit, static_argnames=("accel", "nsub"))
+@functools.lru_cache(maxsize=64)
+def _damping_rhs(accel):
+    """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
+    object per ``accel``, so the shooting fit compiles once per model)."""
+    def rhs(theta, q, v, t, params):
+        return (1.0 + theta[0]) * accel(params, q, v) - theta[1:] * v
+    return rhs
+
+
 def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
-    """Residuals (W, L, n) of the windows and their forward derivatives along every local direction (one direction
-    perturbs the same component of every window's initial state; windows are independent) and every global one."""
-    n = qw.shape[-1]
-
-    def simulate(s, theta):
-        q0, v0 = s[:, :n], s[:, n:]
-
-        def rhs(q, v):
-            return v, (1.0 + theta[0]) * accel(params, q, v) - theta[1:] * v
-
-        def step(carry, dt):
-            q, v = carry
-            h = (dt / nsub)[:, None]
-            for _ in range(nsub):
-                k1q, k1v = rhs(q, v)
-                k2q, k2v = rhs(q + 0.5 * h * k1q, v + 0.5 * h * k1v)
-                k3q, k3v = rhs(q + 0.5 * h * k2q, v + 0.5 * h * k2v)
-                k4q, k4v = rhs(q + h * k3q, v + h * k3v)
-                q = q + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q)
-                v = v + h / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v)
-            return (q, v), q
-
-        dts = jnp.diff(tw, axis=1).T  # (L-1, W)
-        _, qs = jax.lax.scan(step, (q0, v0), dts)
-        qs = jnp.concatenate([q0[None], qs], axis=0)  # (L, W, n)
-        return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
-
-    r = simulate(s, theta)
-    P_loc, P_glob = s.shape[1], theta.shape[0]
-    ds = jnp.concatenate([jnp.broadcast_to(jnp.eye(P_loc, dtype=s.dtype)[:, None, :], (P_loc, *s.shape)),
-                          jnp.zeros((P_glob, *s.shape), s.dtype)], axis=0)
-    dth = jnp.concatenate([jnp.zeros((P_loc, P_glob), s.dtype), jnp.eye(P_glob, dtype=s.dtype)], axis=0)
-    jac = jax.vmap(lambda a, b: jax.jvp(simulate, (s, theta), (a, b))[1])(ds, dth)  # (P, W, L, n)
-    return r, jac
+    """Residuals (W, L, n) of the windows under the damping probe and their forward derivatives along every local
+    direction (one direction perturbs the same component of every window's initial state; windows are independent)
+    and every global one (see :func:`model_residuals_and_jac`)."""
+    t0w = jnp.zeros(tw.shape[0], tw.dtype)
+    return model_residuals_and_jac(s, theta, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel),
+                                   nsub=nsub)
 
 
 def _solve(A, b):

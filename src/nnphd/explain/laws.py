@@ -14,7 +14,7 @@ Model. q̈ = f_c(q, q̇) + g(q, q̇, t; β, θ), fitted to the rows (q, q̇, q̈
   (smoothed: q̇/√(q̇² + ε²), ε = 2 % of the rms speed), the power law −k(|q̇|²)^m q̇ with m free, Rayleigh (a + c q̇²)q̇,
   van der Pol (a + b q²)q̇ and both together, a drive A cos(ωt + φ) with ω started from the peaks of the conservative
   residual's Lomb–Scargle spectrum, a sparse polynomial (odd in q̇, degree ≤ 3, thresholded jointly with f_c), and
-  user laws written as SymPy strings (:func:`user_family`).
+  user laws written as SymPy strings (:func:`parse_law`).
 
 **Joint fit under the paper's principle.** For each candidate, (α, β) minimise Σ w²(q̈ − f_c − g)² + μ Σ w² g² with
 μ = :data:`MU` (the paper's L_e + λ L_b with λ ≪ 1, in the 2-norm): where the conservative model and the law can both
@@ -57,7 +57,6 @@ __all__ = [
     "families",
     "parse_law",
     "rank_laws",
-    "user_family",
 ]
 
 MU = 1e-6  # weight of the minimal-f_n penalty (the paper's λ < 1; tiny: it only decides between exact ties)
@@ -348,11 +347,6 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
                          "term), e.g. 'c*x_dot**m'")
     _ = fam.symbols([1.0] * len(nl), Q, V, T)  # fail early on a formula SymPy cannot rebuild
     return fam
-
-
-def user_family(text: str, coords: Sequence[str]) -> Family:
-    """Alias of :func:`parse_law` (the API name)."""
-    return parse_law(text, coords)
 
 
 # ------------------------------------------------------------------------------------------------- conservative part

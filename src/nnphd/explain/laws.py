@@ -748,55 +748,30 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
     best_in = min(fits, key=lambda x: float(np.sum(x[1]["r"] ** 2)))
     tau = _tau(best_in[1]["r"].reshape(N, n), segs)
     n_eff = N * n / tau
-    Qs = [sp.Symbol(c) for c in names]
-    Vs = [sp.Symbol(f"{c}_dot") for c in names]
-    T = sp.Symbol("t")
     rows: list[LawFit] = []
     stats: list = []
     alphas: dict[int, np.ndarray] = {}
     Kc = C.shape[2]
     for f, fit in fits:
         J, R = prob.jacobian(f, fit)
-        P = J.shape[2]
-        law_idx = np.arange(Kc, P)
+        law_idx = np.arange(Kc, J.shape[2])
         mse, se_b, se_m = _linear_stats(J, R, folds, segs, tau, n_boot if f is not None else 0, seed, law_idx)
-        se = np.maximum(se_b, se_m)
-        k = 0 if f is None else f.k
-        stats.append((mse, k, _overdispersion(se_b, se_m, np.concatenate([fit['beta'], fit['theta']]))))
-        ic = 0.0  # set below, once the overdispersion of all candidates is known
+        stats.append((mse, 0 if f is None else f.k,
+                      _overdispersion(se_b, se_m, np.concatenate([fit["beta"], fit["theta"]]))))
         if f is None:
-            rows.append(LawFit("none", "no law (conservative model alone)", 0, {}, {}, {f"{c}_ddot": "0" for c in names},
-                               {f"{c}_ddot": "0" for c in names}, mse, 1.0, ic, 0.0, 0.0, (), fn=np.zeros((N, n))))
-            alphas[id(rows[-1])] = fit["alpha"]
-            continue
-        vals = np.concatenate([fit["beta"], fit["theta"]])
-        pnames = list(f.coef_names) + list(f.nl_names)
-        sym = f.symbols(fit["theta"], Qs, Vs, T)
-        exprs = []
-        for i in range(n):
-            e = sum((sp.Float(b, DIGITS) * s for b, s in zip(fit["beta"], sym[i]) if b != 0), sp.Integer(0))
-            if f.fixed is not None:
-                e = e + sp.Symbol("(fixed part)")
-            exprs.append(e)
-        lf = LawFit(f.key, f.title, k, {p: float(x) for p, x in zip(pnames, vals)},
-                    {p: float(s) for p, s in zip(pnames, se)},
-                    {f"{c}_ddot": str(e) for c, e in zip(names, exprs)},
-                    {f"{c}_ddot": sp.latex(e) for c, e in zip(names, exprs)}, mse, 0.0, ic, 0.0, 0.0, f.terms,
-                    family=f, theta=fit["theta"], beta=fit["beta"])
-        lf.fn = lf.predict(q, qd, t)
-        rows.append(lf)
-        alphas[id(lf)] = fit["alpha"]
-    c_hat = _c_hat([x[2] for x in stats], [x[0] for x in stats])
+            row = _zero_row(names, mse, N, "pointwise")
+        else:
+            row = _law_row(f, fit["beta"], fit["theta"], np.maximum(se_b, se_m), names, mse, "pointwise")
+            row.fn = row.predict(q, qd, t)
+        rows.append(row)
+        alphas[id(row)] = fit["alpha"]
+    c_hat = _c_hat([x[2] for x in stats], [x[0] for x in stats])  # IC once the overdispersion is known
     n_eff = n_eff / c_hat
     tau = tau * c_hat
     for r, (mse, k, _) in zip(rows, stats):
         r.ic = n_eff * math.log(max(mse, 1e-300)) + k * math.log(max(n_eff, 2.0))
-    z = rows[0]
-    yrms = float(np.sqrt(np.mean(qdd**2))) or 1.0
-    for r in rows:
-        r.heldout_ratio = float(math.sqrt(r.heldout_mse / z.heldout_mse)) if z.heldout_mse > 0 else 1.0
-        r.delta_ic = r.ic - z.ic
-        r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / yrms
+    y_rms = float(np.sqrt(np.mean(qdd**2)))
+    _relative_to_zero(rows, y_rms)
     # the sparse family keeps only its best support
     sparse = [r for r in rows if r.key == "sparse"]
     if len(sparse) > 1:
@@ -806,7 +781,7 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
     rows = [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
     settings = {"mu": MU, "ic_tie": IC_TIE, "n_boot": n_boot, "seed": seed, "rows": int(N), "method": "pointwise",
                 "conservative_columns": int(Kc), "conservative_base": fc is not None, "names": names,
-                "_alpha": alphas, "_center": center}
+                "_alpha": alphas, "_center": center, "_y_rms": y_rms}
     return _select(rows, n_eff, tau, fold_desc, settings)
 
 
@@ -978,33 +953,15 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
     rows = []
     for row, th, cv, se, _, _ in results:
         fam = row.family
-        k = row.k
-        ic = n_eff * math.log(cv / n_res) + k * math.log(max(n_eff, 2.0))
-        new = LawFit(row.key, row.title, k, {}, {}, dict(row.formula), dict(row.latex), cv / n_res, 1.0, ic, 0.0,
-                     0.0, row.terms, method="trajectory", family=fam)
-        if fam is not None:
-            K = len(fam.coef_names)
-            new.beta, new.theta = th[Kc:Kc + K], th[Kc + K:]
-            pn = list(fam.coef_names) + list(fam.nl_names)
-            new.params = {p: float(x) for p, x in zip(pn, th[Kc:])}
-            new.stderr = {p: float(x) for p, x in zip(pn, se)}
-            Qs = [sp.Symbol(c) for c in table.settings["names"]]
-            Vs = [sp.Symbol(f"{c}_dot") for c in table.settings["names"]]
-            sym = fam.symbols(new.theta, Qs, Vs, sp.Symbol("t"))
-            exprs = [sum((sp.Float(b, DIGITS) * s_ for b, s_ in zip(new.beta, sym[i]) if b != 0), sp.Integer(0))
-                     for i in range(n)]
-            new.formula = {f"{c}_ddot": str(e) for c, e in zip(table.settings["names"], exprs)}
-            new.latex = {f"{c}_ddot": sp.latex(e) for c, e in zip(table.settings["names"], exprs)}
-            new.fn = new.predict(q_pos, qd, t)
+        if fam is None:
+            new = _zero_row(table.settings["names"], cv / n_res, N, "trajectory")
         else:
-            new.fn = np.zeros((N, n))
+            K = len(fam.coef_names)
+            new = _law_row(fam, th[Kc:Kc + K], th[Kc + K:], se, table.settings["names"], cv / n_res, "trajectory")
+            new.fn = new.predict(q_pos, qd, t)
+        new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
         rows.append(new)
-    z = rows[0]
-    yrms = float(np.sqrt(np.mean(qd**2))) or 1.0
-    for r in rows:
-        r.heldout_ratio = float(math.sqrt(r.heldout_mse / z.heldout_mse))
-        r.delta_ic = r.ic - z.ic
-        r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / yrms
+    _relative_to_zero(rows, table.settings["_y_rms"])
     return _select(rows, n_eff, tau, f"{G} held-out groups of shooting windows ({W} windows)",
                    {**table.settings, "method": "trajectory", "windows": W, "substeps": nsub,
                     "pointwise_candidates": [r.to_dict() for r in table.rows]})
@@ -1038,6 +995,40 @@ def _significance(rows: list[LawFit]) -> None:
         if r.family is not None and r.family.per_term:
             z = [abs(r.params[p]) / r.stderr[p] if r.stderr[p] > 0 else np.inf for p in r.family.coef_names]
             r.significant = bool(min(z) >= Z_TERM) if z else True
+
+
+def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
+    """A table row: parameters ± se and the law as SymPy/LaTeX in the coordinates' names (IC set by the caller)."""
+    Q = [sp.Symbol(c) for c in names]
+    V = [sp.Symbol(f"{c}_dot") for c in names]
+    sym = fam.symbols(theta, Q, V, sp.Symbol("t"))
+    exprs = []
+    for i in range(len(names)):
+        e = sum((sp.Float(b, DIGITS) * s_ for b, s_ in zip(beta, sym[i]) if b != 0), sp.Integer(0))
+        if fam.fixed is not None:
+            e = e + sp.Symbol("(fixed part)")
+        exprs.append(e)
+    pn = list(fam.coef_names) + list(fam.nl_names)
+    vals = np.concatenate([beta, theta])
+    return LawFit(fam.key, fam.title, fam.k, {p: float(x) for p, x in zip(pn, vals)},
+                  {p: float(x) for p, x in zip(pn, se)}, {f"{c}_ddot": str(e) for c, e in zip(names, exprs)},
+                  {f"{c}_ddot": sp.latex(e) for c, e in zip(names, exprs)}, heldout_mse, 1.0, 0.0, 0.0, 0.0,
+                  fam.terms, method=method, family=fam, theta=np.asarray(theta, float), beta=np.asarray(beta, float))
+
+
+def _zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
+    zero = {f"{c}_ddot": "0" for c in names}
+    return LawFit("none", "no law (conservative model alone)", 0, {}, {}, zero, dict(zero), heldout_mse, 1.0, 0.0,
+                  0.0, 0.0, (), method=method, fn=np.zeros((N, len(names))))
+
+
+def _relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
+    """Held-out ratio and ΔIC against the zero law (rows[0]), and the law's size relative to q̈."""
+    z = rows[0]
+    for r in rows:
+        r.heldout_ratio = float(math.sqrt(r.heldout_mse / z.heldout_mse)) if z.heldout_mse > 0 else 1.0
+        r.delta_ic = r.ic - z.ic
+        r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / (y_rms or 1.0)
 
 
 def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:

@@ -43,8 +43,8 @@ def main() -> None:
         recordings._PARAMS[name]["duration"] = float(sec)
     rows = []
     print("| case | samples | truth | expected | ours (confidence) | energy-decay rate: ours / truth | shooting z "
-          "| s |")
-    print("|---|---|---|---|---|---|---|---|")
+          "| law (or best candidate, not claimed) | s |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for seed in [int(s) for s in a.seeds.split(",")]:
         for name in a.names.split(","):
             rec = make(name, seed=seed)
@@ -63,13 +63,18 @@ def main() -> None:
                 rate_s = f"{rate:.2g} ± {tr['se']:.1g} / 0"
             z = f"{sh['z']:.1f}" if sh.get("valid") else "—"
             ok = right(rec.expected, rep["status"])
+            lw = rep.get("law") or {}
+            best = lw.get("law") or lw.get("candidate_law")
+            law_s = "—" if best is None else (("" if lw.get("law") else "(") + "; ".join(
+                f"{k} = {v}" for k, v in best["formula"].items()) + f", ΔIC {best['delta_ic']:.0f}"
+                + ("" if lw.get("law") else ")"))
             print(f"| {name}{'' if seed == 0 else f' (seed {seed})'} | {rec.n_samples} | "
                   f"{'conservative' if rec.conservative else 'non-conservative'} | {rec.expected} | "
                   f"{'' if ok else '**'}{rep['status']}{'' if ok else '**'} ({rep['confidence']:.2f}) | {rate_s} | {z} "
-                  f"| {wall:.0f} |", flush=True)
+                  f"| {law_s} | {wall:.0f} |", flush=True)
             rows.append({"name": name, "seed": seed, "expected": rec.expected, "status": rep["status"],
                          "confidence": rep["confidence"], "right": ok, "rate": rate, "rate_truth": truth,
-                         "shooting_z": sh.get("z"), "energy_z": tr.get("z"), "wall_s": wall,
+                         "shooting_z": sh.get("z"), "energy_z": tr.get("z"), "wall_s": wall, "law": law_s,
                          "reasons": rep["reasons"]})
     print(f"\n{sum(r['right'] for r in rows)} of {len(rows)} verdicts right")
     if a.json:

@@ -130,3 +130,21 @@ def test_pendulum_recording_damping_within_10_percent(tmp_path):
     truth = rec.truth["gamma"]
     assert abs(g - truth) <= 0.1 * truth
     assert abs(g - truth) <= 2 * se
+
+
+def test_a_strong_candidate_law_turns_none_into_inconclusive():
+    """The verdict's checks say "none" but a candidate law beats no law on held-out data by ΔIC ≤ −10: conflicting
+    evidence gives "inconclusive" (never a confident "none"); a weak candidate leaves "none" alone."""
+    from nnphd.userdetect import LAW_CONFLICT_DIC, _reconcile
+
+    res = {"status": "none", "new_physics": False, "confidence": 0.97, "reasons": ["seed 0: a Lagrangian fits"]}
+    strong = {"title": "drive A cos(ω t + φ)", "heldout_ratio": 0.03, "delta_ic": -534.0}
+    law = {"law": None, "candidate_law": strong, "reason": "the verdict is 'none'"}
+    status, new, conf, reasons = _reconcile(res, law)
+    assert (status, new, conf) == ("inconclusive", True, 0.5)
+    assert reasons[0].startswith("conflicting evidence") and "drive" in reasons[0] and "97.0%" in reasons[0]
+    assert "no law is claimed" in law["reason"]
+    weak = {"law": None, "candidate_law": {**strong, "delta_ic": LAW_CONFLICT_DIC + 1}}
+    assert _reconcile(res, weak)[:3] == ("none", False, 0.97)
+    detected = {**res, "status": "detected", "new_physics": True}
+    assert _reconcile(detected, law)[0] == "detected"

@@ -59,6 +59,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
     law = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, say)
+    status, new_physics, confidence, reasons = _reconcile(res, law)
     blind = {}
     if res["status"] == "detected" and law.get("law") is None:  # fallback: no candidate family fits
         names = coords + [f"{c}_dot" for c in coords]
@@ -73,14 +74,14 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     best = _law_formula(law) or _best_formula(blind)
     report = {
         "file": str(path),
-        "new_physics": bool(res["new_physics"]),
-        "status": res["status"],
+        "new_physics": new_physics,
+        "status": status,
         "statistic": res["statistic"],
         "effect": res["effect"],
         "evidence": res["evidence"],
-        "confidence": res["confidence"],
+        "confidence": confidence,
         "confidence_basis": res["confidence_basis"],
-        "reasons": res["reasons"],
+        "reasons": reasons,
         "quality": res["quality"],
         "angles": [c for c, a in zip(coords, res["angles"]) if a],
         "angle_suggestions": [list(x) for x in suggest_angles(ud)],
@@ -159,6 +160,25 @@ def _law_formula(law: dict) -> dict | None:
         return None
     return {"method": f"candidate law: {w['title']} ({w['method']} fit)", "formula": w["formula"],
             "heldout_ratio": w["heldout_ratio"], "params": w["params"], "stderr": w["stderr"]}
+
+
+LAW_CONFLICT_DIC = -10.0  # a candidate law this much better than none (held out) contradicts a verdict of "none"
+
+
+def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
+    """The verdict after the law table: "none" while a candidate law beats no law on held-out data by ΔIC ≤
+    LAW_CONFLICT_DIC is conflicting evidence — "inconclusive" (best call: new physics), confidence 0.5 (the
+    evidence is split), never a confident "none". A drive of a few periods can cancel in the energy trend and go
+    unseen by the verdict's checks, while the joint fit of A cos(ωt + φ) finds it."""
+    status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
+    cand = law.get("candidate_law")
+    if status == "none" and cand and cand["delta_ic"] <= LAW_CONFLICT_DIC:
+        why = (f"conflicting evidence: the checks find no non-conservation, but a candidate law, {cand['title']}, "
+               f"lowers the held-out error by {100 * (1 - cand['heldout_ratio']):.1f}% (ΔIC = {cand['delta_ic']:.1f} "
+               f"against no law)")
+        law["reason"] = why + " — no law is claimed"
+        return "inconclusive", True, 0.5, [why, *reasons]
+    return status, new, conf, reasons
 
 
 def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, say) -> dict:

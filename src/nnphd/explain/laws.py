@@ -5,9 +5,11 @@ Model. q̈ = f_c(q, q̇) + g(q, q̇, t; β, θ), fitted to the rows (q, q̇, q̈
 
 * **f_c, the conservative part**, is linear in its coefficients α: a per-coordinate scale of a given conservative
   force (the LNN's f_c, or a feature Lagrangian's), plus a correction library that is even under time reversal
-  (q̇ → −q̇), as every force from a Lagrangian T(q, q̇) − V(q) is — monomials of the positions up to degree 3
-  (angles enter as sin θ, cos θ, sin 2θ, cos 2θ), the quadratic velocity terms q̇_j q̇_k (Christoffel-type) — and the
-  one time-reversal-odd conservative force, the gyroscopic (magnetic-type) term B q̇ with B antisymmetric.
+  (q̇ → −q̇), as every force from a Lagrangian T(q, q̇) − V(q) is — gradients of potential monomials in the
+  positions up to degree 4 (angles enter as sin θ, cos θ; gradients, not free per-coordinate polynomials, because
+  on an orbit the velocity is a rotation of the position and a curl field would absorb friction), the quadratic
+  velocity terms q̇_j q̇_k (Christoffel-type) — and the one time-reversal-odd conservative force, the gyroscopic
+  (magnetic-type) term B q̇ with B antisymmetric.
 * **g, the candidate law**, is linear in β given a few nonlinear parameters θ (an exponent m, a drive frequency ω):
   every candidate is odd under time reversal (it does work) or explicitly time-dependent. Families
   (:func:`families`): linear friction (isotropic, diagonal, full Γ), quadratic drag −c|q̇|q̇, Coulomb −μ sign(q̇)
@@ -16,8 +18,9 @@ Model. q̈ = f_c(q, q̇) + g(q, q̇, t; β, θ), fitted to the rows (q, q̇, q̈
   residual's Lomb–Scargle spectrum, a sparse polynomial (odd in q̇, degree ≤ 3, thresholded jointly with f_c), and
   user laws written as SymPy strings (:func:`parse_law`).
 
-**Joint fit under the paper's principle.** For each candidate, (α, β) minimise Σ w²(q̈ − f_c − g)² + μ Σ w² g² with
-μ = :data:`MU` (the paper's L_e + λ L_b with λ ≪ 1, in the 2-norm): where the conservative model and the law can both
+**Joint fit under the paper's principle.** For each candidate, (α, β) minimise Σ w²(q̈ − f_c − g)² + μ w̄² Σ g² with
+μ = :data:`MU` (the paper's L_e + λ L_b with λ ≪ 1, in the 2-norm; w̄² the mean of w², so the penalty weighs f_n
+alike in every coordinate, as the paper's L_b does): where the conservative model and the law can both
 explain a piece of the data (a gyroscopic force is also the antisymmetric part of a full Γ), the conservative model
 takes it and the law is the *minimal* non-conservative remainder. θ is found by variable projection (scipy
 least_squares over θ, β and α solved linearly at each θ). Weights w are 1/(estimated q̈ error) per row and coordinate
@@ -41,7 +44,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import sympy as sp
@@ -55,7 +58,9 @@ __all__ = [
     "LawTable",
     "conservative_basis",
     "families",
+    "family_from_spec",
     "parse_law",
+    "perturber_family",
     "rank_laws",
 ]
 
@@ -86,6 +91,7 @@ class Family:
     terms: tuple[str, ...] = ()  # structural labels, e.g. ("q̇",) — what "the form" of the law is
     fixed: Callable | None = None  # (xp, θ, q, v, t) -> (N, n): a parameter-free part of a user law
     per_term: bool = True  # each coefficient multiplies its own term (so each must be significant)
+    spec: dict | None = None  # how to build it again (:func:`family_from_spec`): JSON-ready
 
     @property
     def k(self) -> int:
@@ -187,7 +193,61 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
                                                        _sym_diag(n, [sp.sin(sp.Float(th[0], 6) * T)] * n))],
         nl_names=("omega",), nl_starts=lambda ctx: [[w] for w in ctx["drive_omegas"]],
         nl_bounds=([1e-9], [np.inf]), terms=("cos(ωt)",), per_term=False)
-    return out
+    spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)]}
+    return [replace(f, spec={**spec, "key": f.key}) for f in out]
+
+
+def family_from_spec(spec: dict, names: Sequence[str]) -> Family:
+    """The family a :attr:`Family.spec` describes, for the coordinates ``names`` (to load a saved law)."""
+    names = list(names)
+    kind = spec.get("kind")
+    if kind == "builtin":
+        for f in families(len(names), names, np.asarray(spec["v_rms"], float)):
+            if f.key == spec["key"]:
+                return f
+        raise ValueError(f"no built-in law family {spec['key']!r} for {len(names)} coordinate(s)")
+    if kind == "sparse":
+        return sparse_family(len(names), names, np.asarray(spec["support"], bool))
+    if kind == "user":
+        return parse_law(spec["text"], names)
+    if kind == "perturber":
+        return perturber_family(names)
+    raise ValueError(f"unknown law family spec {spec!r}; expected kind builtin, sparse, user or perturber")
+
+
+def perturber_family(names: Sequence[str]) -> Family:
+    """A point mass on a circular orbit, g = GM (r_p(t) − q)/|r_p(t) − q|³, r_p = R (cos(ωt + φ), sin(ωt + φ)) (n = 2;
+    the paper's Neptune). GM is linear; R, ω, φ are started from :func:`nnphd.explain.parametric.fit_perturber`'s grid
+    on the conservative residual (ctx["residual"]). Opt-in (``include=[..., "perturber"]``): it only makes sense
+    for orbits."""
+
+    def _rp(xp, th, t):
+        ang = th[1] * t + th[2]
+        return th[0] * xp.stack([xp.cos(ang), xp.sin(ang)], axis=1)
+
+    def basis(xp, th, q, v, t):
+        d = _rp(xp, th, t) - q
+        return (d / xp.sum(d * d, axis=1, keepdims=True) ** 1.5)[:, :, None]
+
+    def symbols(th, Q, V, T):
+        R, w, ph = (sp.Float(x, 6) for x in th)
+        d = [R * sp.cos(w * T + ph) - Q[0], R * sp.sin(w * T + ph) - Q[1]]
+        r3 = (d[0] ** 2 + d[1] ** 2) ** sp.Rational(3, 2)
+        return [[d[0] / r3], [d[1] / r3]]
+
+    def starts(ctx):
+        from .parametric import fit_perturber
+
+        try:
+            f = fit_perturber(ctx["q"], ctx["t"], ctx["residual"])
+        except ValueError:
+            return []
+        return [[f.params["R"], f.params["omega"], f.params["phi"]]]
+
+    return Family("perturber", "perturber GM (r_p(t) − q)/|r_p(t) − q|³ on a circular orbit", ("GM",), basis, symbols,
+                  nl_names=("R", "omega", "phi"), nl_starts=starts,
+                  nl_bounds=([1e-9, -np.inf, -np.inf], [np.inf, np.inf, np.inf]), terms=("(r_p(t) − q)/|r_p − q|³",),
+                  per_term=False, spec={"kind": "perturber"})
 
 
 def _odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
@@ -239,7 +299,8 @@ def sparse_family(n: int, names: Sequence[str], support: np.ndarray) -> Family:
     msym = _monomial_sym(mons, Qs, Vs)
     coef = tuple(f"{names[i]}_ddot:{msym[m]}" for i, m in idx)
     return Family("sparse", "sparse polynomial (odd in q̇, degree ≤ 3)", coef, basis, symbols,
-                  terms=tuple(sorted({str(msym[m]) for _, m in idx})))
+                  terms=tuple(sorted({str(msym[m]) for _, m in idx})),
+                  spec={"kind": "sparse", "support": np.asarray(support, bool).tolist()})
 
 
 # ---------------------------------------------------------------------------------------------------------- user laws
@@ -341,7 +402,8 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
 
     fam = Family("user", f"user law {text}", tuple(p.name for p in lin), basis, symbols,
                  nl_names=tuple(p.name for p in nl), nl_starts=(lambda ctx: [[1.0] * len(nl)]) if nl else None,
-                 nl_bounds=([-np.inf] * len(nl), [np.inf] * len(nl)), terms=(text,), fixed=fixed, per_term=False)
+                 nl_bounds=([-np.inf] * len(nl), [np.inf] * len(nl)), terms=(text,), fixed=fixed, per_term=False,
+                 spec={"kind": "user", "text": text})
     if not lin:
         raise ValueError(f"law {text!r}: it must be linear in at least one parameter (a coefficient in front of a "
                          "term), e.g. 'c*x_dot**m'")
@@ -351,46 +413,69 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
 
 # ------------------------------------------------------------------------------------------------- conservative part
 def _position_features(xp, q, angles, center=None):
-    """sin θ, cos θ of angles; other coordinates centred and scaled by ``center`` = (mean, std) (n,) each."""
-    feats = []
+    """sin θ, cos θ of angles; other coordinates centred and scaled by ``center`` = (mean, std) (n,) each.
+    Returns (u (N, d), du (N, d), owner (d,)): the features, their derivatives along their coordinate, and which
+    coordinate each belongs to."""
+    feats, ders, owner = [], [], []
     for j in range(q.shape[1]):
         if angles[j]:
-            feats += [xp.sin(q[:, j]), xp.cos(q[:, j])]
-        elif center is not None:
-            feats.append((q[:, j] - center[0][j]) / center[1][j])
+            s_, c_ = xp.sin(q[:, j]), xp.cos(q[:, j])
+            feats += [s_, c_]
+            ders += [c_, -s_]
+            owner += [j, j]
         else:
-            feats.append(q[:, j])
-    return xp.stack(feats, axis=1)
+            m, sd = (center[0][j], center[1][j]) if center is not None else (0.0, 1.0)
+            feats.append((q[:, j] - m) / sd)
+            ders.append(xp.ones_like(q[:, j]) / sd)
+            owner.append(j)
+    return xp.stack(feats, axis=1), xp.stack(ders, axis=1), owner
 
 
-def _pos_monomials(d: int) -> list[tuple[int, ...]]:
+def _pot_monomials(d: int) -> list[tuple[int, ...]]:
+    """Exponents of the potential monomials in d position features: degree 1…4 (1…3 beyond two features)."""
     import itertools
 
-    deg = 3 if d <= 2 else 2
-    return sorted((e for e in itertools.product(range(deg + 1), repeat=d) if sum(e) <= deg),
+    deg = 4 if d <= 2 else 3
+    return sorted((e for e in itertools.product(range(deg + 1), repeat=d) if 0 < sum(e) <= deg),
                   key=lambda e: (sum(e), e[::-1]))
 
 
-def conservative_basis(xp, q, v, angles, fc=None, center=None):
+def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = True):
     """(N, n, Kc) columns of the conservative model (see the module docstring): per-coordinate scale of ``fc``
-    (if given), position monomials (degree ≤ 3; ≤ 2 beyond two position features) and, for angles, sin 2θ, cos 2θ,
-    quadratic velocity terms, and the antisymmetric gyroscopic term (n ≥ 2)."""
+    (if given); gradients −∂V_e/∂q of potential monomials V_e in the position features (degree ≤ 4, ≤ 3 beyond two
+    features; angles enter as sin θ, cos θ) — curl-free, so that no combination of them is a rotation field, which
+    on an orbit would mimic friction (v ∝ a rotation of q); quadratic velocity terms; and the antisymmetric
+    gyroscopic term (n ≥ 2). ``library=False``: the scale of ``fc`` alone (when ``fc`` comes from a trusted form,
+    e.g. a system's feature Lagrangian)."""
     N, n = q.shape
     cols = []
     if fc is not None:
         cols.append(_eye_cols(xp, fc))
-    u = _position_features(xp, q, angles, center)
-    pm = _pos_monomials(u.shape[1])
+    if not library:
+        if fc is None:
+            raise ValueError("library=False needs a conservative force fc")
+        return cols[0]
+    u, du, owner = _position_features(xp, q, angles, center)
+    d = u.shape[1]
+    onehot = np.zeros((d, n))
+    onehot[np.arange(d), owner] = 1.0
+    onehot = xp.asarray(onehot, dtype=q.dtype)
+    grads = []
+    for e in _pot_monomials(d):
+        parts = []
+        for f in range(d):  # ∂V_e/∂u_f
+            if e[f] == 0:
+                parts.append(xp.zeros_like(q[:, 0]))
+                continue
+            c = e[f] * u[:, f] ** (e[f] - 1)
+            for g, k in enumerate(e):
+                if g != f and k:
+                    c = c * u[:, g] ** k
+            parts.append(c)
+        dV = xp.stack(parts, axis=1) * du  # (N, d): ∂V/∂u_f · du_f/dq_owner(f)
+        grads.append(dV @ onehot)  # (N, n)
+    cols.append(xp.stack(grads, axis=2))
     pc = []
-    for e in pm:
-        c = xp.ones_like(q[:, 0])
-        for j, k in enumerate(e):
-            if k:
-                c = c * u[:, j] ** k
-        pc.append(c)
-    for j in range(n):
-        if angles[j]:
-            pc += [xp.sin(2 * q[:, j]), xp.cos(2 * q[:, j])]
     for a in range(n):
         for b in range(a, n):
             pc.append(v[:, a] * v[:, b])
@@ -476,9 +561,23 @@ class _Problem:
         self.q, self.qd, self.qdd, self.t, self.w, self.C, self.angles = q, qd, qdd, t, w, C, angles
         self.N, self.n = q.shape
         self.yw = (qdd * w).reshape(-1)
+        # the penalty weighs f_n alike in every coordinate and row (the paper's minimal |f_n|): with the data's
+        # per-coordinate weights the "minimal" law would trade a gyroscopic piece in when the weights differ
+        wf = w.reshape(-1)
+        self.pw = float(np.sqrt(np.mean(wf**2))) / wf
         self.Cw = (C * w[:, :, None]).reshape(self.N * self.n, -1)
         cn = np.sqrt(np.mean(self.Cw**2, axis=0))
         self.c_scale = np.where(cn > 0, cn, 1.0)
+        # the conservative library is rank-deficient by construction (sin² + cos² = 1, sin 2θ = 2 sin θ cos θ, …):
+        # work in an orthonormal basis Q of its column space, so that the law is fitted to the part of the data the
+        # conservative model cannot explain and only the penalty decides between exactly equivalent splits
+        U, S, Vt = np.linalg.svd(self.Cw / self.c_scale, full_matrices=False)
+        keep = S > 1e-10 * (S[0] if len(S) else 1.0)
+        self.Q, self._S, self._V = U[:, keep], S[keep], Vt[keep].T
+        self.Z = self.Q * self._S  # = (Cw / c_scale) V: the reduced conservative columns (for the Jacobian)
+
+    def _perp(self, x):
+        return x - self.Q @ (self.Q.T @ x)
 
     def design(self, fam: Family | None, th):
         if fam is None:
@@ -492,19 +591,21 @@ class _Problem:
 
     def solve(self, Bw, off):
         """(α, β, data residual, penalty residual) of min |y − Cα − Bβ − off|² + μ|Bβ + off|²."""
-        M, Kc = self.Cw.shape
         K = Bw.shape[1]
-        bn = np.sqrt(np.mean(Bw**2, axis=0)) if K else np.zeros(0)
-        bn = np.where(bn > 0, bn, 1.0)
         sm = math.sqrt(MU)
-        A = np.block([[self.Cw / self.c_scale, Bw / bn], [np.zeros((M, Kc)), sm * Bw / bn]])
-        rhs = np.concatenate([self.yw - off, -sm * off])
-        x, *_ = np.linalg.lstsq(A, rhs, rcond=1e-12)
-        x = x / np.concatenate([self.c_scale, bn])
-        a, b = x[:Kc], x[Kc:]
+        if K:
+            bn = np.sqrt(np.mean(Bw**2, axis=0))
+            bn = np.where(bn > 0, bn, 1.0)
+            A = np.concatenate([self._perp(Bw) / bn, sm * self.pw[:, None] * Bw / bn])
+            rhs = np.concatenate([self._perp(self.yw - off), -sm * self.pw * off])
+            b = np.linalg.lstsq(A, rhs, rcond=1e-12)[0] / bn
+        else:
+            b = np.zeros(0)
         law = Bw @ b + off
-        r = self.yw - self.Cw @ a - law
-        return a, b, r, -sm * law
+        y = self.yw - law
+        a = (self._V @ ((self.Q.T @ y) / self._S)) / self.c_scale
+        r = self._perp(y)
+        return a, b, r, -sm * self.pw * law
 
     def fit(self, fam: Family | None, ctx) -> dict:
         if fam is None or not fam.nl_names:
@@ -543,8 +644,8 @@ class _Problem:
         th, b = fit["theta"], fit["beta"]
         Bw, off = self.design(fam, th)
         sm = math.sqrt(MU)
-        cols = [self.Cw, Bw]
-        pcols = [np.zeros_like(self.Cw), sm * Bw]
+        cols = [self.Z, Bw]
+        pcols = [np.zeros_like(self.Z), sm * self.pw[:, None] * Bw]
         for i in range(len(th)):
             h = 1e-6 * max(1.0, abs(th[i]))
             tp = th.copy()
@@ -552,7 +653,7 @@ class _Problem:
             Bp, offp = self.design(fam, tp)
             d = ((Bp @ b + offp) - (Bw @ b + off)) / h
             cols.append(d[:, None])
-            pcols.append(sm * d[:, None])
+            pcols.append(sm * (self.pw * d)[:, None])
         J = np.concatenate([np.concatenate(cols, axis=1).reshape(self.N, self.n, -1),
                             np.concatenate(pcols, axis=1).reshape(self.N, self.n, -1)], axis=1)
         R = np.concatenate([fit["r"].reshape(self.N, self.n), fit["rp"].reshape(self.N, self.n)], axis=1)
@@ -694,13 +795,18 @@ def _sparse_supports(prob: _Problem, mons_n: int, n: int) -> list[np.ndarray]:
 
 def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, angles=None, qdd_err=None,
               fc=None, user_laws: Sequence[str] = (), include: Sequence[str] | None = None, n_boot: int = N_BOOT,
-              seed: int = 0, max_rows: int = 20000) -> LawTable:
+              seed: int = 0, max_rows: int = 20000, library: bool = True,
+              conservative_cols=None, perturber: bool = False) -> LawTable:
     """Fit every candidate law jointly with the conservative model and rank them (see the module docstring).
 
     q, qd, qdd (N, n); t (N,); traj (N,) trajectory ids (rows of a trajectory contiguous; None: one trajectory);
     names: coordinate names (default q1…); angles: n booleans; qdd_err (N, n) per-row q̈ errors (weights); fc (N, n) a
     conservative force to scale (e.g. the LNN's); user_laws: SymPy strings (:func:`parse_law`); include: family keys
-    to try (default all). Rows beyond ``max_rows`` are thinned evenly.
+    to try (default all but the opt-in ``"perturber"``); library: add the conservative correction library to the
+    scale of fc (False: fc's scale alone — for a system's own feature Lagrangian). Rows beyond ``max_rows`` are
+    thinned evenly. conservative_cols (N, n, K): more conservative columns, e.g. the derivatives ∂f_c/∂c of a feature
+    Lagrangian's force by its coefficients, so that the joint fit re-fits c (linearised at the trained c); a table
+    built with them is for the pointwise ranking only. perturber: add the perturber family (n = 2 orbits).
     """
     q, qd, qdd, t = (np.asarray(a, float) for a in (q, qd, qdd, t))
     if q.ndim != 2 or qd.shape != q.shape or qdd.shape != q.shape or t.shape != (q.shape[0],):
@@ -722,18 +828,28 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
         keep = np.unique(np.linspace(0, N - 1, max_rows).round().astype(int))
         q, qd, qdd, t, w, traj = q[keep], qd[keep], qdd[keep], t[keep], w[keep], traj[keep]
         fc = None if fc is None else np.asarray(fc, float)[keep]
+        conservative_cols = None if conservative_cols is None else np.asarray(conservative_cols, float)[keep]
         N = len(keep)
     segs = _segments(traj)
     sd = q.std(axis=0)
     center = (q.mean(axis=0), np.where(sd > 0, sd, 1.0))  # positions enter the conservative library standardised
-    C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float), center)
+    C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float), center, library)
+    n_extra = 0
+    if conservative_cols is not None:
+        X = np.asarray(conservative_cols, float)
+        if X.ndim != 3 or X.shape[:2] != (N, n) or not np.all(np.isfinite(X)):
+            raise ValueError(f"conservative_cols must be finite and (N, n, K) = ({N}, {n}, K); got {X.shape}")
+        C, n_extra = np.concatenate([C, X], axis=2), X.shape[2]
     prob = _Problem(q, qd, qdd, t, w, C, angles)
     folds, fold_desc = _folds(segs)
     v_rms = np.sqrt(np.mean(qd**2, axis=0))
 
     zero = prob.fit(None, {})
-    ctx = {"drive_omegas": _drive_omegas(t, zero["r"].reshape(N, n) / w, segs)}
+    r0 = zero["r"].reshape(N, n) / w
+    ctx = {"drive_omegas": _drive_omegas(t, r0, segs), "q": q, "t": t, "residual": r0}
     fams = [f for f in families(n, names, v_rms) if include is None or f.key in include]
+    if (perturber or (include is not None and "perturber" in include)) and n == 2:
+        fams.append(perturber_family(names))
     if include is None or "sparse" in include:
         for sup in _sparse_supports(prob, len(_odd_monomials(n)), n):
             fams.append(sparse_family(n, names, sup))
@@ -751,7 +867,7 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
     rows: list[LawFit] = []
     stats: list = []
     alphas: dict[int, np.ndarray] = {}
-    Kc = C.shape[2]
+    Kc = prob.Z.shape[1]  # the Jacobian's conservative columns (reduced basis)
     for f, fit in fits:
         J, R = prob.jacobian(f, fit)
         law_idx = np.arange(Kc, J.shape[2])
@@ -780,13 +896,13 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
     named = {tuple(r.formula.values()) for r in rows if r.key != "sparse"}
     rows = [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
     settings = {"mu": MU, "ic_tie": IC_TIE, "n_boot": n_boot, "seed": seed, "rows": int(N), "method": "pointwise",
-                "conservative_columns": int(Kc), "conservative_base": fc is not None, "names": names,
-                "_alpha": alphas, "_center": center, "_y_rms": y_rms}
+                "conservative_columns": int(C.shape[2]), "conservative_rank": int(Kc), "conservative_base": fc is not None, "names": names,
+                "library": bool(library), "conservative_extra": int(n_extra), "_alpha": alphas, "_center": center, "_y_rms": y_rms}
     return _select(rows, n_eff, tau, fold_desc, settings)
 
 
 # ------------------------------------------------------------------------------------------- trajectory-level ranking
-def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center):
+def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center, library: bool = True):
     """q̈ = f_c + Σ_families gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…): every candidate is this
     model with the other families' gates at 0 — one compiled shooting function for all of them. The parameters
     actually fitted are u, with θ = base + u·D (``aux`` = (base, D))."""
@@ -798,7 +914,7 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
         base, D = aux
         theta = base + u @ D
         fc = None if fc_fn is None else fc_fn(q, v)
-        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center), theta[:Kc])
+        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center, library), theta[:Kc])
         off = Kc
         for f, (K, m) in zip(fams, sizes):
             b, th, gate = theta[off:off + K], theta[off + K:off + K + m], theta[off + K + m]
@@ -834,6 +950,8 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
         shooting_windows,
     )
 
+    if table.settings.get("conservative_extra", 0):
+        raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
     q_pos, qd, t = (np.asarray(a, float) for a in (q_pos, qd, t))
     N, n = q_pos.shape
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
@@ -870,7 +988,8 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
         off += K + m + 1
     P_glob = off
     P_dir = Kc + max([K + m for _, K, m in slots], default=0)
-    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"])
+    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"],
+                         table.settings.get("library", True))
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):
         if m:

@@ -14,13 +14,33 @@ Run:  .venv/bin/python benchmarks/bench_speed.py [--quick] [--reps 50] [--blocks
 """
 from __future__ import annotations
 
-import argparse, json, os, platform, statistics, tempfile, time
+import argparse
+import json
+import os
+import platform
+import statistics
+import tempfile
+import time
 from functools import partial
 from pathlib import Path
 
-import jax, jax.numpy as jnp, optax
-import nnphd  # noqa: F401  (enables float64)
-from nnphd.models import ModelConfig, init_nnphd, init_uan, lnn_accel_reference, mlp_apply, uan_force
+import jax
+import jax.numpy as jnp
+import optax
+
+import nnphd
+
+nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
+
+import nnphd
+from nnphd.models import (
+    ModelConfig,
+    init_nnphd,
+    init_uan,
+    lnn_accel_reference,
+    mlp_apply,
+    uan_force,
+)
 from nnphd.run import run_sweep
 from nnphd.train import loss_terms, pnorm
 
@@ -141,7 +161,7 @@ def main() -> None:
     print(f"machine: {info['cpu_model']}, nproc={info['nproc']}, jax {info['jax_version']} ({info['jax_backend']}), "
           f"load {info['loadavg_1min']:.2f}; n={N}, float64, widths 200-200")
     steps = bench_steps(args.reps, args.blocks)
-    yes = lambda ok: "yes" if ok else "NO"  # noqa: E731
+    yes = lambda ok: "yes" if ok else "NO"
     print(f"\n{'B':>5} {'ours ms':>9} {'ref ms':>9} {'plain ms':>9} {'ref/ours (goal ≥3)':>20} {'ours/plain (goal ≤3)':>22}")
     for b, r in steps.items():
         print(f"{b:>5} {r['ours_ms']:>9.3f} {r['reference_ms']:>9.3f} {r['plain_ms']:>9.3f} "

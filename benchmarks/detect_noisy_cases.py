@@ -9,8 +9,13 @@ import time
 
 import numpy as np
 
+import nnphd
+
+nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
+
 from nnphd.trust import make_case
 from nnphd.userdetect import detect_file
+
 names = sys.argv[1].split(",")
 for name in names:
     d, traj = make_case(name, n_traj=8, seed=3)
@@ -20,8 +25,7 @@ for name in names:
     path = os.path.join(tempfile.gettempdir(), f"noisy_{name}.csv")
     with open(path, "w") as fh:
         fh.write("traj,t," + ",".join(cols) + "\n")
-        for k, ti, row in zip(traj, d.t, q):
-            fh.write(f"{k},{ti:.6f}," + ",".join(f"{v:.10g}" for v in row) + "\n")
+        fh.writelines(f"{k},{ti:.6f}," + ",".join(f"{v:.10g}" for v in row) + "\n" for k, ti, row in zip(traj, d.t, q))
     t0 = time.time()
     r = detect_file(path, out=None, sr_time=0)
     print(f"{name:22s} {r['status']:13s} conf {r['confidence']:.2f} z {(r['statistic']['value'] if r['statistic']['value'] is not None else float('nan')):.1f} {time.time()-t0:.0f}s | {r['reasons'][0][:150]}", flush=True)

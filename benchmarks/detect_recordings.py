@@ -21,10 +21,13 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from tests.fixtures import recordings  # noqa: E402
-from tests.fixtures.recordings import NAMES, make  # noqa: E402
+import nnphd
+from tests.fixtures import recordings
+from tests.fixtures.recordings import NAMES, make
 
-from nnphd.userdetect import detect_file  # noqa: E402
+nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
+
+from nnphd.userdetect import detect_file
 
 
 def right(expected: str, status: str) -> bool:

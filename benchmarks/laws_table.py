@@ -27,6 +27,10 @@ sys.path.insert(0, os.path.join(ROOT, "benchmarks"))
 
 from sindy_baseline import sindy_law
 
+import nnphd
+
+nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
+
 from nnphd.userdetect import detect_file
 from tests.fixtures import laws as cases
 

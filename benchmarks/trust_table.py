@@ -16,7 +16,10 @@ import time
 
 import numpy as np
 
-import nnphd  # noqa: F401
+import nnphd
+
+nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
+
 from nnphd.detect import force_norm, verdict
 from nnphd.models import ModelConfig
 from nnphd.train import PAPER_LAMBDAS, TrainConfig, sweep
@@ -70,7 +73,7 @@ for name, K, T in runs:
     truth = "cons" if c.conservative else "NON-cons"
     ok = (r["status"] != "detected") if c.conservative else (r["status"] == "detected")
     row = (f"{name:20s} {K:2d} {truth:>9s} {frac:6.3f} | {('NEW' if nv.new_physics else ('no' if nv.new_physics is not None else '—')):>5s} {nv.ratio:6.2f} "
-           f"{ho:8.2f} | {r['status']:12s} {str(r['new_physics']):5s} {r['confidence']:4.2f} "
+           f"{ho:8.2f} | {r['status']:12s} {r['new_physics']!s:5s} {r['confidence']:4.2f} "
            f"{(r['statistic']['value'] if r['statistic']['value'] is not None else float('nan')):5.2f} {np.median(ch['drift']['magnitude_median']):6.3f} "
            f"{np.median(ch['time']['gain']):6.2f} {np.median(ch['gap']['gap_train']):6.2f} | "
            f"{t_assess:4.0f}s {'ok' if ok else 'WRONG'}")

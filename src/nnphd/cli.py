@@ -196,19 +196,22 @@ def discover(
         tag = "[bold red]NEW PHYSICS[/]" if res["new_physics"] else "[bold green]no new physics[/]"
         console.print(f"[bold]{name}[/]: {tag} (L_e ratio across λ=1: {v['ratio']:.3g}) — {res['wall_time_s']:.0f} s")
         console.print(f"  constrained Lagrangian: {res['constrained_lagrangian']['formula']}", highlight=False)
-        console.print(f"  parametric: {res['parametric']['formula']}", highlight=False)
+        lw = res["law"]["law"]
+        console.print(f"  law (joint fit, winner of {len(res['law']['candidates'])} candidates): "
+                      + ("; ".join(f"{k} = {e}" for k, e in lw["formula"].items()) if lw else "none"), highlight=False)
+        console.print(f"  post-hoc parametric fit of the UAN's f_n: {res['parametric']['formula']}", highlight=False)
         for method, b in res["blind"].items():
             console.print(f"  blind ({method}): "
                           f"{'; '.join(f'{k} = {e}' for k, e in b['formula'].items()) if b['readable'] else '—'}"
                           f"  ({b['note']})", highlight=False)
     t = Table(title="Table II — ground truth, paper, ours")
-    for col in ("system", "quantity", "truth", "paper", "ours", "± stderr", "goal", "met"):
+    for col in ("system", "quantity", "truth", "paper", "ours (joint)", "± stderr", "goal", "met", "post hoc"):
         t.add_column(col, justify="right")
     for res in results:
         for r in res["table2"]:
             t.add_row(res["system"].replace("double-pendulum", "pendulum"), r["quantity"], f"{r['truth']:.4g}",
-                      f"{r['paper']:.4g}", f"{r['ours']:.4g}",
-                      f"{r['stderr']:.2g}", r["goal"], "yes" if r["goal_met"] else "[red]no[/]")
+                      f"{r['paper']:.4g}", f"{r['ours']:.6g}",
+                      f"{r['stderr']:.2g}", r["goal"], "yes" if r["goal_met"] else "[red]no[/]", f"{r['posthoc']:.4g}")
     console.print(t)
     if all_:
         write_table2(results, out)
@@ -548,6 +551,9 @@ def demo_neptune(
 
 
 def main(argv: list[str] | None = None) -> int:
+    from . import configure
+
+    configure()  # the command line owns its process: float64 and the fast XLA:CPU setting
     cmd = typer.main.get_command(app)
     try:
         cmd.main(args=argv if argv is not None else sys.argv[1:], prog_name="nnphd", standalone_mode=False)

@@ -307,16 +307,13 @@ def write_neptune_demo(result: dict, out: str | Path, figdata: _FigureData | Non
 
 
 def _figure(result: dict, fd: _FigureData):
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .report import subplots
 
     from . import ephemeris as E
 
     ud, fit = fd.ud, fd.fit
     year = E.jd_to_year(ud.jd)
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.6))
+    fig, axes = subplots(1, 3, figsize=(16, 4.6))
 
     ax = axes[0]
     tab = result["sweep_table"]

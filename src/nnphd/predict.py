@@ -435,14 +435,11 @@ def _claims(metrics, lnn_const, e_true) -> list[dict]:
 
 def plot_prediction(data: Dataset, rolls: dict, t_split: float):
     """Fig. 4: (a) θ1(t), (b) the true energy function along truth and each model's rollout."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from .report import subplots
 
     energy = _energy_fn(get_system("double-pendulum"))
     e_data = np.asarray(energy(jnp.asarray(data.q), jnp.asarray(data.qd)))
-    fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4))
+    fig, (a, b) = subplots(1, 2, figsize=(12, 4))
     a.plot(data.t, data.q[:, 0], "k-", lw=1.2, label="truth")
     b.plot(data.t, e_data, "k-", lw=1.2, label="truth")
     for i, kind in enumerate(MODELS):
@@ -465,12 +462,9 @@ def plot_prediction(data: Dataset, rolls: dict, t_split: float):
 
 
 def plot_energy_balance(series: dict):
-    import matplotlib
+    from .report import subplots
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 3.5))
+    fig, ax = subplots(figsize=(7, 3.5))
     ax.plot(series["t"], series["dHdt"], "k-", lw=1.0, label="dH/dt (numerical, learned energy)")
     ax.plot(series["t"], series["power"], "C3--", lw=1.0, label=r"$\dot q^T (\partial^2 L/\partial\dot q^2) f_n$")
     ax.set_xlabel("t")

@@ -50,25 +50,26 @@ def write_json(path: str | os.PathLike, obj) -> None:
     atomic_write_bytes(path, (json.dumps(obj, indent=2, default=_json_default, allow_nan=True) + "\n").encode())
 
 
+def subplots(*args, figsize=None, **kw):
+    """(fig, axes) on a bare matplotlib Figure: no pyplot, so no backend is chosen and nothing global changes (the
+    library never calls ``matplotlib.use``); the figure saves to PNG and shows in a notebook as any other."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*args, **kw)
+
+
 def save_figure(fig, path: str | os.PathLike) -> None:
     import io
 
-    import matplotlib.pyplot as plt
-
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=120, bbox_inches="tight")
-    plt.close(fig)
     atomic_write_bytes(path, buf.getvalue())
 
 
 def plot_sweep(curves: dict[str, Sequence[dict]], title: str = "", show_lb: bool = True):
     """L_e(λ) (and dashed L_b(λ)) on log axes, one curve per name; rows are dicts with lam, L_e, L_b."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(5.5, 4))
+    fig, ax = subplots(figsize=(5.5, 4))
     for i, (name, rows) in enumerate(curves.items()):
         lam = [r["lam"] for r in rows]
         color = f"C{i}"

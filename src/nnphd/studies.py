@@ -493,12 +493,9 @@ def _loss_title(l: str) -> str:
 
 
 def _plt():
-    import matplotlib
+    from . import report
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return report  # report.subplots: pyplot-free figures
 
 
 def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):

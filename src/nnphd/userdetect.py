@@ -32,18 +32,33 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     ones; ``law_level``: "pointwise" (fits to the estimated q̈ only), "trajectory" (re-ranked by multiple shooting
     on the positions) or "auto" (trajectory whenever the data oscillate enough for shooting windows).
     """
+    from .userdata import load_trajectories
+
+    if law_level not in ("auto", "pointwise", "trajectory"):
+        raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
+    (progress or (lambda msg: None))("reading the file")
+    ud = load_trajectories(path, angles)
+    return detect_data(ud, out, seed=seed, steps=steps, sr_time=sr_time, n_seeds=n_seeds, progress=progress,
+                       trim=trim, laws=laws, law_level=law_level, **assess_kw)[0]
+
+
+def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int = 1000, sr_time: float = 10.0,
+                n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
+                laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> tuple[dict, dict]:
+    """:func:`detect_file` on validated data (:class:`nnphd.userdata.UserData`); returns (report, model) with
+    model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
+    data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
     from .explain.laws import parse_law
     from .explain.sparse import sparse_formula
     from .explain.symbolic import genetic_formula
     from .trust import assess
-    from .userdata import load_trajectories, suggest_angles
+    from .userdata import suggest_angles
 
     say = progress or (lambda msg: None)
     if law_level not in ("auto", "pointwise", "trajectory"):
         raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
     t0 = time.perf_counter()
-    say("reading the file")
-    ud = load_trajectories(path, angles)
+    path = ud.path
     for x in laws:  # fail on a bad --law before any work
         parse_law(x, ud.coords)
     data, info, trim = _dataset(ud, trim)
@@ -58,7 +73,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     coords = list(ud.coords)
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
-    law = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, say)
+    law, law_fit = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, say)
     status, new_physics, confidence, reasons = _reconcile(res, law)
     blind = {}
     if res["status"] == "detected" and law.get("law") is None:  # fallback: no candidate family fits
@@ -102,7 +117,9 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     }
     if out is not None:
         write_report(out, report, data, traj, coords, fc, fn)
-    return report
+    model = {"conservative": res.get("_conservative"), "law": law_fit if law.get("law") else None, "data": data,
+             "traj": traj, "coords": coords, "angles": [bool(a) for a in ud.is_angle], "fc": fc, "fn": fn}
+    return report, model
 
 
 WARN_QDD_ERR = 0.2  # a coordinate whose estimated relative q̈ error exceeds this gets a warning
@@ -181,15 +198,15 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
     return status, new, conf, reasons
 
 
-def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, say) -> dict:
+def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, say) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base; a law is claimed only when the verdict
-    is "detected"."""
+    is "detected". Returns (the table as a dict, the winning LawFit or None)."""
     from .trust import conservative_fn
 
     cons = res.get("_conservative")
     if cons is None:
         return {"law": None, "reason": "no law fitted: " + (res["quality"].get("reason") or "the data cannot decide"),
-                "candidates": []}
+                "candidates": []}, None
     fc = np.asarray(cons["fc"])
     ok = bool(np.all(np.isfinite(fc)))
     table = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, fc=fc if ok else None,
@@ -200,7 +217,7 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, sa
         out["law"] = None
         out["reason"] = (f"the verdict is {res['status']!r}, so no law is claimed (the best candidate, "
                          f"{out['candidate_law']['title']}, would beat zero: {table.reason})")
-    return out
+    return out, table.law
 
 
 def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn=None, laws=(), level="auto",
@@ -229,24 +246,18 @@ def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn
 
 # ---------------------------------------------------------------------------------------------------- figures
 def _png(fig) -> bytes:
-    import matplotlib.pyplot as plt
-
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
     return buf.getvalue()
 
 
 def _plt():
-    import matplotlib
+    from . import report
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+    return report
 
 
-def plot_data(data, traj, coords) -> bytes:
+def fig_data(data, traj, coords):
     plt = _plt()
     n = len(coords)
     fig, axes = plt.subplots(n, 1, figsize=(8, 2.2 * n), sharex=True, squeeze=False)
@@ -258,10 +269,10 @@ def plot_data(data, traj, coords) -> bytes:
         ax.set_ylabel(c)
     axes[-1, 0].set_xlabel("t")
     axes[0, 0].set_title("data (one colour per trajectory; first 20 shown)")
-    return _png(fig)
+    return fig
 
 
-def plot_loss(table, naive_ratio=None) -> bytes:
+def fig_loss(table, naive_ratio=None):
     plt = _plt()
     fig, ax = plt.subplots(figsize=(6, 4))
     lam = [r["lam"] for r in table]
@@ -276,10 +287,10 @@ def plot_loss(table, naive_ratio=None) -> bytes:
     ax.legend()
     ratio = "" if naive_ratio is None else f"; median above/below λ=1: ×{naive_ratio:.2g}"
     ax.set_title(f"pointwise test: $L_e(\\lambda)${ratio}", fontsize=10)
-    return _png(fig)
+    return fig
 
 
-def plot_energy(trend: dict) -> bytes | None:
+def fig_energy(trend: dict):
     """Per-period mean of the learned energy above its minimum, with the fitted decay (log scale)."""
     if not trend.get("block_t"):
         return None
@@ -302,10 +313,10 @@ def plot_energy(trend: dict) -> bytes | None:
             "consistent", True) else "not enough whole periods"), fontsize=10)
     if len(trend["block_t"]) > 1:
         ax.legend(fontsize=8)
-    return _png(fig)
+    return fig
 
 
-def plot_forces(data, traj, coords, fc, fn, lam=None) -> bytes:
+def fig_forces(data, traj, coords, fc, fn, lam=None):
     plt = _plt()
     n = len(coords)
     fig, axes = plt.subplots(n, 2, figsize=(11, 2.4 * n), sharex=True, squeeze=False)
@@ -321,7 +332,24 @@ def plot_forces(data, traj, coords, fc, fn, lam=None) -> bytes:
     axes[0, 1].set_title(f"non-conservative part f_n{lam} (pointwise fit: as noisy as q̈)", fontsize=10)
     axes[-1, 0].set_xlabel("t")
     axes[-1, 1].set_xlabel("t")
-    return _png(fig)
+    return fig
+
+
+def plot_data(data, traj, coords) -> bytes:
+    return _png(fig_data(data, traj, coords))
+
+
+def plot_loss(table, naive_ratio=None) -> bytes:
+    return _png(fig_loss(table, naive_ratio))
+
+
+def plot_energy(trend: dict) -> bytes | None:
+    fig = fig_energy(trend)
+    return None if fig is None else _png(fig)
+
+
+def plot_forces(data, traj, coords, fc, fn, lam=None) -> bytes:
+    return _png(fig_forces(data, traj, coords, fc, fn, lam))
 
 
 # ---------------------------------------------------------------------------------------------------- output

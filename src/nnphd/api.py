@@ -1,0 +1,410 @@
+"""The Python API: arrays in, a verdict, a law and a fitted model out.
+
+    import numpy as np, nnphd
+    data = nnphd.Trajectories([t1, t2], [x1, x2], names=["x"])       # or .from_csv / .from_npz / .from_dataframe
+    model = nnphd.NNPhD(seed=0).fit(data)                            # derivatives, λ-sweep, trust checks, the law
+    model.verdict_.status, model.confidence_, model.law_             # "detected", 1.0, Law(...) or None
+    fc, fn = model.forces(q, qd, t)                                  # the fitted model at any states
+    q, qd = model.simulate(q0, qd0, t)                               # roll it out
+    model.save("m.npz"); nnphd.load("m.npz")                         # JSON + arrays in one .npz, no pickle
+
+The fitted model is the LNN's conservative acceleration f_c (in the data's units) plus the claimed law as f_n (zero
+when no law is claimed — the verdict is not "detected" or no candidate beats zero). Everything runs in float64
+inside the calls, without changing the caller's JAX settings (see :func:`nnphd.configure`).
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["Law", "NNPhD", "Trajectories", "Verdict", "load"]
+
+
+def _x64():
+    import jax
+
+    return jax.enable_x64(True)
+
+
+class Trajectories:
+    """Trajectories of one system: positions (and optionally velocities/accelerations) against time.
+
+    ``t``: (N,) times with ``traj`` (N,) trajectory ids, or a list of (N_i,) arrays, one per trajectory (lengths
+    may differ); ``q``: (N,) / (N, n) likewise, or a list of them. ``names``: the coordinates' names (default
+    q1, q2, …); ``angles``: the names that are angles (whole turns allowed); ``qd``/``qdd``: known derivatives, same
+    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.userdata.DataError`
+    (a ValueError) with a one-line message."""
+
+    def __init__(self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (),
+                 qd=None, qdd=None):
+        from .userdata import DataError, _Rows, _validate
+
+        if isinstance(t, (list, tuple)) and len(t) and np.ndim(t[0]) == 1:
+            if traj is not None:
+                raise DataError("give either lists of per-trajectory arrays or traj ids, not both")
+            if not isinstance(q, (list, tuple)) or len(q) != len(t):
+                raise DataError(f"q must be a list of {len(t)} arrays, one per array of t")
+            ids = np.concatenate([np.full(len(np.asarray(x)), i) for i, x in enumerate(t)])
+            cat = (lambda a: None if a is None else np.concatenate([np.asarray(x, float).reshape(len(np.asarray(
+                x)), -1) for x in a]))
+            t, q, qd, qdd, traj = np.concatenate([np.asarray(x, float) for x in t]), cat(q), cat(qd), cat(qdd), ids
+        t = np.asarray(t, float)
+        if t.ndim != 1:
+            raise DataError(f"t must be 1-D (one time per sample), got shape {t.shape}")
+        q = np.asarray(q, float)
+        q = q[:, None] if q.ndim == 1 else q
+        if q.ndim != 2 or q.shape[0] != len(t):
+            raise DataError(f"q must be (N,) or (N, n) with N = {len(t)} (the length of t), got shape {q.shape}")
+        n = q.shape[1]
+        names = [f"q{i + 1}" for i in range(n)] if names is None else [str(x) for x in names]
+        if len(names) != n or len(set(names)) != n:
+            raise DataError(f"names must be {n} distinct names (one per column of q), got {names}")
+        bad = [c for c in names if c in ("t", "traj") or c.endswith(("_dot", "_ddot"))]
+        if bad:
+            raise DataError(f"coordinate names must not be 't', 'traj' or end in _dot/_ddot, got {bad}")
+        cols: dict[str, np.ndarray] = {"t": t}
+        if traj is not None:
+            tr = np.asarray(traj)
+            if tr.shape != t.shape:
+                raise DataError(f"traj must have one id per sample ({len(t)}), got shape {tr.shape}")
+            cols["traj"] = tr.astype(float)
+        for j, c in enumerate(names):
+            cols[c] = q[:, j]
+        for suffix, arr in (("_dot", qd), ("_ddot", qdd)):
+            if arr is not None:
+                a = np.asarray(arr, float).reshape(len(t), -1)
+                if a.shape != q.shape:
+                    raise DataError(f"q{suffix} must have the shape of q {q.shape}, got {a.shape}")
+                for j, c in enumerate(names):
+                    cols[c + suffix] = a[:, j]
+        self._ud = _validate("<arrays>", cols, _Rows(None), tuple(angles))
+
+    @classmethod
+    def _from_userdata(cls, ud) -> Trajectories:
+        self = cls.__new__(cls)
+        self._ud = ud
+        return self
+
+    @classmethod
+    def from_csv(cls, path, angles: Sequence[str] = ()) -> Trajectories:
+        """A CSV file (header t, [traj,] coordinates, optional <c>_dot / <c>_ddot; see ``nnphd detect --help``)."""
+        from .userdata import load_trajectories
+
+        if os.path.splitext(os.fspath(path))[1].lower() != ".csv":
+            raise ValueError(f"{path}: expected a .csv file")
+        return cls._from_userdata(load_trajectories(path, angles))
+
+    @classmethod
+    def from_npz(cls, path, angles: Sequence[str] = ()) -> Trajectories:
+        """An .npz file with one 1-D array per CSV column."""
+        from .userdata import load_trajectories
+
+        if os.path.splitext(os.fspath(path))[1].lower() != ".npz":
+            raise ValueError(f"{path}: expected a .npz file")
+        return cls._from_userdata(load_trajectories(path, angles))
+
+    @classmethod
+    def from_dataframe(cls, df, angles: Sequence[str] = ()) -> Trajectories:
+        """A pandas (or any mapping of columns) table with the CSV file's columns."""
+        from .userdata import DataError, _Rows, _validate
+
+        try:
+            cols = {str(k): np.asarray(df[k], float) for k in df}
+        except (TypeError, ValueError) as e:
+            raise DataError(f"every column must be numeric: {e}") from None
+        return cls._from_userdata(_validate("<dataframe>", cols, _Rows(None), tuple(angles)))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return self._ud.coords
+
+    @property
+    def angles(self) -> tuple[str, ...]:
+        return self._ud.angles
+
+    @property
+    def n_trajectories(self) -> int:
+        return self._ud.n_traj
+
+    @property
+    def n_samples(self) -> int:
+        return self._ud.n_samples
+
+    def __repr__(self) -> str:
+        return (f"Trajectories({self.n_trajectories} trajectories, {self.n_samples} samples, coordinates "
+                f"{', '.join(self.names)}{'; angles ' + ', '.join(self.angles) if self.angles else ''})")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Is there new physics? ``status`` "detected" / "none" / "inconclusive"; ``confidence`` the repeatability of
+    the call (see the README); ``reasons`` why; ``statistic`` the energy-trend z."""
+
+    status: str
+    new_physics: bool
+    confidence: float
+    reasons: tuple[str, ...]
+    statistic: float | None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Law:
+    """The claimed law of f_n: the winner of the ranked candidates (``table``: every candidate, best first)."""
+
+    key: str
+    title: str
+    formula: dict[str, str]
+    latex: dict[str, str]
+    params: dict[str, float]
+    stderr: dict[str, float]
+    method: str
+    table: tuple[dict, ...] = field(default=(), repr=False)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+class NNPhD:
+    """The estimator: ``NNPhD(seed=0).fit(data)`` runs what ``nnphd detect`` runs (derivative estimates, the
+    λ-sweep, the trust checks, the ranked candidate laws) and keeps the fitted model.
+
+    ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``laws``: your candidate
+    laws (SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``); ``law_fit``: "auto" / "pointwise" / "trajectory";
+    ``sr_time``: seconds of genetic symbolic regression for the fallback (0: none); ``trim``: drop the ends of
+    each trajectory ("auto"); further keywords go to :func:`nnphd.trust.assess`.
+
+    After ``fit``: ``verdict_`` (:class:`Verdict`), ``status_``, ``confidence_``, ``new_physics_``, ``law_``
+    (:class:`Law` or None), ``report_`` (the JSON-ready report dict), ``names_``, ``angles_``.
+    """
+
+    def __init__(self, *, seed: int = 0, steps: int = 1000, n_seeds: int = 2, laws: Sequence[str] = (),
+                 law_fit: str = "auto", sr_time: float = 0.0, trim: bool | str = "auto", **assess_kw: Any):
+        self.seed, self.steps, self.n_seeds, self.laws = int(seed), int(steps), int(n_seeds), tuple(laws)
+        self.law_fit, self.sr_time, self.trim, self.assess_kw = law_fit, float(sr_time), trim, dict(assess_kw)
+        self._model: dict | None = None
+
+    # ------------------------------------------------------------------------------------------------ fitting
+    def fit(self, data: Trajectories, progress: Callable[[str], None] | None = None) -> NNPhD:
+        from .userdetect import detect_data
+
+        if not isinstance(data, Trajectories):
+            raise TypeError(f"fit expects nnphd.Trajectories, got {type(data).__name__}")
+        with _x64():
+            report, model = detect_data(data._ud, None, seed=self.seed, steps=self.steps, sr_time=self.sr_time,
+                                        n_seeds=self.n_seeds, progress=progress, trim=self.trim, laws=self.laws,
+                                        law_level=self.law_fit, **self.assess_kw)
+        self.report_ = report
+        self._model = model
+        self._set_results(report, model["law"])
+        return self
+
+    def _set_results(self, report: dict, law_fit) -> None:
+        self.verdict_ = Verdict(report["status"], bool(report["new_physics"]), float(report["confidence"]),
+                                tuple(report["reasons"]), (report.get("statistic") or {}).get("value"))
+        self.status_, self.confidence_, self.new_physics_ = (self.verdict_.status, self.verdict_.confidence,
+                                                             self.verdict_.new_physics)
+        w = (report.get("law") or {}).get("law")
+        self.law_ = None if not w else Law(w["law"], w["title"], w["formula"], w["latex"], w["params"], w["stderr"],
+                                           w["method"], tuple(report["law"].get("candidates", ())))
+        self._law = law_fit
+        m = self._model
+        self.names_, self.angles_ = tuple(m["coords"]), tuple(c for c, a in zip(m["coords"], m["angles"]) if a)
+
+    def _check_fitted(self):
+        if self._model is None:
+            raise RuntimeError("this NNPhD is not fitted yet: call .fit(data) or nnphd.load(path) first")
+        if self._model["conservative"] is None:
+            raise RuntimeError("no model was trained: the data cannot decide (" + "; ".join(self.verdict_.reasons)
+                               + ")")
+
+    # ------------------------------------------------------------------------------------------- the model
+    def _fc_fn(self):
+        if getattr(self, "_fc_jit", None) is None:
+            import jax
+
+            from .trust import conservative_fn
+
+            self._fc_jit = jax.jit(conservative_fn(self._model["conservative"]))
+        return self._fc_jit
+
+    def _states(self, q, qd, t):
+        n = len(self.names_)
+        q = np.asarray(q, float).reshape(-1, n)
+        qd = np.asarray(qd, float).reshape(-1, n)
+        if qd.shape != q.shape:
+            raise ValueError(f"qd must have the shape of q {q.shape}, got {qd.shape}")
+        t = np.zeros(len(q)) if t is None else np.broadcast_to(np.asarray(t, float), (len(q),))
+        return q, qd, t
+
+    def forces(self, q, qd, t=None) -> tuple[np.ndarray, np.ndarray]:
+        """(f_c, f_n) at states q, qd (N, n) (or (n,)), times t (N,) — in the data's units; f_n is the claimed law
+        (zeros without one)."""
+        self._check_fitted()
+        q, qd, t = self._states(q, qd, t)
+        with _x64():
+            fc = np.asarray(self._fc_fn()(q, qd), float)
+        fn = np.zeros_like(q) if self._law is None else np.asarray(self._law.predict(q, qd, t), float)
+        return fc, fn
+
+    def simulate(self, q0, qd0, t, substeps: int = 4) -> tuple[np.ndarray, np.ndarray]:
+        """Roll the fitted model q̈ = f_c + f_n out from (q0, qd0) at t[0] over the evenly spaced times ``t``
+        (RK4, ``substeps`` steps per interval). Returns q, q̇ (len(t), n)."""
+        import jax
+        import jax.numpy as jnp
+
+        from .data import rk4_scan
+
+        self._check_fitted()
+        t = np.asarray(t, float)
+        if t.ndim != 1 or len(t) < 2 or not np.all(np.diff(t) > 0):
+            raise ValueError("t must be at least two increasing times")
+        dt = np.diff(t)
+        if np.ptp(dt) > 1e-9 * np.max(np.abs(t)) + 1e-12:
+            raise ValueError("t must be evenly spaced")
+        n = len(self.names_)
+        law, fc = self._law, self._fc_fn()
+
+        def f(q, qd, tt):
+            a = fc(q[None], qd[None])[0]
+            if law is not None:
+                g = jnp.einsum("snk,k->sn", law.family.basis(jnp, jnp.asarray(law.theta), q[None], qd[None],
+                                                            jnp.reshape(tt, (1,))), jnp.asarray(law.beta))[0]
+                if law.family.fixed is not None:
+                    g = g + law.family.fixed(jnp, jnp.asarray(law.theta), q[None], qd[None], jnp.reshape(tt, (1,)))[0]
+                a = a + g
+            return a
+
+        with _x64():
+            x0 = jnp.concatenate([jnp.asarray(q0, jnp.float64).reshape(n), jnp.asarray(qd0, jnp.float64).reshape(n)])
+            k = int(substeps)
+            run = jax.jit(lambda x: rk4_scan(f, x, float(dt[0]) / k, float(t[0]), (len(t) - 1) * k))
+            _, qs, qds = run(x0)
+            return np.asarray(qs[::k], float), np.asarray(qds[::k], float)
+
+    # ------------------------------------------------------------------------------------------------ output
+    def report(self, out) -> Path:
+        """Write report.json, report.html and the figures to the folder ``out`` (as ``nnphd detect --out``)."""
+        from .userdetect import write_report
+
+        self._check_fitted()
+        m = self._model
+        if "data" not in m:
+            raise RuntimeError("a loaded model keeps no data: report() needs the model from fit()")
+        write_report(out, self.report_, m["data"], m["traj"], m["coords"], m["fc"], m["fn"])
+        return Path(out)
+
+    def figures(self) -> dict:
+        """The report's figures as matplotlib Figures (data, L_e(λ), forces, energy trend where computed)."""
+        from . import userdetect as ud
+
+        self._check_fitted()
+        m = self._model
+        if "data" not in m:
+            raise RuntimeError("a loaded model keeps no data: figures() needs the model from fit()")
+        r = self.report_
+        figs = {"data": ud.fig_data(m["data"], m["traj"], m["coords"])}
+        e = ud.fig_energy(r["evidence"]["energy_trend"])
+        if e is not None:
+            figs["energy_trend"] = e
+        if r["table"]:
+            figs["loss_vs_lambda"] = ud.fig_loss(r["table"])
+            figs["forces"] = ud.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
+        return figs
+
+    # ------------------------------------------------------------------------------------------ persistence
+    def save(self, path) -> Path:
+        """Save the fitted model (LNN weights, scaling, the law, the report) to one .npz file — arrays and JSON,
+        no pickle; written atomically."""
+        import jax
+
+        self._check_fitted()
+        path = Path(path)
+        if path.suffix != ".npz":
+            raise ValueError(f"{path}: the model file must end in .npz")
+        cons = self._model["conservative"]
+        leaves = jax.tree_util.tree_leaves(cons["lnn"])
+        sc = cons["scaling"]
+        law = None
+        if self._law is not None:
+            if self._law.family.spec is None:
+                raise ValueError(f"the law family {self._law.key!r} cannot be saved (no spec)")
+            law = {"spec": self._law.family.spec, "beta": self._law.beta.tolist(), "theta": self._law.theta.tolist()}
+        meta = {"format": "nnphd-model", "version": 1, "names": list(self.names_),
+                "angles": [c in self.angles_ for c in self.names_], "cfg": asdict(cons["cfg"]),
+                "scaling": {"mu_q": np.asarray(sc.mu_q).tolist(), "s_q": np.asarray(sc.s_q).tolist(),
+                            "t0": float(sc.t0), "s_t": float(sc.s_t)},
+                "law": law, "report": self.report_, "n_leaves": len(leaves),
+                "settings": {"seed": self.seed, "steps": self.steps, "n_seeds": self.n_seeds, "laws": list(self.laws),
+                             "law_fit": self.law_fit, "sr_time": self.sr_time, "trim": self.trim}}
+        from .report import _json_default
+
+        arrays = {f"lnn_{i}": np.asarray(x) for i, x in enumerate(leaves)}
+        arrays["meta"] = np.array(json.dumps(meta, default=_json_default))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".npz")
+        os.close(fd)
+        try:
+            np.savez(tmp, **arrays)
+            os.chmod(tmp, 0o644)
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        return path
+
+    def __repr__(self) -> str:
+        if self._model is None:
+            return f"NNPhD(seed={self.seed}, steps={self.steps}) — not fitted"
+        law = "; ".join(f"{k} = {v}" for k, v in self.law_.formula.items()) if self.law_ else "no law"
+        return f"NNPhD(seed={self.seed}): {self.status_} (confidence {self.confidence_:.2f}); {law}"
+
+
+def load(path) -> NNPhD:
+    """A model saved by :meth:`NNPhD.save`."""
+    import jax
+
+    from .explain.laws import LawFit, family_from_spec
+    from .models import ModelConfig, init_lnn
+    from .trust import Scaling
+
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+            leaves = [np.asarray(z[f"lnn_{i}"]) for i in range(int(meta["n_leaves"]))]
+    except (OSError, KeyError, ValueError) as e:
+        raise ValueError(f"{path}: not an nnphd model file ({e.__class__.__name__}: {e})") from None
+    if meta.get("format") != "nnphd-model":
+        raise ValueError(f"{path}: not an nnphd model file")
+    cd = meta["cfg"]
+    cfg = ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cd.items()})
+    with _x64():
+        treedef = jax.tree_util.tree_structure(init_lnn(jax.random.PRNGKey(0), cfg))
+        lnn = jax.tree_util.tree_unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
+    s = meta["scaling"]
+    sc = Scaling(np.asarray(s["mu_q"]), np.asarray(s["s_q"]), float(s["t0"]), float(s["s_t"]))
+    st = meta["settings"]
+    model = NNPhD(seed=st["seed"], steps=st["steps"], n_seeds=st["n_seeds"], laws=st["laws"], law_fit=st["law_fit"],
+                  sr_time=st["sr_time"], trim=st["trim"])
+    law = None
+    if meta["law"] is not None:
+        fam = family_from_spec(meta["law"]["spec"], meta["names"])
+        beta, theta = np.asarray(meta["law"]["beta"], float), np.asarray(meta["law"]["theta"], float)
+        law = LawFit(fam.key, fam.title, fam.k, {}, {}, {}, {}, float("nan"), 1.0, 0.0, 0.0, 0.0, fam.terms,
+                     family=fam, theta=theta, beta=beta)
+    model._model = {"conservative": {"lnn": lnn, "cfg": cfg, "scaling": sc}, "coords": meta["names"],
+                    "angles": meta["angles"]}
+    model.report_ = meta["report"]
+    model._set_results(meta["report"], law)
+    return model

@@ -33,7 +33,7 @@ def setup() -> None:
     if not STAMP.exists() or STAMP.read_text() != want:
         print("installing nnphd and its dependencies into .venv (first run: a few minutes)", flush=True)
         run(str(BIN / "python"), "-m", "pip", "install", "-q", "--upgrade", "pip")
-        run(str(BIN / "python"), "-m", "pip", "install", "-q", "-e", ".[test]")
+        run(str(BIN / "python"), "-m", "pip", "install", "-q", "-e", ".[all,test]")
         STAMP.write_text(want)
 
 

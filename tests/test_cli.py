@@ -91,9 +91,12 @@ def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     assert rc == 0
     res = json.loads((out / "double-pendulum" / "results.json").read_text())
     assert [r["quantity"] for r in res["table2"]] == ["Gamma_11", "Gamma_12", "Gamma_21", "Gamma_22"]
-    assert [r["paper"] for r in res["table2"]] == [0.018, 0.001, 0.001, 0.018]
+    assert res["law_hypothesis"] == "linear-full"
     for r in res["table2"]:
         assert np.isfinite(r["ours"]) and r["stderr"] > 0 and isinstance(r["goal_met"], bool)
+        # 100 training steps leave the Lagrangian's coefficients far off (the post-hoc fit of the UAN is then
+        # meaningless); the joint re-fit still covers the truth within 3 standard errors
+        assert abs(r["ours"] - r["truth"]) <= 3 * r["stderr"], r
     assert set(res["blind"]) == {"sparse", "genetic"}
     for b in res["blind"].values():
         assert set(b["formula"]) == {"theta1_ddot", "theta2_ddot"} and isinstance(b["readable"], bool)
@@ -120,3 +123,15 @@ def test_discover_bad_input(argv, msg, tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.startswith("error: ") and msg in err and "\n" not in err
     assert not out.exists()
+
+
+def test_version_and_short_help(capsys):
+    from nnphd import __version__
+
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out.strip() == f"nnphd {__version__}"
+    assert main(["detect", "-h"]) == 0
+    out = capsys.readouterr().out
+    assert "--law-fit" in out and "--angles" in out
+    assert main(["sweep", "-h"]) == 0
+    assert "--loss-p" in capsys.readouterr().out

@@ -15,8 +15,23 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from rich.table import Table
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  context_settings={"help_option_names": ["-h", "--help"]},
                   help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.")
 console = Console()
+
+
+def _version(value: bool) -> None:
+    if value:
+        from . import __version__
+
+        print(f"nnphd {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", "-V", is_eager=True, callback=_version,
+                                       help="print the version and exit")) -> None:
+    """nnphd — Neural New-Physics Detector: find the non-conservative part of a force field."""
 
 # typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
 _ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
@@ -72,7 +87,7 @@ def systems():
 @app.command()
 def sweep(
     system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)"),
-    p: str = typer.Option("1", "--p", help="loss norm index p ≥ 1, or 'mse'"),
+    p: str = typer.Option("1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"),
     steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
     seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
     lambdas: Optional[str] = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
@@ -534,7 +549,7 @@ def demo_neptune(
     try:
         nseed = _parse_int("--seed", seed, 0)
         if not available():
-            raise InputError("the Neptune demo needs the JPL ephemeris packages: pip install de405 jplephem "
+            raise InputError("the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
                              "(python3 dev.py setup installs them)")
         ensure_writable_dir(out)
     except ValueError as e:
@@ -552,12 +567,16 @@ def demo_neptune(
 
 def main(argv: list[str] | None = None) -> int:
     from . import configure
+    from ._extras import MissingExtra
 
     configure()  # the command line owns its process: float64 and the fast XLA:CPU setting
     cmd = typer.main.get_command(app)
     try:
         cmd.main(args=argv if argv is not None else sys.argv[1:], prog_name="nnphd", standalone_mode=False)
     except InputError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except MissingExtra as e:  # an optional dependency of the command is not installed
         print(f"error: {e}", file=sys.stderr)
         return 2
     except typer.Exit as e:

@@ -32,6 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from ._extras import MissingExtra
+
 __all__ = [
     "BODIES",
     "KNOWN_BODIES",
@@ -74,8 +76,8 @@ _GM_KEY = {"sun": "GMS", "mercury": "GM1", "venus": "GM2", "earthmoon": "GMB", "
 _FRAMES = ("ecliptic", "icrf")
 
 
-class EphemerisUnavailable(ImportError):
-    """The ephemeris packages (``de405``, ``jplephem``) are not installed."""
+class EphemerisUnavailable(MissingExtra):
+    """The ephemeris packages (``de405``, ``jplephem``) are not installed (the ``astro`` extra)."""
 
 
 # ---------------------------------------------------------------------------------------------------- ephemeris
@@ -87,7 +89,7 @@ def load_ephemeris():
         from jplephem.ephem import Ephemeris
     except ImportError as e:
         raise EphemerisUnavailable(
-            f"the JPL ephemeris is not installed ({e}); install it with: pip install de405 jplephem") from None
+            f"the JPL ephemeris is not installed ({e}); install it with: pip install 'nnphd[astro]'") from None
     return Ephemeris(de405)
 
 

@@ -48,6 +48,7 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
     """:func:`detect_file` on validated data (:class:`nnphd.userdata.UserData`); returns (report, model) with
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
+    from ._extras import MissingExtra
     from .explain.laws import parse_law
     from .explain.sparse import sparse_formula
     from .explain.symbolic import genetic_formula
@@ -81,11 +82,15 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
         inputs = {n: col for n, col in zip(names, np.concatenate([data.q, data.qd], axis=1).T)}
         inputs["t"] = data.t
         comps = [f"{c}_ddot" for c in coords]
-        say("blind explanation (sparse regression)")
-        blind["sparse"] = sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in coords], time="t").to_dict()
-        if sr_time > 0:
-            say("blind explanation (genetic symbolic regression)")
-            blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
+        try:
+            say("blind explanation (sparse regression)")
+            blind["sparse"] = sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in coords],
+                                             time="t").to_dict()
+            if sr_time > 0:
+                say("blind explanation (genetic symbolic regression)")
+                blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
+        except MissingExtra as e:  # the fallback is optional: say why it is missing
+            reasons.append(f"no blind explanation: {e}")
     best = _law_formula(law) or _best_formula(blind)
     report = {
         "file": str(path),

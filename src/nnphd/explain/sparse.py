@@ -42,7 +42,9 @@ class BlindFormula:
 
 def _library(x: np.ndarray, names: Sequence[str], vel_idx: Sequence[int], t_idx: int | None, degree: int, speed_powers: int, fourier: int):
     """Columns Θ(x) and their SymPy terms (no duplicates)."""
-    from pysindy import PolynomialLibrary
+    from .._extras import require
+
+    PolynomialLibrary = require("pysindy", "the sparse (blind) explanation").PolynomialLibrary
 
     syms = {n: sp.Symbol(n) for n in names}
     cols, terms, seen = [], [], set()
@@ -126,7 +128,9 @@ def sparse_formula(
     term_cost: float = float(np.log(1.25)),
 ) -> BlindFormula:
     """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,))."""
-    from pysindy import STLSQ
+    from .._extras import require
+
+    STLSQ = require("pysindy", "the sparse (blind) explanation").STLSQ
 
     names = list(inputs)
     x = np.stack([np.asarray(inputs[k], float) for k in names], axis=1)

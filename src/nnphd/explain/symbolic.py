@@ -60,7 +60,9 @@ def genetic_formula(
     comes first). Same seed and inputs → the same formula (single-threaded search is deterministic; with more threads
     pyoperon's evaluation order may differ run to run).
     """
-    from pyoperon.sklearn import SymbolicRegressor
+    from .._extras import require
+
+    SymbolicRegressor = require("pyoperon.sklearn", "the genetic (blind) explanation").SymbolicRegressor
 
     names = list(inputs)
     x = np.stack([np.asarray(inputs[k], float) for k in names], axis=1)

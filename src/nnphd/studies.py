@@ -501,7 +501,9 @@ def _plt():
 def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):
     q, qd = np.asarray(forces["q"]), np.asarray(forces["qd"])
     order = sorted(forces["by_lambda"].values(), key=lambda d: d["lam"])
-    cmap = _plt().get_cmap("viridis")
+    import matplotlib
+
+    cmap = matplotlib.colormaps["viridis"]
     for i, d in enumerate(order):
         c = cmap(i / max(1, len(order) - 1))
         ax_c.scatter(q, d["fc"], s=3, color=c, alpha=0.6, label=f"λ={d['lam']:g}")

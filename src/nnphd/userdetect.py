@@ -493,7 +493,7 @@ def _law_html(law: dict) -> str:
                              for k, v in c["params"].items())
         formula = "<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in c["formula"].items())
         style = " style='font-weight:bold'" if i == 0 else ""
-        flag = "" if c.get("significant", True) else " (a term within 2 se of zero: not eligible)"
+        flag = "" if c.get("significant", True) else " (a term within 2 se of zero, or a parameter at the edge of its range: not eligible)"
         rows.append(f"<tr{style}><td>{i + 1}</td><td>{_e(c['title'])}{_e(flag)}</td><td>{formula}</td>"
                     f"<td>{params}</td><td>{c['heldout_ratio']:.4f}</td><td>{c['delta_ic']:+.1f}</td>"
                     f"<td>{c['k']}</td></tr>")

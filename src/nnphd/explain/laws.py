@@ -1106,9 +1106,24 @@ def _c_hat(ratios, errors) -> float:
     return float(max(1.0, min(ok)[1])) if ok else 1.0
 
 
+def _at_bound(fam: Family, theta) -> bool:
+    """A nonlinear parameter on (or past) a finite edge of its range: the optimum is not interior, the law is not
+    identified (e.g. a power law pushed to m = 8 to fit a few of the fastest rows)."""
+    if not fam.nl_names or theta is None or len(theta) == 0:
+        return False
+    lo, hi = (np.asarray(x, float) for x in fam.nl_bounds)
+    th = np.asarray(theta, float)
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    tol = 1e-6 * np.maximum(span, 1e-12)
+    return bool(np.any((np.isfinite(lo) & (th <= lo + tol)) | (np.isfinite(hi) & (th >= hi - tol))))
+
+
 def _significance(rows: list[LawFit]) -> None:
     for r in rows:
         if r.family is not None and r.fn_rel < 1e-9:  # a law at the rounding level of the data is no law
+            r.significant = False
+            continue
+        if r.family is not None and _at_bound(r.family, r.theta):
             r.significant = False
             continue
         if r.family is not None and r.family.per_term:
@@ -1174,6 +1189,7 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
         skipped = [r for r in rows if not r.significant and r.ic < win.ic]
         if skipped:
             reason += (f"; {len(skipped)} candidate(s) with a lower IC have a term within {Z_TERM:g} standard errors "
-                       f"of zero and are not eligible ({', '.join(r.key for r in skipped)})")
+                       f"of zero or a parameter at the edge of its range and are not eligible "
+                       f"({', '.join(r.key for r in skipped)})")
         law = win
     return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings)

@@ -58,63 +58,57 @@ def test_configure_sets_float64_and_the_flag(tmp_path):
     assert r.stdout.split() == ["True", nnphd.XLA_FLAG]
 
 
+CHECKS = """
+# --- appended by the test (not in the README): the fitted model, in this same session (float64 off) ---
+import json, os, tempfile
+rng = np.random.default_rng(2)
+qs_, qds_, ts_ = rng.uniform(-0.7, 0.7, (50, 1)), rng.uniform(-0.7, 0.7, (50, 1)), rng.uniform(0, 30, 50)
+fc1, fn1 = model.forces(qs_, qds_, ts_)
+d = tempfile.mkdtemp()  # not the working folder
+p = model.save(os.path.join(d, "m.npz"))
+loaded = nnphd.load(p)
+fc2, fn2 = loaded.forces(qs_, qds_, ts_)
+qq, vv = loaded.simulate([1.0], [0.0], np.arange(0.0, 20.0, 0.1))
+figs = model.figures()
+mask = os.umask(0)
+os.umask(mask)
+import jax
+print("RESULT", json.dumps({
+    "status": model.status_, "verdict": model.verdict_.to_dict()["status"], "law": model.law_.params,
+    "law_dict_key": model.law_.to_dict()["key"] == model.law_.key, "repr": repr(data), "fn": fn.tolist(),
+    "q": qs_.tolist(), "qd": qds_.tolist(), "fc1": fc1.tolist(), "fn1": fn1.tolist(),
+    "d_fc": float(np.max(np.abs(fc2 - fc1))), "d_fn": float(np.max(np.abs(fn2 - fn1))),
+    "same": loaded.status_ == model.status_ and loaded.law_ == model.law_,
+    "mode_ok": (os.stat(p).st_mode & 0o777) == (0o666 & ~mask), "E": (0.5 * vv[:, 0]**2 + 0.5 * qq[:, 0]**2).tolist(),
+    "figs": sorted(figs), "figs_ok": all(hasattr(f, "savefig") for f in figs.values()),
+    "x64_after": bool(jax.config.jax_enable_x64)}))
+"""
+
+
 def test_readme_quickstart_runs_as_is_in_an_empty_folder(tmp_path):
     """The very block from the README, in a fresh interpreter in an empty folder: it makes its own data (several
-    trajectories of different lengths), finds the damping and writes no file."""
-    code = _quickstart() + "\nimport json\nprint('RESULT', json.dumps({'status': model.status_, " \
-                           "'law': model.law_.params if model.law_ else None, 'fn': fn.tolist()}))\n"
-    r = _fresh(code, tmp_path)
+    trajectories of different lengths), finds the damping and writes no file there. Then, in the same session: the
+    fitted model's forces, save/load (equal to 1e-12), a roll-out, the figures — all with the caller's float64
+    switch left off."""
+    r = _fresh(_quickstart() + CHECKS, tmp_path)
     assert r.returncode == 0, r.stderr[-3000:]
+    assert list(tmp_path.iterdir()) == []  # nothing written in the working folder
     res = json.loads(r.stdout.split("RESULT", 1)[1])
-    assert res["status"] == "detected"
-    assert res["law"] is not None and len(res["law"]) == 1
-    assert next(iter(res["law"].values())) == pytest.approx(0.1, rel=0.1)  # truth: x'' = -x - 0.1 x'
-    assert list(tmp_path.iterdir()) == []  # nothing written
-
-
-@pytest.fixture(scope="module")
-def fitted():
-    rng = np.random.default_rng(1)
-    ts, qs = [], []
-    for x0, T in [(1.0, 30.0), (-0.7, 25.0), (0.6, 35.0)]:
-        t = np.arange(0.0, T, 0.1)
-        w = np.sqrt(1 - 0.05**2)
-        x = x0 * np.exp(-0.05 * t) * (np.cos(w * t) + 0.05 / w * np.sin(w * t))
-        qs.append(x + 1e-3 * rng.standard_normal(t.size))
-        ts.append(t)
-    data = nnphd.Trajectories(ts, qs, names=["x"])
-    return data, nnphd.NNPhD(seed=0, steps=200, n_seeds=1, law_fit="pointwise").fit(data)
-
-
-def test_fit_forces_simulate_save_load(fitted, tmp_path):
-    data, model = fitted
-    assert repr(data) == "Trajectories(3 trajectories, 900 samples, coordinates x)"
-    assert model.status_ == "detected" and model.verdict_.to_dict()["status"] == "detected"
-    assert model.law_ is not None and model.law_.to_dict()["key"] == model.law_.key
-    rng = np.random.default_rng(2)
-    q, qd, t = rng.uniform(-0.7, 0.7, (50, 1)), rng.uniform(-0.7, 0.7, (50, 1)), rng.uniform(0, 30, 50)  # in range
-    fc, fn = model.forces(q, qd, t)
-    # the law is linear friction: f_n = −γ q̇ with γ the reported one
-    gamma = next(iter(model.law_.params.values()))
-    np.testing.assert_allclose(fn, -gamma * qd, rtol=1e-12)
-    # f_c is the learned spring −x within the data's range (the LNN alone, after 200 steps)
-    assert np.sqrt(np.mean((fc + q) ** 2)) < 0.15 * np.sqrt(np.mean(q**2))
-    p = model.save(tmp_path / "m.npz")
-    mask = os.umask(0)
-    os.umask(mask)
-    assert p.stat().st_mode & 0o777 == 0o666 & ~mask  # as a plain open() would make it (mkstemp's are 0600)
-    loaded = nnphd.load(p)
-    fc2, fn2 = loaded.forces(q, qd, t)
-    np.testing.assert_allclose(fc2, fc, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(fn2, fn, rtol=0, atol=1e-12)
-    assert loaded.status_ == model.status_ and loaded.law_ == model.law_
-    # simulate: the rolled-out model decays like the data (energy falls by ~e^{-0.1 t})
-    tt = np.arange(0.0, 20.0, 0.1)
-    qs, qds = loaded.simulate([1.0], [0.0], tt)
-    E = 0.5 * qds[:, 0] ** 2 + 0.5 * qs[:, 0] ** 2
-    assert qs.shape == (200, 1) and np.exp(-2.0 * 1.5) < E[-1] / E[0] < np.exp(-2.0 * 0.5)
-    figs = model.figures()
-    assert {"data", "loss_vs_lambda", "forces"} <= set(figs) and all(hasattr(f, "savefig") for f in figs.values())
+    assert res["status"] == res["verdict"] == "detected"
+    assert res["repr"] == "Trajectories(3 trajectories, 1050 samples, coordinates x)"
+    assert len(res["law"]) == 1 and res["law_dict_key"]
+    gamma = next(iter(res["law"].values()))
+    assert gamma == pytest.approx(0.1, rel=0.1)  # truth: x'' = -x - 0.1 x'
+    q, qd = np.asarray(res["q"]), np.asarray(res["qd"])
+    np.testing.assert_allclose(res["fn1"], -gamma * qd, rtol=1e-12)  # f_n is the law, −γ q̇
+    # f_c is the learned spring −x within the data's range
+    assert np.sqrt(np.mean((np.asarray(res["fc1"]) + q) ** 2)) < 0.15 * np.sqrt(np.mean(q**2))
+    assert res["d_fc"] <= 1e-12 and res["d_fn"] <= 1e-12 and res["same"]
+    assert res["mode_ok"]  # as a plain open() would make it (mkstemp's are 0600)
+    E = np.asarray(res["E"])  # the rolled-out model loses energy like the data, ~e^{-0.1 t}
+    assert len(E) == 200 and np.exp(-2.0 * 1.5) < E[-1] / E[0] < np.exp(-2.0 * 0.5)
+    assert {"data", "loss_vs_lambda", "forces"} <= set(res["figs"]) and res["figs_ok"]
+    assert res["x64_after"] is False
 
 
 @pytest.mark.parametrize("args, kw, msg", [

@@ -163,6 +163,7 @@ def test_table2_families_through_the_joint_fit(name, truth):
     from dataclasses import replace
     from types import SimpleNamespace
 
+    import jax
     import jax.numpy as jnp
 
     from nnphd.data import trajectory_dataset
@@ -176,7 +177,7 @@ def test_table2_families_through_the_joint_fit(name, truth):
     fl = FEATURE_SETS[SYSTEM_FEATURES[name]]
     true_c = {"double-pendulum": [2.0, 1.0, 1.0, 0.5, 1.0], "neptune": [0.5, 0.5, 1.0], "gw": [0.5, 0.5, 2.0]}[name]
     c = np.asarray(true_c) * (1 + 0.02 * np.cos(np.arange(len(true_c))))
-    fc = np.asarray(fl.accel(jnp.asarray(c), jnp.asarray(d.q), jnp.asarray(d.qd)))
+    fc = np.asarray(jax.jit(fl.accel)(jnp.asarray(c), jnp.asarray(d.q), jnp.asarray(d.qd)))
     table = joint_laws(name, sysm, d, fl, SimpleNamespace(coefs=c, fc=fc), n_boot=10)
     assert table.law is not None
     hyp = next(r for r in table.rows if r.key == DISCOVERY_LAW[name])

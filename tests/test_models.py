@@ -33,8 +33,8 @@ def test_handwritten_pass_equals_hessian_reference(n, act):
     cfg = ModelConfig(n=n, lnn_widths=(40, 30), lnn_activation=act, lnn_out_scale=1.0)
     lnn = init_lnn(jax.random.PRNGKey(n), cfg)
     q, qd, _ = _batch(n)
-    ours = lnn_accel(lnn, q, qd, cfg)
-    ref = lnn_accel_reference(lnn, q, qd, cfg)
+    ours = jax.jit(lambda p, a, b: lnn_accel(p, a, b, cfg))(lnn, q, qd)  # compiled, as in training
+    ref = jax.jit(lambda p, a, b: lnn_accel_reference(p, a, b, cfg))(lnn, q, qd)
     assert float(jnp.max(jnp.abs(ref))) > 1e-2  # a non-trivial acceleration
     np.testing.assert_allclose(ours, ref, atol=1e-10, rtol=0)
 
@@ -43,9 +43,10 @@ def test_handwritten_pass_three_layers_and_gradients_match_reference():
     cfg = ModelConfig(n=2, lnn_widths=(20, 20, 20), lnn_out_scale=1.0)
     lnn = init_lnn(jax.random.PRNGKey(3), cfg)
     q, qd, _ = _batch(2)
-    np.testing.assert_allclose(lnn_accel(lnn, q, qd, cfg), lnn_accel_reference(lnn, q, qd, cfg), atol=1e-10)
-    g1 = jax.grad(lambda p: jnp.sum(lnn_accel(p, q, qd, cfg) ** 2))(lnn)
-    g2 = jax.grad(lambda p: jnp.sum(lnn_accel_reference(p, q, qd, cfg) ** 2))(lnn)
+    ours = jax.jit(lambda p: lnn_accel(p, q, qd, cfg))(lnn)
+    np.testing.assert_allclose(ours, jax.jit(lambda p: lnn_accel_reference(p, q, qd, cfg))(lnn), atol=1e-10)
+    g1 = jax.jit(jax.grad(lambda p: jnp.sum(lnn_accel(p, q, qd, cfg) ** 2)))(lnn)
+    g2 = jax.jit(jax.grad(lambda p: jnp.sum(lnn_accel_reference(p, q, qd, cfg) ** 2)))(lnn)
     for a, b in zip(jax.tree_util.tree_leaves(g1), jax.tree_util.tree_leaves(g2)):
         np.testing.assert_allclose(a, b, atol=1e-9)
 
@@ -203,7 +204,8 @@ def test_input_standardisation_is_folded_into_the_first_layer():
     params = init_nnphd(jax.random.PRNGKey(2), cfg)
     q, qd, t = jnp.asarray(q), jnp.asarray(qd), jnp.asarray(t)
     # the hand-written pass still equals jax.hessian of the same (standardised) Lagrangian
-    np.testing.assert_allclose(lnn_accel(params["lnn"], q, qd, cfg), lnn_accel_reference(params["lnn"], q, qd, cfg), atol=1e-10)
+    np.testing.assert_allclose(jax.jit(lambda p: lnn_accel(p, q, qd, cfg))(params["lnn"]),
+                               jax.jit(lambda p: lnn_accel_reference(p, q, qd, cfg))(params["lnn"]), atol=1e-10)
     # and the networks see (x − μ)/σ: same outputs as an unstandardised config on transformed inputs
     mu, sd = np.asarray(cfg.input_shift), np.asarray(cfg.input_scale)
     raw = cfg.replace(input_shift=None, input_scale=None)

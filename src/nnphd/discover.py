@@ -102,7 +102,7 @@ def joint_laws(name: str, sysm, d, fl, cf, seed: int = 0, n_boot: int = 200):
     import jax
     import jax.numpy as jnp
 
-    dfc = np.asarray(jax.jacfwd(lambda c: fl.accel(c, jnp.asarray(d.q), jnp.asarray(d.qd)))(jnp.asarray(cf.coefs)))
+    dfc = np.asarray(jax.jit(jax.jacfwd(fl.accel))(jnp.asarray(cf.coefs), jnp.asarray(d.q), jnp.asarray(d.qd)))
     return rank_laws(d.q, d.qd, d.qdd, d.t, names=sysm.coords, angles=[DISCOVERY_ANGLES[name]] * sysm.n, fc=cf.fc,
                      library=False, conservative_cols=dfc, perturber=not DISCOVERY_ANGLES[name], seed=seed, n_boot=n_boot)
 

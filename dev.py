@@ -24,7 +24,7 @@ def run(*cmd: str) -> None:
 
 
 def setup() -> None:
-    if sys.version_info < (3, 11):
+    if sys.version_info < (3, 11):  # noqa: UP036 — dev.py runs under any python3, to say this
         sys.exit(f"error: nnphd needs Python ≥ 3.11, this is {sys.version.split()[0]}")
     if not (BIN / "python").exists():
         print(f"creating {VENV}", flush=True)
@@ -47,7 +47,11 @@ def main() -> None:
             run(str(BIN / "nnphd"), "sweep", "--system", system, "--out", f"out/demo/{system}")
         print("\nresults: out/demo/ho+ld/ and out/demo/ho+mf/ (results.json, loss_vs_lambda.png)")
     elif what == "test":
-        run(str(BIN / "python"), "-m", "pytest", "tests", *sys.argv[2:])
+        # lint (ruff, settings in pyproject.toml) beside the tests: both run, either failing fails
+        lint = subprocess.run([str(BIN / "ruff"), "check", "src", "tests", "benchmarks", "dev.py"], cwd=ROOT).returncode
+        tests = subprocess.run([str(BIN / "python"), "-m", "pytest", "tests", *sys.argv[2:]], cwd=ROOT).returncode
+        if lint or tests:
+            sys.exit(tests or lint)
 
 
 if __name__ == "__main__":

@@ -1,5 +1,5 @@
 """The realistic stress set (tests/fixtures/recordings.py: one noisy, jittered, gappy, quantized recording per case)
-written as CSV and run through the whole ``nnphd detect`` pipeline at its default settings; prints the README table.
+written as CSV and run through the whole ``nnphd detect`` pipeline at its default settings; prints the table of docs/RESULTS.md.
 
     .venv/bin/python benchmarks/detect_recordings.py [name,name,...] [--seeds 0,1] [--json out.json]
     .venv/bin/python benchmarks/detect_recordings.py double-pendulum,cart --duration double-pendulum=100,cart=333

@@ -1,5 +1,5 @@
 """The law of the new force on constructed cases (tests/fixtures/laws.py): ``nnphd detect`` (whole pipeline, default
-settings, positions only) beside the PySINDy peer baseline (benchmarks/sindy_baseline.py); prints the README table.
+settings, positions only) beside the PySINDy peer baseline (benchmarks/sindy_baseline.py); prints the table of docs/RESULTS.md.
 
     .venv/bin/python benchmarks/laws_table.py [name,name,...] [--json out.json] [--seed 0]
 

@@ -2,16 +2,15 @@
 trajectory per case, positions only, through the whole ``nnphd detect`` pipeline (CSV → derivatives → trust checks)
 at a small configuration. The damped cases must be detected with the energy-decay rate within 10 % of the truth
 (same definition: slope of log(E − E_min), E the exact energy), the conservative ones must not be, and data without
-usable dynamics must give "inconclusive". The full-size table is benchmarks/detect_recordings.py (README)."""
+usable dynamics must give "inconclusive". The full-size table is benchmarks/detect_recordings.py (docs/RESULTS.md)."""
 import sys
 from pathlib import Path
 
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from tests.fixtures.recordings import make  # noqa: E402
-
 from nnphd.userdetect import detect_file  # noqa: E402
+from tests.fixtures.recordings import make  # noqa: E402
 
 SMALL = dict(steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1,
              law_level="pointwise")  # the trajectory-level law ranking is tested in tests/test_laws.py

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from nnphd.userdata import load_trajectories  # noqa: E402
 from tests.fixtures.recordings import (  # noqa: E402
     NAMES,
     Recording,
@@ -21,7 +22,6 @@ from tests.fixtures.recordings import (  # noqa: E402
     make,
     true_decay_rate,
 )
-from nnphd.userdata import load_trajectories  # noqa: E402
 
 VERDICTS = {"detected", "none", "inconclusive", "not-detected"}
 

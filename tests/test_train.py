@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401
-from nnphd.data import gaussian_dataset, train_test
+from nnphd.data import gaussian_dataset
 from nnphd.detect import verdict
 from nnphd.models import ModelConfig, init_nnphd, nnphd_forces
 from nnphd.run import run_sweep
@@ -29,7 +29,7 @@ def test_mse_is_squared_l2():
 
 def test_pnorm_gradient_finite_at_zero():
     for p in (1, 2, 3, "mse"):
-        g = jax.grad(lambda x: pnorm(x, p))(jnp.zeros((4, 2)))
+        g = jax.grad(lambda x, p=p: pnorm(x, p))(jnp.zeros((4, 2)))
         assert bool(jnp.all(jnp.isfinite(g)))
 
 

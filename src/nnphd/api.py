@@ -144,7 +144,7 @@ class Trajectories:
 @dataclass(frozen=True)
 class Verdict:
     """Is there new physics? ``status`` "detected" / "none" / "inconclusive"; ``confidence`` the repeatability of
-    the call (see the README); ``reasons`` why; ``statistic`` the energy-trend z."""
+    the call (docs/RESULTS.md, "Can you trust the verdict?"); ``reasons`` why; ``statistic`` the energy-trend z."""
 
     status: str
     new_physics: bool

@@ -7,7 +7,6 @@ from __future__ import annotations
 import math
 import sys
 import time
-from typing import Optional
 
 import typer
 from rich.console import Console
@@ -51,7 +50,7 @@ def _parse_int(name: str, value: str, minimum: int) -> int:
     return int(f)
 
 
-def _parse_lambdas(value: Optional[str]):
+def _parse_lambdas(value: str | None):
     from .train import PAPER_LAMBDAS
 
     if value is None:
@@ -90,7 +89,7 @@ def sweep(
     p: str = typer.Option("1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"),
     steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
     seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
-    lambdas: Optional[str] = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
+    lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
     mode: str = typer.Option("warm", "--mode", help="'warm' (paper: warm start, increasing λ) or 'vmap' (independent, one vmapped run)"),
     param: list[str] = typer.Option([], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"),
     out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png"),
@@ -156,7 +155,7 @@ def sweep(
 
 @app.command()
 def discover(
-    system: Optional[str] = typer.Option(None, "--system", "-s", help="double-pendulum, neptune or gw"),
+    system: str | None = typer.Option(None, "--system", "-s", help="double-pendulum, neptune or gw"),
     all_: bool = typer.Option(False, "--all", help="all three systems, our Table II beside the paper's, and Fig. 3"),
     steps: str = typer.Option("2000", "--steps", help="training steps of the constrained Lagrangian + UAN"),
     sweep_steps: str = typer.Option("2000", "--sweep-steps", help="training steps per λ of the detection sweep"),
@@ -287,7 +286,7 @@ study_app = typer.Typer(no_args_is_help=True, help="Paper studies: λ and loss d
 app.add_typer(study_app, name="study")
 
 
-def _parse_csv(name: str, value: Optional[str], conv, default):
+def _parse_csv(name: str, value: str | None, conv, default):
     if value is None:
         return default
     toks = [t.strip() for t in value.split(",")]
@@ -313,9 +312,9 @@ def _fraction(name: str):
 def study_lambda_p(
     steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
     seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
-    systems_: Optional[str] = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
-    ps: Optional[str] = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
-    lambdas: Optional[str] = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
+    systems_: str | None = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
+    ps: str | None = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
+    lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
     out: str = typer.Option("out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"),
 ):
     """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
@@ -378,8 +377,8 @@ def study_lambda_p(
 def study_data_quality(
     steps: str = typer.Option("2000", "--steps", help="training steps per data set (split over the 4 learning rates)"),
     seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
-    alphas: Optional[str] = typer.Option(None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"),
-    betas: Optional[str] = typer.Option(None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"),
+    alphas: str | None = typer.Option(None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"),
+    betas: str | None = typer.Option(None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"),
     out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
@@ -424,7 +423,7 @@ def study_data_quality(
 def reproduce(
     quick: bool = typer.Option(False, "--quick", help="fewer training steps, same code (a smoke-scale run, ≤ 10 min on 2 cores)"),
     seed: str = typer.Option("0", "--seed", help="random seed of every experiment"),
-    out: Optional[str] = typer.Option(None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"),
+    out: str | None = typer.Option(None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
     from .report import ensure_writable_dir
@@ -464,12 +463,12 @@ def reproduce(
 def detect(
     file: str = typer.Argument(..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"),
     out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
-    angles: Optional[str] = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
+    angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
     seed: str = typer.Option("0", "--seed", help="random seed"),
     steps: str = typer.Option("1000", "--steps", help="training steps per λ (and per extra round of the checks)"),
     repeats: str = typer.Option("2", "--repeats", help="repeated seeds (other initialisation and held-out trajectories)"),
     sr_time: str = typer.Option("10", "--sr-time", help="seconds of genetic symbolic regression per component (0: skip)"),
-    law: Optional[list[str]] = typer.Option(None, "--law", help="a candidate law of your own, as a formula in the "
+    law: list[str] | None = typer.Option(None, "--law", help="a candidate law of your own, as a formula in the "
                                             "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
                                             "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)"),
     law_level: str = typer.Option("auto", "--law-fit", help="auto | pointwise | trajectory: how the candidate laws "

@@ -6,8 +6,8 @@ true split f_c (conservative) and f_n (non-conservative).
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -60,7 +60,7 @@ class Dataset:
     def __len__(self) -> int:
         return self.t.shape[0]
 
-    def subset(self, idx) -> "Dataset":
+    def subset(self, idx) -> Dataset:
         """Rows ``idx`` (anything numpy accepts as an index: slice, integer array, boolean mask)."""
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
         return Dataset(q=pick(self.q), qd=pick(self.qd), t=pick(self.t), qdd=pick(self.qdd),

@@ -18,8 +18,8 @@ L_above (the error the conservative model cannot remove) and L_b just below λ =
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from typing import Sequence
 
 import numpy as np
 

@@ -27,9 +27,9 @@ of the principle within the pendulum feature family has Γ11 = 0.0192, Γ21 = 0.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -141,7 +141,7 @@ def discover(
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
     sw = run_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize, lambdas=sweep_lambdas)
-    say("constrained Lagrangian + UAN at λ = %g" % lam)
+    say(f"constrained Lagrangian + UAN at λ = {lam:g}")
     d = trajectory_dataset(sysm)
     fl = FEATURE_SETS[SYSTEM_FEATURES[system]]
     cfg = ModelConfig(n=sysm.n)

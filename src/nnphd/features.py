@@ -11,8 +11,8 @@ not identifiable (L and αL give the same motion); :meth:`FeatureLagrangian.norm
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping
 
 import jax
 import jax.numpy as jnp

@@ -29,8 +29,8 @@ Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is s
 from __future__ import annotations
 
 import operator
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -79,10 +79,10 @@ class ModelConfig:
         _activation_groups(self.lnn_activation, 2)  # validates the name
         object.__setattr__(self, "periodic", _check_periodic(self.periodic, self.n))
 
-    def replace(self, **kw) -> "ModelConfig":
+    def replace(self, **kw) -> ModelConfig:
         return replace(self, **kw)
 
-    def standardized(self, q, qd, t) -> "ModelConfig":
+    def standardized(self, q, qd, t) -> ModelConfig:
         """This config with input standardisation set from data (per-column mean and std; std 0 → 1)."""
         x = np.concatenate([np.asarray(q, float), np.asarray(qd, float), np.asarray(t, float)[:, None]], axis=1)
         mu, sd = x.mean(axis=0), x.std(axis=0)
@@ -439,7 +439,7 @@ class Model:
     params: Params = field(repr=False)
 
     @classmethod
-    def init(cls, cfg: ModelConfig, seed: int = 0) -> "Model":
+    def init(cls, cfg: ModelConfig, seed: int = 0) -> Model:
         return cls(cfg, init_nnphd(jax.random.PRNGKey(seed), cfg))
 
     def forces(self, q, qd, t):

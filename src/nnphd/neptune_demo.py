@@ -38,8 +38,8 @@ that NNPhD's loss selects keeps f_n ~90 % faithful (the peaks near conjunction d
 from __future__ import annotations
 
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -307,9 +307,8 @@ def write_neptune_demo(result: dict, out: str | Path, figdata: _FigureData | Non
 
 
 def _figure(result: dict, fd: _FigureData):
-    from .report import subplots
-
     from . import ephemeris as E
+    from .report import subplots
 
     ud, fit = fd.ud, fd.fit
     year = E.jd_to_year(ud.jd)

@@ -32,16 +32,27 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .data import Dataset, rk4_scan, trajectory_dataset
-from .models import ModelConfig, _first_layer, _init_mlp, _Z, init_lnn, init_uan, lnn_accel, lnn_derivatives
-from .models import lnn_energy, mlp_apply, uan_force
+from .models import (
+    _Z,
+    ModelConfig,
+    _first_layer,
+    _init_mlp,
+    init_lnn,
+    init_uan,
+    lnn_accel,
+    lnn_derivatives,
+    lnn_energy,
+    mlp_apply,
+    uan_force,
+)
 from .report import ensure_writable_dir, save_figure, write_json
 from .systems import get_system
 from .train import TrainConfig, make_trainer, pnorm
@@ -291,8 +302,8 @@ def run_prediction(
     claims = _claims(metrics, lnn_const, e_true)
 
     results = {
-        "experiment": "prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ %g, "
-                      "extrapolate to t = %g with RK4" % (t_split, n_traj * dt),
+        "experiment": f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
+                      f"extrapolate to t = {n_traj * dt:g} with RK4",
         "settings": {
             "seed": seed, "steps": tcfg.steps, "lambda": lam, "p": tcfg.p, "learning_rates": list(tcfg.lrs),
             "batch_size": tcfg.batch_size, "widths": list(widths), "lnn_activation": cfg.lnn_activation,

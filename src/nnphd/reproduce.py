@@ -27,9 +27,9 @@ import base64
 import html
 import json
 import time
-from datetime import datetime, timezone
+from collections.abc import Callable
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Callable
 
 from .report import atomic_write_bytes, ensure_writable_dir, write_json
 
@@ -107,7 +107,7 @@ def _load_marked(d: Path, settings: dict, result_file: str = "results.json") -> 
 
 def _mark(d: Path, settings: dict, wall: float) -> None:
     write_json(d / MARKER, {"settings": settings, "wall_time_s": wall,
-                            "finished": datetime.now(timezone.utc).isoformat(timespec="seconds")})
+                            "finished": datetime.now(UTC).isoformat(timespec="seconds")})
 
 
 def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dict:
@@ -341,7 +341,7 @@ def render_html(outdir: Path, summary: dict, results: dict) -> str:
                      "without <code>--quick</code> for those.</p>")
     n_cached = sum(r["cached"] for r in summary["runs"].values())
     parts.append(f"<p>Mode <b>{_e(summary['mode'])}</b>, seed {summary['seed']}, written "
-                 f"{datetime.now(timezone.utc).isoformat(timespec='seconds')}. This run: {summary['wall_time_s']:.0f} s "
+                 f"{datetime.now(UTC).isoformat(timespec='seconds')}. This run: {summary['wall_time_s']:.0f} s "
                  f"({n_cached} of {len(summary['runs'])} units loaded from the cache); compute time of all units as "
                  f"measured when they ran: {summary['compute_time_s']:.0f} s. Claims met: "
                  f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p><ul>")

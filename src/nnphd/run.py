@@ -8,9 +8,9 @@ import hashlib
 import json
 import pickle
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Callable, Sequence
 
 import jax
 import numpy as np

@@ -60,9 +60,9 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -74,7 +74,17 @@ from .models import ModelConfig, init_nnphd
 from .report import ensure_writable_dir, save_figure, write_json
 from .run import CHECKPOINT, _fingerprint, _load_checkpoint, _save_checkpoint
 from .systems import SYSTEMS, get_system
-from .train import PAPER_LAMBDAS, TrainConfig, _as_arrays, alignment, evaluate, make_trainer, parse_p, sweep, validate_lambdas
+from .train import (
+    PAPER_LAMBDAS,
+    TrainConfig,
+    _as_arrays,
+    alignment,
+    evaluate,
+    make_trainer,
+    parse_p,
+    sweep,
+    validate_lambdas,
+)
 
 __all__ = [
     "TOY_SYSTEMS",
@@ -517,7 +527,7 @@ def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):
     ax_n.set_ylabel(r"$f_n^{NN}$")
     # a few points where the learned Lagrangian's mass is nearly singular can be far off: keep the axes on the truth's
     # scale and count what falls outside
-    for ax, x, truth, preds in ((ax_c, q, -q, [d["fc"] for d in order]), (ax_n, qd, -0.5 * qd, [d["fn"] for d in order])):
+    for ax, _x, truth, preds in ((ax_c, q, -q, [d["fc"] for d in order]), (ax_n, qd, -0.5 * qd, [d["fn"] for d in order])):
         lim = 2.0 * float(np.max(np.abs(truth))) + 0.5
         n_out = sum(int(np.sum(np.abs(np.asarray(p)) > lim)) for p in preds)
         ax.set_ylim(-lim, lim)

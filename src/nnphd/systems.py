@@ -14,9 +14,9 @@ physical parameters are plain Python floats closed over.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from types import MappingProxyType
-from typing import Callable, Mapping
 
 import jax.numpy as jnp
 
@@ -88,7 +88,7 @@ class System:
         """True when f_n vanishes identically."""
         return self._fn is _zero_fn
 
-    def with_params(self, **overrides) -> "System":
+    def with_params(self, **overrides) -> System:
         """Copy with some physical parameters replaced; unknown keys raise ValueError."""
         unknown = sorted(set(overrides) - set(self.params))
         if unknown:

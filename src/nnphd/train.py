@@ -11,9 +11,9 @@ trainer serves every λ (and ``vmap`` over λ trains all of them at once).
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
-from typing import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
@@ -78,7 +78,7 @@ class TrainConfig:
         if not self.lrs or any(lr <= 0 for lr in self.lrs):
             raise ValueError(f"learning rates must be positive, got {self.lrs}")
 
-    def replace(self, **kw) -> "TrainConfig":
+    def replace(self, **kw) -> TrainConfig:
         return replace(self, **kw)
 
     def schedule(self):
@@ -241,7 +241,7 @@ def sweep(
         if todo:
             pstack, _ = vtrain(params0, arrays, jnp.asarray(todo, dtype), k_train)
             for i, lam in enumerate(todo):
-                resume[lam] = finish(lam, jax.tree_util.tree_map(lambda a: a[i], pstack))
+                resume[lam] = finish(lam, jax.tree_util.tree_map(lambda a, i=i: a[i], pstack))
                 if on_point:
                     on_point(resume[lam])
         for j, lam in enumerate(sorted(lams)):

@@ -119,16 +119,16 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Sequence
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 from .data import Dataset
-from .evidence import dominant_period, energy_trend, shooting_fit
 from .detect import verdict as naive_verdict
+from .evidence import dominant_period, energy_trend, shooting_fit
 from .models import ModelConfig, init_lnn, lnn_accel, lnn_derivatives, lnn_energy, mlp_apply
 from .train import SweepPoint, TrainConfig, make_trainer, pnorm
 

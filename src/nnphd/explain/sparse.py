@@ -9,8 +9,8 @@ When the best model still leaves a large residual or needs many terms, it says s
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 import sympy as sp

@@ -11,7 +11,7 @@ being stochastic (the seed fixes it) and slower.
 """
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import sympy as sp

@@ -124,7 +124,7 @@ def test_random_lnn_conserves_its_energy_with_rk4_order_4():
     drifts = []
     for dt in (0.1, 0.05):
         _, q, qd = rk4_trajectory(f, x0, dt, int(round(4.0 / dt)))
-        e = lnn_energy(lnn, q, qd, cfg)
+        e = jax.jit(lambda a, b: lnn_energy(lnn, a, b, cfg))(q, qd)
         drifts.append(float(jnp.max(jnp.abs(e - e[0]))))
     assert drifts[0] < 1e-4
     ratio = drifts[0] / drifts[1]
@@ -164,8 +164,9 @@ def test_float32_model_runs_and_matches_float64():
     p64 = init_nnphd(jax.random.PRNGKey(0), cfg64)
     p32 = jax.tree_util.tree_map(lambda a: a.astype(jnp.float32), p64)
     q, qd, t = _batch(2)
-    fc64, fn64 = nnphd_forces(p64, q, qd, t, cfg64)
-    fc32, fn32 = nnphd_forces(p32, q.astype(jnp.float32), qd.astype(jnp.float32), t.astype(jnp.float32), cfg32)
+    fc64, fn64 = jax.jit(lambda *a: nnphd_forces(*a, cfg64))(p64, q, qd, t)
+    fc32, fn32 = jax.jit(lambda *a: nnphd_forces(*a, cfg32))(p32, q.astype(jnp.float32), qd.astype(jnp.float32),
+                                                            t.astype(jnp.float32))
     assert fc32.dtype == jnp.float32
     np.testing.assert_allclose(fc32, fc64, atol=1e-4)
     np.testing.assert_allclose(fn32, fn64, atol=1e-4)

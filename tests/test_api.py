@@ -131,3 +131,25 @@ def test_unfitted_and_bad_files(tmp_path):
     np.savez(bad, a=np.zeros(3))
     with pytest.raises(ValueError, match="not an nnphd model file"):
         nnphd.load(bad)
+
+
+def test_the_four_ways_in_give_the_same_data(tmp_path):
+    """Arrays with ids, per-trajectory lists, a CSV file and a table of columns: the same trajectories."""
+    t1, t2 = np.arange(0.0, 5.0, 0.1), np.arange(0.0, 3.0, 0.1)
+    q1, q2 = np.column_stack([np.cos(t1), np.sin(t1)]), np.column_stack([np.cos(t2), 2 * np.sin(t2)])
+    lists = nnphd.Trajectories([t1, t2], [q1, q2], names=["x", "th"], angles=["th"])
+    ids = nnphd.Trajectories(np.r_[t1, t2], np.r_[q1, q2], traj=np.r_[np.zeros(50), np.ones(30)], names=["x", "th"],
+                             angles=["th"])
+    cols = {"t": np.r_[t1, t2], "traj": np.r_[np.zeros(50), np.ones(30)], "x": np.r_[q1[:, 0], q2[:, 0]],
+            "th": np.r_[q1[:, 1], q2[:, 1]]}
+    table = nnphd.Trajectories.from_dataframe(cols, angles=["th"])
+    path = tmp_path / "d.csv"
+    path.write_text("t,traj,x,th\n" + "".join(f"{float(a)!r},{int(b)},{float(c)!r},{float(d)!r}\n" for a, b, c, d in zip(*cols.values())))
+    csv = nnphd.Trajectories.from_csv(path, angles=["th"])
+    for d in (lists, ids, table, csv):
+        assert d.names == ("x", "th") and d.angles == ("th",) and d.n_trajectories == 2 and d.n_samples == 80
+        for a, b in zip(d._ud.trajectories, lists._ud.trajectories):
+            np.testing.assert_array_equal(a.t, b.t)
+            np.testing.assert_array_equal(a.q, b.q)
+    with pytest.raises(ValueError, match="expected a .csv file"):
+        nnphd.Trajectories.from_csv(tmp_path / "d.npz")

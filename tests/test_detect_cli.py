@@ -64,7 +64,10 @@ def test_bad_angle_and_options(tmp_path, capsys):
     for argv, msg in ((["--angles", "theta"], "angle 'theta' is not a coordinate"),
                       (["--steps", "x"], "--steps must be an integer"),
                       (["--repeats", "0"], "--repeats"),
-                      (["--angles", "x,"], "--angles must be comma-separated")):
+                      (["--angles", "x,"], "--angles must be comma-separated"),
+                      (["--width", "1"], "--width must be an integer ≥ 2"),
+                      (["--lambdas", "0.1,0.5"], "values both below and above 1"),
+                      (["--trim", "maybe"], "--trim must be auto, yes or no")):
         rc = main(["detect", str(path), "--out", str(tmp_path / "o"), *argv])
         err = capsys.readouterr().err
         assert rc == 2 and msg in err and len(err.strip().splitlines()) == 1, err

@@ -473,6 +473,11 @@ def detect(
                                             "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)"),
     law_level: str = typer.Option("auto", "--law-fit", help="auto | pointwise | trajectory: how the candidate laws "
                                   "are ranked (trajectory: multiple shooting on the positions)"),
+    lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ of the sweep (default "
+                                       "0.05,0.1,0.2,0.5,2,5,10; values below and above 1)"),
+    width: str = typer.Option("64", "--width", help="hidden width of the LNN and the UAN (two layers each)"),
+    trim: str = typer.Option("auto", "--trim", help="auto | yes | no: drop the ends of each trajectory, where the "
+                             "one-sided derivative estimates are ~20x worse"),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
     from .report import ensure_writable_dir
@@ -483,6 +488,13 @@ def detect(
         nsteps = _parse_int("--steps", steps, 4)
         nrep = _parse_int("--repeats", repeats, 1)
         nsr = _parse_int("--sr-time", sr_time, 0)
+        nwidth = _parse_int("--width", width, 2)
+        extra = {"width": nwidth}
+        if lambdas is not None:
+            extra["lambdas"] = _parse_lambdas(lambdas)
+        if trim not in ("auto", "yes", "no"):
+            raise InputError(f"--trim must be auto, yes or no, got {trim!r}")
+        trim_v = {"auto": "auto", "yes": True, "no": False}[trim]
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
@@ -501,7 +513,8 @@ def detect(
 
     with console.status("detect: starting") as status:
         rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
-                          progress=status.update, laws=tuple(law or ()), law_level=law_level)
+                          progress=status.update, laws=tuple(law or ()), law_level=law_level, trim=trim_v,
+                          **extra)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
                   f"(confidence {rep['confidence']:.2g})", highlight=False)

@@ -71,7 +71,7 @@ import numpy as np
 from .data import Dataset, gaussian_dataset, imbalanced_dataset, pie_dataset, train_test
 from .detect import MIN_RATIO, force_norm, verdict
 from .models import ModelConfig, init_nnphd
-from .report import ensure_writable_dir, save_figure, write_json
+from .report import ensure_writable_dir, save_figure, subplots, write_json
 from .run import CHECKPOINT, _fingerprint, _load_checkpoint, _save_checkpoint
 from .systems import SYSTEMS, get_system
 from .train import (
@@ -502,12 +502,6 @@ def _loss_title(l: str) -> str:
     return "MSE" if l == "mse" else f"p = {l}"
 
 
-def _plt():
-    from . import report
-
-    return report  # report.subplots: pyplot-free figures
-
-
 def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):
     q, qd = np.asarray(forces["q"]), np.asarray(forces["qd"])
     order = sorted(forces["by_lambda"].values(), key=lambda d: d["lam"])
@@ -541,10 +535,9 @@ def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):
 def plot_fig5(result: dict):
     """Fig. 5 analogue: (a–d) L_e(λ) per loss, five systems each; (e, f) HO+LD learned f_c vs q and f_n vs q̇ for
     p = 1 (first loss) at several λ; (g, h) HO+LD m_c(λ) and m_n(λ) for every loss."""
-    plt = _plt()
     labels = result["settings"]["ps"]
     ncol = max(4, len(labels))
-    fig, axes = plt.subplots(2, ncol, figsize=(4.0 * ncol, 7.6))
+    fig, axes = subplots(2, ncol, figsize=(4.0 * ncol, 7.6))
     letters = "abcdefghijklmnop"
     for j in range(ncol):
         ax = axes[0, j]
@@ -595,10 +588,9 @@ def plot_fig5(result: dict):
 
 def plot_fig5_forces(result: dict):
     """HO+LD learned f_c (vs q) and f_n (vs q̇) on test points at several λ, one row per loss, truth dashed."""
-    plt = _plt()
     al = result["alignment"]
     labels = result["settings"]["ps"]
-    fig, axes = plt.subplots(len(labels), 2, figsize=(8.5, 3.2 * len(labels)), squeeze=False)
+    fig, axes = subplots(len(labels), 2, figsize=(8.5, 3.2 * len(labels)), squeeze=False)
     for i, l in enumerate(labels):
         _force_panels(axes[i, 0], axes[i, 1], al["forces"][l], f"HO+LD {_loss_title(l)}")
     axes[0, 0].legend(fontsize=6, markerscale=3)
@@ -799,8 +791,7 @@ def data_quality_study(
 
 def plot_fig6(result: dict):
     """Fig. 6 analogue: (a) L_e(α) of HO+CD at λ=10; (b) m_c(β), m_n(β) of HO+LD at λ=0.5."""
-    plt = _plt()
-    fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (a, b) = subplots(1, 2, figsize=(10, 4))
     rows = result["alpha"]["table"]
     x = [r["alpha"] for r in rows]
     a.plot(x, [max(r["L_e"], 1e-9) for r in rows], "o-", label="test, same α")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .report import atomic_write_bytes, ensure_writable_dir, write_json
+from .report import atomic_write_bytes, ensure_writable_dir, subplots, write_json
 
 Progress = Callable[[str], None]
 
@@ -256,16 +256,9 @@ def _png(fig) -> bytes:
     return buf.getvalue()
 
 
-def _plt():
-    from . import report
-
-    return report
-
-
 def fig_data(data, traj, coords):
-    plt = _plt()
     n = len(coords)
-    fig, axes = plt.subplots(n, 1, figsize=(8, 2.2 * n), sharex=True, squeeze=False)
+    fig, axes = subplots(n, 1, figsize=(8, 2.2 * n), sharex=True, squeeze=False)
     for j, c in enumerate(coords):
         ax = axes[j, 0]
         for k in np.unique(traj)[:20]:
@@ -278,8 +271,7 @@ def fig_data(data, traj, coords):
 
 
 def fig_loss(table, naive_ratio=None):
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = subplots(figsize=(6, 4))
     lam = [r["lam"] for r in table]
     ax.loglog(lam, [r["L_e"] for r in table], "o-", label="$L_e$ (held out)")
     ax.loglog(lam, [max(r.get("L_e_train", float("nan")), 1e-16) for r in table], "^:", alpha=0.6,
@@ -299,8 +291,7 @@ def fig_energy(trend: dict):
     """Per-period mean of the learned energy above its minimum, with the fitted decay (log scale)."""
     if not trend.get("block_t"):
         return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = subplots(figsize=(6, 4))
     r = trend.get("rate")
     for i, (tt, ee) in enumerate(zip(trend["block_t"], trend["block_dE"])):
         tt, ee = np.asarray(tt), np.asarray(ee)
@@ -322,9 +313,8 @@ def fig_energy(trend: dict):
 
 
 def fig_forces(data, traj, coords, fc, fn, lam=None):
-    plt = _plt()
     n = len(coords)
-    fig, axes = plt.subplots(n, 2, figsize=(11, 2.4 * n), sharex=True, squeeze=False)
+    fig, axes = subplots(n, 2, figsize=(11, 2.4 * n), sharex=True, squeeze=False)
     for j, c in enumerate(coords):
         for k in np.unique(traj)[:5]:
             m = traj == k

@@ -191,6 +191,7 @@ class NNPhD:
         self.seed, self.steps, self.n_seeds, self.laws = int(seed), int(steps), int(n_seeds), tuple(laws)
         self.law_fit, self.sr_time, self.trim, self.assess_kw = law_fit, float(sr_time), trim, dict(assess_kw)
         self._model: dict | None = None
+        self._fc_jit = None
 
     # ------------------------------------------------------------------------------------------------ fitting
     def fit(self, data: Trajectories, progress: Callable[[str], None] | None = None) -> NNPhD:
@@ -216,6 +217,7 @@ class NNPhD:
         self.law_ = None if not w else Law(w["law"], w["title"], w["formula"], w["latex"], w["params"], w["stderr"],
                                            w["method"], tuple(report["law"].get("candidates", ())))
         self._law = law_fit
+        self._fc_jit = None  # compiled f_c of the model now held (a refit replaces it)
         m = self._model
         self.names_, self.angles_ = tuple(m["coords"]), tuple(c for c, a in zip(m["coords"], m["angles"]) if a)
 
@@ -228,7 +230,7 @@ class NNPhD:
 
     # ------------------------------------------------------------------------------------------- the model
     def _fc_fn(self):
-        if getattr(self, "_fc_jit", None) is None:
+        if self._fc_jit is None:
             import jax
 
             from .trust import conservative_fn
@@ -276,11 +278,7 @@ class NNPhD:
         def f(q, qd, tt):
             a = fc(q[None], qd[None])[0]
             if law is not None:
-                g = jnp.einsum("snk,k->sn", law.family.basis(jnp, jnp.asarray(law.theta), q[None], qd[None],
-                                                            jnp.reshape(tt, (1,))), jnp.asarray(law.beta))[0]
-                if law.family.fixed is not None:
-                    g = g + law.family.fixed(jnp, jnp.asarray(law.theta), q[None], qd[None], jnp.reshape(tt, (1,)))[0]
-                a = a + g
+                a = a + law.predict(q[None], qd[None], jnp.reshape(tt, (1,)), xp=jnp)[0]
             return a
 
         with _x64():

@@ -524,14 +524,15 @@ class LawFit:
                 "fn_rel": self.fn_rel, "terms": list(self.terms), "method": self.method,
                 "significant": self.significant}
 
-    def predict(self, q, qd, t) -> np.ndarray:
-        """The law at new states (N, n)."""
-        q, qd, t = (np.asarray(a, float) for a in (q, qd, t))
+    def predict(self, q, qd, t, xp=np):
+        """The law at new states (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an integrator)."""
+        q, qd, t = (xp.asarray(a, dtype=float) for a in (q, qd, t))
         if self.family is None:
-            return np.zeros_like(q)
-        g = np.einsum("snk,k->sn", self.family.basis(np, self.theta, q, qd, t), self.beta)
+            return xp.zeros_like(q)
+        theta = xp.asarray(self.theta)
+        g = xp.einsum("snk,k->sn", self.family.basis(xp, theta, q, qd, t), xp.asarray(self.beta))
         if self.family.fixed is not None:
-            g = g + self.family.fixed(np, self.theta, q, qd, t)
+            g = g + self.family.fixed(xp, theta, q, qd, t)
         return g
 
 

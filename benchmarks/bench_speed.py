@@ -33,7 +33,7 @@ import nnphd
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
 import nnphd
-from nnphd.models import (
+from nnphd.engine.models import (
     ModelConfig,
     init_nnphd,
     init_uan,
@@ -41,8 +41,8 @@ from nnphd.models import (
     mlp_apply,
     uan_force,
 )
-from nnphd.run import run_sweep
-from nnphd.train import loss_terms, pnorm
+from nnphd.engine.train import loss_terms, pnorm
+from nnphd.paper.sweep import run_sweep
 
 N, P, LAM, BATCHES = 2, 1.0, 1.0, (32, 1000)
 GOAL_REF, GOAL_PLAIN, GOAL_SWEEP = 3.0, 3.0, 20.0

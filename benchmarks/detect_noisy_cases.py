@@ -13,8 +13,8 @@ import nnphd
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
-from nnphd.trust import make_case
-from nnphd.userdetect import detect_file
+from nnphd.user.assess import make_case
+from nnphd.user.detect import detect_file
 
 names = sys.argv[1].split(",")
 for name in names:

@@ -27,7 +27,7 @@ from tests.fixtures.recordings import NAMES, make
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
-from nnphd.userdetect import detect_file
+from nnphd.user.detect import detect_file
 
 
 def right(expected: str, status: str) -> bool:

@@ -31,7 +31,7 @@ import nnphd
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
-from nnphd.userdetect import detect_file
+from nnphd.user.detect import detect_file
 from tests.fixtures import laws as cases
 
 TOL = 0.2

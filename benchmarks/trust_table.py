@@ -1,4 +1,4 @@
-"""Run nnphd.trust.assess on every constructed case and print a table.
+"""Run nnphd.user.assess.assess on every constructed case and print a table.
 
 Config (documented "moderate" default): every case simulated with RK4 from random initial conditions
 (8 trajectories, the case's T and dt; `--single` adds one-trajectory variants with 2T), assess(steps=1000 per λ and per
@@ -20,10 +20,10 @@ import nnphd
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
-from nnphd.detect import force_norm, verdict
-from nnphd.models import ModelConfig
-from nnphd.train import PAPER_LAMBDAS, TrainConfig, sweep
-from nnphd.trust import CASES, assess, make_case
+from nnphd.engine.models import ModelConfig
+from nnphd.engine.train import PAPER_LAMBDAS, TrainConfig, sweep
+from nnphd.engine.verdict import force_norm, verdict
+from nnphd.user.assess import CASES, assess, make_case
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--steps", type=int, default=1000)
@@ -35,7 +35,7 @@ ap.add_argument("--single", action="store_true", help="also one-trajectory varia
 ap.add_argument("--only-single", action="store_true")
 ap.add_argument("--cases", default=None)
 ap.add_argument("--json", default="/tmp/trust_table.json")
-ap.add_argument("--no-naive", action="store_true", help="skip the naive paper sweep (its code is not nnphd.trust)")
+ap.add_argument("--no-naive", action="store_true", help="skip the naive paper sweep (its code is not nnphd.user.assess)")
 args = ap.parse_args()
 
 names = args.cases.split(",") if args.cases else list(CASES)

@@ -38,9 +38,9 @@ def state():
 before = state()
 import nnphd
 nnphd.NNPhD, nnphd.Trajectories, nnphd.load
-import nnphd.api, nnphd.userdetect, nnphd.trust, nnphd.explain.laws, nnphd.report
+import nnphd.api, nnphd.user.detect, nnphd.user.assess, nnphd.explain.laws, nnphd.io.results
 after = state()
-fig, ax = nnphd.report.subplots()
+fig, ax = nnphd.io.results.subplots()
 print(json.dumps([before, after, state(), jax.numpy.ones(1).dtype.name]))
 """
     r = _fresh(code, tmp_path, env={"XLA_FLAGS": "--xla_dump_to=/nonexistent", "MPLBACKEND": "svg"})

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from nnphd.cli import main
-from nnphd.systems import SYSTEMS
+from nnphd.engine.systems import SYSTEMS
 
 
 def test_systems_lists_every_system(capsys):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd.data import (
+from nnphd.engine.data import (
     Dataset,
     gaussian_dataset,
     imbalanced_dataset,
@@ -16,7 +16,7 @@ from nnphd.data import (
     train_test,
     trajectory_dataset,
 )
-from nnphd.systems import SYSTEMS, get_system
+from nnphd.engine.systems import SYSTEMS, get_system
 
 
 def _sho(q, qd, t):

@@ -7,8 +7,8 @@ import pytest
 import sympy
 
 from nnphd.cli import main
-from nnphd.data import rk4_trajectory
-from nnphd.systems import get_system
+from nnphd.engine.data import rk4_trajectory
+from nnphd.engine.systems import get_system
 
 
 def _write_positions(path, system, n_traj=6, dt=0.05, n_steps=600, noise=1e-3, seed=0):

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from nnphd.userdetect import detect_file  # noqa: E402
+from nnphd.user.detect import detect_file  # noqa: E402
 from tests.fixtures.recordings import make  # noqa: E402
 
 SMALL = dict(steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1,
@@ -72,7 +72,7 @@ def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
 
 
 def test_noisy_derivatives_are_warned_about():
-    from nnphd.userdetect import _warnings
+    from nnphd.user.detect import _warnings
 
     info = {"per_coordinate": {"x": {"qdd": {"relative_error": 0.7}}, "y": {"qdd": {"relative_error": 0.05}},
                                "z": {"qdd": {"relative_error": None}}}, "trim": True, "n_samples": 10}

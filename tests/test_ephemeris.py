@@ -5,7 +5,7 @@ import pytest
 pytest.importorskip("de405")
 pytest.importorskip("jplephem")
 
-from nnphd import ephemeris as E  # noqa: E402
+from nnphd.astro import ephemeris as E  # noqa: E402
 
 GALLE_JD = 2395562.5  # 1846-09-23, the night Galle found Neptune near Le Verrier's position
 

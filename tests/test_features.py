@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401
-from nnphd.data import trajectory_dataset
+from nnphd.engine.data import trajectory_dataset
+from nnphd.engine.features import FEATURE_SETS, feature_lagrangian, train_constrained
+from nnphd.engine.systems import get_system
 from nnphd.explain.parametric import fit_linear_friction
-from nnphd.features import FEATURE_SETS, feature_lagrangian, train_constrained
-from nnphd.systems import get_system
 
 
 def _points(n=20, seed=0):

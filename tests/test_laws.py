@@ -97,8 +97,8 @@ def test_families_are_odd_in_velocity_or_explicitly_timed():
 
 def _law_from_csv(path, angles=()):
     """A recording through the user-data path: positions only → derivatives → find_law (no LNN)."""
-    from nnphd.userdata import load_trajectories
-    from nnphd.userdetect import _dataset, find_law
+    from nnphd.user.derivatives import load_trajectories
+    from nnphd.user.detect import _dataset, find_law
 
     ud = load_trajectories(path, angles)
     data, info, _ = _dataset(ud, "auto")
@@ -135,7 +135,7 @@ def test_pendulum_recording_damping_within_10_percent(tmp_path):
 def test_a_strong_candidate_law_turns_none_into_inconclusive():
     """The verdict's checks say "none" but a candidate law beats no law on held-out data by ΔIC ≤ −10: conflicting
     evidence gives "inconclusive" (never a confident "none"); a weak candidate leaves "none" alone."""
-    from nnphd.userdetect import LAW_CONFLICT_DIC, _reconcile
+    from nnphd.user.detect import LAW_CONFLICT_DIC, _reconcile
 
     res = {"status": "none", "new_physics": False, "confidence": 0.97, "reasons": ["seed 0: a Lagrangian fits"]}
     strong = {"title": "drive A cos(ω t + φ)", "heldout_ratio": 0.03, "delta_ic": -534.0}
@@ -166,10 +166,10 @@ def test_table2_families_through_the_joint_fit(name, truth):
     import jax
     import jax.numpy as jnp
 
-    from nnphd.data import trajectory_dataset
-    from nnphd.discover import DISCOVERY_LAW, _table2_params, joint_laws
-    from nnphd.features import FEATURE_SETS, SYSTEM_FEATURES
-    from nnphd.systems import get_system, gw_k
+    from nnphd.engine.data import trajectory_dataset
+    from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES
+    from nnphd.engine.systems import get_system, gw_k
+    from nnphd.paper.discover import DISCOVERY_LAW, _table2_params, joint_laws
 
     sysm = get_system(name)
     sysm = replace(sysm, n_steps=1000) if name == "neptune" else sysm

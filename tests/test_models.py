@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd.data import rk4_trajectory
-from nnphd.models import (
+from nnphd.engine.data import rk4_trajectory
+from nnphd.engine.models import (
     ModelConfig,
     accel_from_lagrangian,
     euler_lagrange_solve,
@@ -19,7 +19,7 @@ from nnphd.models import (
     nnphd_forces,
     uan_force,
 )
-from nnphd.systems import get_system
+from nnphd.engine.systems import get_system
 
 
 def _batch(n, b=9, seed=0):
@@ -190,7 +190,7 @@ def test_split_trick_makes_initial_mass_matrix_near_identity():
     q, qd, _ = _batch(2, b=64)
     lag = lnn_value(lnn, q, qd, cfg)
     assert lag.shape == (64,)
-    from nnphd.models import lnn_derivatives
+    from nnphd.engine.models import lnn_derivatives
 
     _, h, _ = lnn_derivatives(lnn, q, qd, cfg)
     eig = np.linalg.eigvalsh(np.asarray(h))

@@ -8,9 +8,9 @@ pytest.importorskip("de405")
 pytest.importorskip("jplephem")
 
 import nnphd  # noqa: E402,F401
-from nnphd.data import Dataset  # noqa: E402
-from nnphd.features import FEATURE_SETS, train_constrained  # noqa: E402
-from nnphd.neptune_demo import run_neptune_demo  # noqa: E402
+from nnphd.astro.neptune import run_neptune_demo  # noqa: E402
+from nnphd.engine.data import Dataset  # noqa: E402
+from nnphd.engine.features import FEATURE_SETS, train_constrained  # noqa: E402
 
 # Reduced configuration: 60-day sampling (3 660 epochs), two λ, 5000 Adam steps each (~15–25 s on 2 busy cores).
 # Measured (seed 0): ratio 60, GM +1.2 %, R +0.28 %, P +0.006 %, longitude +0.19°, corr(f_n, a_res) 0.995.

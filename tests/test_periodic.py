@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd import models
-from nnphd.data import rk4_trajectory
-from nnphd.models import ModelConfig, embed_periodic, init_lnn, lnn_value
-from nnphd.train import TrainConfig, make_trainer
+from nnphd.engine import models
+from nnphd.engine.data import rk4_trajectory
+from nnphd.engine.models import ModelConfig, embed_periodic, init_lnn, lnn_value
+from nnphd.engine.train import TrainConfig, make_trainer
 
 TWO_PI = 2 * np.pi
 

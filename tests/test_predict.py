@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from nnphd.cli import main
-from nnphd.data import trajectory_dataset
-from nnphd.models import ModelConfig, lnn_accel
-from nnphd.predict import MODELS, init_model, learned_power, model_forces, rollout, run_prediction
-from nnphd.systems import get_system
+from nnphd.engine.data import trajectory_dataset
+from nnphd.engine.models import ModelConfig, lnn_accel
+from nnphd.engine.systems import get_system
+from nnphd.paper.predict import MODELS, init_model, learned_power, model_forces, rollout, run_prediction
 
 SMALL = dict(steps=200, widths=(32, 32), n_traj=600)  # train t ≤ 30, extrapolate to t = 60
 

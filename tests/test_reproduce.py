@@ -6,7 +6,7 @@ import re
 import pytest
 
 from nnphd.cli import main
-from nnphd.reproduce import EXPERIMENTS, FIGURES, plan, reproduce
+from nnphd.paper.reproduce import EXPERIMENTS, FIGURES, plan, reproduce
 
 # the same code paths as the full run, at toy sizes
 TINY = {

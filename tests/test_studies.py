@@ -5,8 +5,8 @@ import math
 import pytest
 
 from nnphd.cli import main
-from nnphd.run import run_sweep
-from nnphd.studies import data_quality_study, lambda_p_study, transition_sharpness
+from nnphd.paper.lambda_p import data_quality_study, lambda_p_study, transition_sharpness
+from nnphd.paper.sweep import run_sweep
 
 LP = dict(steps=200, seed=0, lambdas=(0.1, 0.5, 2.0, 10.0, 50.0), ps=(1, "mse"), systems=("ho+ld", "ho+mf"))
 DQ = dict(steps=300, seed=1, alphas=(0.25, 1.0), betas=(0.5, 1.0))

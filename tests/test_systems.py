@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd.data import rk4_trajectory
-from nnphd.systems import SYSTEMS, get_system, gw_k
+from nnphd.engine.data import rk4_trajectory
+from nnphd.engine.systems import SYSTEMS, get_system, gw_k
 
 NAMES = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "neptune", "gw"]
 

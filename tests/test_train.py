@@ -5,12 +5,12 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401
-from nnphd.data import gaussian_dataset
-from nnphd.detect import verdict
-from nnphd.models import ModelConfig, init_nnphd, nnphd_forces
-from nnphd.run import run_sweep
-from nnphd.systems import get_system
-from nnphd.train import SweepPoint, TrainConfig, loss_terms, make_trainer, parse_p, pnorm, sweep
+from nnphd.engine.data import gaussian_dataset
+from nnphd.engine.models import ModelConfig, init_nnphd, nnphd_forces
+from nnphd.engine.systems import get_system
+from nnphd.engine.train import SweepPoint, TrainConfig, loss_terms, make_trainer, parse_p, pnorm, sweep
+from nnphd.engine.verdict import verdict
+from nnphd.paper.sweep import run_sweep
 
 SMALL = ModelConfig(n=1, lnn_widths=(32, 32), uan_widths=(32, 32))
 
@@ -61,7 +61,7 @@ def test_training_reduces_loss_and_is_reproducible():
     p1, (le1, _) = train(p0, arrays, 0.2, jax.random.PRNGKey(1))
     p2, (le2, _) = train(p0, arrays, 0.2, jax.random.PRNGKey(1))
     _, (le3, _) = train(p0, arrays, 0.2, jax.random.PRNGKey(2))
-    from nnphd.train import evaluate
+    from nnphd.engine.train import evaluate
 
     before, after = evaluate(p0, d, SMALL, 1.0).L_e, evaluate(p1, d, SMALL, 1.0).L_e
     assert after < 0.25 * before, (before, after)
@@ -85,7 +85,7 @@ def test_vmapped_sweep_equals_independent_runs():
     train = make_trainer(SMALL, tcfg)
     arrays = tuple(jnp.asarray(a) for a in (tr.q, tr.qd, tr.t, tr.qdd))
     p, _ = train(init_nnphd(k_init, SMALL), arrays, 5.0, k_train)
-    from nnphd.train import evaluate
+    from nnphd.engine.train import evaluate
 
     assert abs(evaluate(p, tr, SMALL, 1.0).L_e - pts[1].L_e) < 1e-8
 
@@ -95,7 +95,7 @@ def test_sweep_resumes_after_interruption(tmp_path):
     full = run_sweep("ho+ld", **kw)
 
     calls = {"n": 0}
-    import nnphd.run as run_mod
+    import nnphd.paper.sweep as run_mod
 
     orig = run_mod._save_checkpoint
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import nnphd  # noqa: F401
-from nnphd.data import Dataset
-from nnphd.trust import (
+from nnphd.engine.data import Dataset
+from nnphd.user.assess import (
     CASES,
     RHO_MIN,
     assess,

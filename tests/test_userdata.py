@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from scipy.signal import savgol_filter
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd.userdata import (
+from nnphd.user.derivatives import (
     MIN_SAMPLES,
     DataError,
     estimate_derivatives,
@@ -106,7 +106,7 @@ def test_pendulum_derivative_accuracy(pend, noise):
 
 def test_savgol_is_scipy_and_error_model_uses_its_weights():
     """The estimate is scipy's savgol_filter(mode='interp'); the stencils behind the error model reproduce it."""
-    from nnphd.userdata import _sg_weights
+    from nnphd.user.derivatives import _sg_weights
 
     t = 0.1 * np.arange(60)
     y = np.sin(t) + 0.01 * np.random.default_rng(1).standard_normal(60)
@@ -437,7 +437,7 @@ def test_spring_cart_in_integer_pixels():
 
 
 def test_local_polynomial_is_exact_and_reproduces_savgol():
-    from nnphd.userdata import _local_fit
+    from nnphd.user.derivatives import _local_fit
 
     rng = np.random.default_rng(7)
     t = 0.1 * np.arange(300) + rng.normal(0.0, 0.01, 300)  # 10 % jitter
@@ -463,7 +463,7 @@ def test_local_polynomial_is_exact_and_reproduces_savgol():
 
 
 def test_sampling_rules():
-    from nnphd.userdata import _sampling
+    from nnphd.user.derivatives import _sampling
 
     rng = np.random.default_rng(3)
     k = np.arange(400.0)
@@ -481,7 +481,7 @@ def test_sampling_rules():
 
 
 def test_quantization_step_and_noise_floor():
-    from nnphd.userdata import _grid_step
+    from nnphd.user.derivatives import _grid_step
 
     rng = np.random.default_rng(4)
     assert _grid_step(np.array([3.0, 7.0, 4.0, 12.0])) == 1.0
@@ -548,7 +548,7 @@ def test_to_dataset_reports_per_row_errors(tmp_path):
 
 
 def test_suggest_angles(tmp_path):
-    from nnphd.userdata import suggest_angles
+    from nnphd.user.derivatives import suggest_angles
 
     t = 0.05 * np.arange(400)
     spin = 2.0 * t + 0.3 * np.sin(t)  # turns over: 80 rad

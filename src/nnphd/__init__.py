@@ -25,7 +25,7 @@ XLA_FLAG = "--xla_cpu_experimental_ynn_fusion_type="
 def configure(x64: bool = True, fast_cpu: bool = True) -> None:
     """Process-wide settings for nnphd's own programs (the CLI, the tests, the benchmarks).
 
-    ``x64``: turn on JAX float64 everywhere (the low-level modules, e.g. :mod:`nnphd.trust`, expect it).
+    ``x64``: turn on JAX float64 everywhere (the low-level modules, e.g. :mod:`nnphd.user.assess`, expect it).
     ``fast_cpu``: add ``--xla_cpu_experimental_ynn_fusion_type=`` to XLA_FLAGS — XLA:CPU (jax 0.10) routes small
     matrix products through YNNPACK, 1.8–2.5× slower for these models (benchmarks/bench_speed.py); it only takes
     effect if JAX has not started its backend yet, and NNPHD_KEEP_XLA_FLAGS=1 vetoes it.
@@ -41,7 +41,7 @@ def configure(x64: bool = True, fast_cpu: bool = True) -> None:
 
 def __getattr__(name: str):  # the API loads on first use, so `import nnphd` stays light and inert
     if name in ("Law", "NNPhD", "Trajectories", "Verdict", "load"):
-        from . import api
+        from nnphd import api
 
         return getattr(api, name)
     raise AttributeError(f"module 'nnphd' has no attribute {name!r}")

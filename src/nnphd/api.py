@@ -38,12 +38,12 @@ class Trajectories:
     ``t``: (N,) times with ``traj`` (N,) trajectory ids, or a list of (N_i,) arrays, one per trajectory (lengths
     may differ); ``q``: (N,) / (N, n) likewise, or a list of them. ``names``: the coordinates' names (default
     q1, q2, …); ``angles``: the names that are angles (whole turns allowed); ``qd``/``qdd``: known derivatives, same
-    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.userdata.DataError`
+    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.user.derivatives.DataError`
     (a ValueError) with a one-line message."""
 
     def __init__(self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (),
                  qd=None, qdd=None):
-        from .userdata import DataError, _Rows, _validate
+        from nnphd.user.derivatives import DataError, _Rows, _validate
 
         if isinstance(t, (list, tuple)) and len(t) and np.ndim(t[0]) == 1:
             if traj is not None:
@@ -94,7 +94,7 @@ class Trajectories:
     @classmethod
     def from_csv(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """A CSV file (header t, [traj,] coordinates, optional <c>_dot / <c>_ddot; see ``nnphd detect --help``)."""
-        from .userdata import load_trajectories
+        from nnphd.user.derivatives import load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".csv":
             raise ValueError(f"{path}: expected a .csv file")
@@ -103,7 +103,7 @@ class Trajectories:
     @classmethod
     def from_npz(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """An .npz file with one 1-D array per CSV column."""
-        from .userdata import load_trajectories
+        from nnphd.user.derivatives import load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".npz":
             raise ValueError(f"{path}: expected a .npz file")
@@ -112,7 +112,7 @@ class Trajectories:
     @classmethod
     def from_dataframe(cls, df, angles: Sequence[str] = ()) -> Trajectories:
         """A pandas (or any mapping of columns) table with the CSV file's columns."""
-        from .userdata import DataError, _Rows, _validate
+        from nnphd.user.derivatives import DataError, _Rows, _validate
 
         try:
             cols = {str(k): np.asarray(df[k], float) for k in df}
@@ -180,7 +180,7 @@ class NNPhD:
     ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``laws``: your candidate
     laws (SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``); ``law_fit``: "auto" / "pointwise" / "trajectory";
     ``sr_time``: seconds of genetic symbolic regression for the fallback (0: none); ``trim``: drop the ends of
-    each trajectory ("auto"); further keywords go to :func:`nnphd.trust.assess`.
+    each trajectory ("auto"); further keywords go to :func:`nnphd.user.assess.assess`.
 
     After ``fit``: ``verdict_`` (:class:`Verdict`), ``status_``, ``confidence_``, ``new_physics_``, ``law_``
     (:class:`Law` or None), ``report_`` (the JSON-ready report dict), ``names_``, ``angles_``.
@@ -195,7 +195,7 @@ class NNPhD:
 
     # ------------------------------------------------------------------------------------------------ fitting
     def fit(self, data: Trajectories, progress: Callable[[str], None] | None = None) -> NNPhD:
-        from .userdetect import detect_data
+        from nnphd.user.detect import detect_data
 
         if not isinstance(data, Trajectories):
             raise TypeError(f"fit expects nnphd.Trajectories, got {type(data).__name__}")
@@ -233,7 +233,7 @@ class NNPhD:
         if self._fc_jit is None:
             import jax
 
-            from .trust import conservative_fn
+            from nnphd.user.assess import conservative_fn
 
             self._fc_jit = jax.jit(conservative_fn(self._model["conservative"]))
         return self._fc_jit
@@ -263,7 +263,7 @@ class NNPhD:
         import jax
         import jax.numpy as jnp
 
-        from .data import rk4_scan
+        from nnphd.engine.data import rk4_scan
 
         self._check_fitted()
         t = np.asarray(t, float)
@@ -291,7 +291,7 @@ class NNPhD:
     # ------------------------------------------------------------------------------------------------ output
     def report(self, out) -> Path:
         """Write report.json, report.html and the figures to the folder ``out`` (as ``nnphd detect --out``)."""
-        from .userdetect import write_report
+        from nnphd.user.detect import write_report
 
         self._check_fitted()
         m = self._model
@@ -302,7 +302,7 @@ class NNPhD:
 
     def figures(self) -> dict:
         """The report's figures as matplotlib Figures (data, L_e(λ), forces, energy trend where computed)."""
-        from . import userdetect as ud
+        from nnphd.user import detect as ud
 
         self._check_fitted()
         m = self._model
@@ -343,14 +343,14 @@ class NNPhD:
                 "law": law, "report": self.report_, "n_leaves": len(leaves),
                 "settings": {"seed": self.seed, "steps": self.steps, "n_seeds": self.n_seeds, "laws": list(self.laws),
                              "law_fit": self.law_fit, "sr_time": self.sr_time, "trim": self.trim}}
-        from .report import _json_default
+        from nnphd.io.results import _json_default
 
         arrays = {f"lnn_{i}": np.asarray(x) for i, x in enumerate(leaves)}
         arrays["meta"] = np.array(json.dumps(meta, default=_json_default))
         path.parent.mkdir(parents=True, exist_ok=True)
         import io
 
-        from .report import atomic_write_bytes
+        from nnphd.io.results import atomic_write_bytes
 
         buf = io.BytesIO()
         np.savez(buf, **arrays)
@@ -368,9 +368,9 @@ def load(path) -> NNPhD:
     """A model saved by :meth:`NNPhD.save`."""
     import jax
 
-    from .explain.laws import LawFit, family_from_spec
-    from .models import ModelConfig, init_lnn
-    from .trust import Scaling
+    from nnphd.engine.models import ModelConfig, init_lnn
+    from nnphd.explain.laws import LawFit, family_from_spec
+    from nnphd.user.assess import Scaling
 
     path = Path(path)
     try:

@@ -1,4 +1,4 @@
-"""Command line: ``nnphd systems``, ``nnphd sweep``. A thin shell over :mod:`nnphd.run`.
+"""Command line: ``nnphd systems``, ``nnphd sweep``. A thin shell over :mod:`nnphd.paper.sweep`.
 
 Bad input gives a one-line ``error: ...`` on stderr and exit code 2, with nothing written.
 """
@@ -21,7 +21,7 @@ console = Console()
 
 def _version(value: bool) -> None:
     if value:
-        from . import __version__
+        from nnphd import __version__
 
         print(f"nnphd {__version__}")
         raise typer.Exit()
@@ -51,7 +51,7 @@ def _parse_int(name: str, value: str, minimum: int) -> int:
 
 
 def _parse_lambdas(value: str | None):
-    from .train import PAPER_LAMBDAS
+    from nnphd.engine.train import PAPER_LAMBDAS
 
     if value is None:
         return PAPER_LAMBDAS
@@ -72,7 +72,7 @@ def _parse_lambdas(value: str | None):
 @app.command()
 def systems():
     """List the built-in systems with their ground truth and default settings."""
-    from .systems import SYSTEMS
+    from nnphd.engine.systems import SYSTEMS
 
     for s in SYSTEMS.values():
         params = ", ".join(f"{k}={v:.6g}" for k, v in s.params.items())
@@ -98,9 +98,9 @@ def sweep(
                                      help="networks see (q, q̇, t) standardised by the training data's mean and std"),
 ):
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
-    from .report import ensure_writable_dir
-    from .systems import get_system
-    from .train import parse_p
+    from nnphd.engine.systems import get_system
+    from nnphd.engine.train import parse_p
+    from nnphd.io.results import ensure_writable_dir
 
     # --- validate everything before any work
     try:
@@ -124,7 +124,7 @@ def sweep(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from .run import run_sweep
+    from nnphd.paper.sweep import run_sweep
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
@@ -167,8 +167,8 @@ def discover(
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
-    from .discover import DISCOVERY_SYSTEMS
-    from .report import ensure_writable_dir
+    from nnphd.io.results import ensure_writable_dir
+    from nnphd.paper.discover import DISCOVERY_SYSTEMS
 
     try:
         if all_ == (system is not None):
@@ -194,8 +194,8 @@ def discover(
 
     from pathlib import Path
 
-    from .discover import discover as run_discover
-    from .discover import write_discovery, write_table2
+    from nnphd.paper.discover import discover as run_discover
+    from nnphd.paper.discover import write_discovery, write_table2
 
     systems_ = DISCOVERY_SYSTEMS if all_ else (system,)
     results = []
@@ -245,11 +245,11 @@ def predict(
     steps: str = typer.Option("2000", "--steps", help="training steps of each model (split over the 4 learning rates)"),
     seed: str = typer.Option("0", "--seed", help="random seed (initialisation and minibatches)"),
     uan_time: bool = typer.Option(False, "--uan-time/--no-uan-time",
-                                  help="UAN sees (q, q̇, t) as in the paper (default: (q, q̇), see nnphd.predict)"),
+                                  help="UAN sees (q, q̇, t) as in the paper (default: (q, q̇), see nnphd.paper.predict)"),
     out: str = typer.Option("out/predict", "--out", help="output directory for results.json and the figures"),
 ):
     """Extrapolate the damped double pendulum with NNPhD, an LNN and a black box (paper Fig. 4)."""
-    from .report import ensure_writable_dir
+    from nnphd.io.results import ensure_writable_dir
 
     try:
         nsteps = _parse_int("--steps", steps, 4)
@@ -258,7 +258,7 @@ def predict(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from .predict import LABELS, MODELS, THETA_TOL, run_prediction
+    from nnphd.paper.predict import LABELS, MODELS, THETA_TOL, run_prediction
 
     with console.status("starting") as status:
         res = run_prediction(seed=nseed, steps=nsteps, out=out, uan_time=uan_time, progress=status.update)
@@ -318,9 +318,9 @@ def study_lambda_p(
     out: str = typer.Option("out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"),
 ):
     """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
-    from .report import ensure_writable_dir
-    from .studies import LOSSES, TOY_SYSTEMS, p_label
-    from .train import parse_p
+    from nnphd.engine.train import parse_p
+    from nnphd.io.results import ensure_writable_dir
+    from nnphd.paper.lambda_p import LOSSES, TOY_SYSTEMS, p_label
 
     try:
         nsteps = _parse_int("--steps", steps, 4)
@@ -340,7 +340,7 @@ def study_lambda_p(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from .studies import lambda_p_study
+    from nnphd.paper.lambda_p import lambda_p_study
 
     with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
                   console=console, transient=False) as prog:
@@ -382,8 +382,8 @@ def study_data_quality(
     out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
-    from .report import ensure_writable_dir
-    from .studies import DQ_GRID
+    from nnphd.io.results import ensure_writable_dir
+    from nnphd.paper.lambda_p import DQ_GRID
 
     try:
         nsteps = _parse_int("--steps", steps, 4)
@@ -394,7 +394,7 @@ def study_data_quality(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from .studies import data_quality_study
+    from nnphd.paper.lambda_p import data_quality_study
 
     with console.status("data-quality study: starting") as status:
         res = data_quality_study(steps=nsteps, seed=nseed, alphas=al, betas=be, out=out,
@@ -426,7 +426,7 @@ def reproduce(
     out: str | None = typer.Option(None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
-    from .report import ensure_writable_dir
+    from nnphd.io.results import ensure_writable_dir
 
     out = out or ("out/reproduce-quick" if quick else "out/reproduce")
     try:
@@ -435,13 +435,13 @@ def reproduce(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from .reproduce import reproduce as run_reproduce
+    from nnphd.paper.reproduce import reproduce as run_reproduce
 
     t0 = time.perf_counter()
     with console.status("reproduce: starting") as status:
         s = run_reproduce(out=out, quick=quick, seed=nseed,
                           progress=lambda m: status.update(f"[{time.perf_counter() - t0:5.0f} s] {m}"))
-    from .reproduce import EXPERIMENTS, TITLES
+    from nnphd.paper.reproduce import EXPERIMENTS, TITLES
 
     t = Table(title=f"nnphd reproduce ({s['mode']}, seed {nseed}): the paper's claims (details in the report)")
     for col in ("experiment", "claims met", "not met"):
@@ -480,8 +480,8 @@ def detect(
                              "one-sided derivative estimates are ~20x worse"),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
-    from .report import ensure_writable_dir
-    from .userdata import DataError, load_trajectories
+    from nnphd.io.results import ensure_writable_dir
+    from nnphd.user.derivatives import DataError, load_trajectories
 
     try:
         nseed = _parse_int("--seed", seed, 0)
@@ -501,7 +501,7 @@ def detect(
         ud = load_trajectories(file, ang)  # validate the file before anything is created
         if law_level not in ("auto", "pointwise", "trajectory"):
             raise InputError(f"--law-fit must be auto, pointwise or trajectory, got {law_level!r}")
-        from .explain.laws import parse_law
+        from nnphd.explain.laws import parse_law
 
         for x in law or []:
             parse_law(x, ud.coords)
@@ -509,7 +509,7 @@ def detect(
     except (ValueError, DataError) as e:
         raise InputError(str(e)) from None
 
-    from .userdetect import detect_file
+    from nnphd.user.detect import detect_file
 
     with console.status("detect: starting") as status:
         rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
@@ -555,8 +555,8 @@ def demo_neptune(
     seed: str = typer.Option("0", "--seed", help="random seed"),
 ):
     """Le Verrier again: Neptune located from Uranus' real JPL DE405 orbit by NNPhD."""
-    from .ephemeris import EphemerisUnavailable, available
-    from .report import ensure_writable_dir
+    from nnphd.astro.ephemeris import EphemerisUnavailable, available
+    from nnphd.io.results import ensure_writable_dir
 
     try:
         nseed = _parse_int("--seed", seed, 0)
@@ -566,7 +566,7 @@ def demo_neptune(
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
-    from .neptune_demo import print_summary, run_neptune_demo
+    from nnphd.astro.neptune import print_summary, run_neptune_demo
 
     try:
         with console.status("neptune: starting") as status:
@@ -578,8 +578,8 @@ def demo_neptune(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from . import configure
-    from ._extras import MissingExtra
+    from nnphd import configure
+    from nnphd._extras import MissingExtra
 
     configure()  # the command line owns its process: float64 and the fast XLA:CPU setting
     cmd = typer.main.get_command(app)

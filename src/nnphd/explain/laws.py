@@ -236,7 +236,7 @@ def perturber_family(names: Sequence[str]) -> Family:
         return [[d[0] / r3], [d[1] / r3]]
 
     def starts(ctx):
-        from .parametric import fit_perturber
+        from nnphd.explain.parametric import fit_perturber
 
         try:
             f = fit_perturber(ctx["q"], ctx["t"], ctx["residual"])
@@ -932,7 +932,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
                     shortlist: int = 16, n_boot: int = N_BOOT, seed: int = 0, max_windows: int = 200) -> LawTable:
     """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* by multiple shooting and
     rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
-    :mod:`nnphd.evidence`: windows of ¾ period with free initial states, RK4 at the recorded times).
+    :mod:`nnphd.engine.evidence`: windows of ¾ period with free initial states, RK4 at the recorded times).
 
     The model is the same joint one, q̈ = f_c(q, q̇; α) + g(q, q̇, t; β, θ), with (α, β, θ) started from the
     pointwise fit; held-out error = χ² of contiguous groups of windows predicted by the fit to the others (window
@@ -942,7 +942,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
     """
     import jax.numpy as jnp
 
-    from ..evidence import (
+    from nnphd.engine.evidence import (
         _blocks,
         _pad_windows,
         _schur,

@@ -42,7 +42,7 @@ class BlindFormula:
 
 def _library(x: np.ndarray, names: Sequence[str], vel_idx: Sequence[int], t_idx: int | None, degree: int, speed_powers: int, fourier: int):
     """Columns Θ(x) and their SymPy terms (no duplicates)."""
-    from .._extras import require
+    from nnphd._extras import require
 
     PolynomialLibrary = require("pysindy", "the sparse (blind) explanation").PolynomialLibrary
 
@@ -128,7 +128,7 @@ def sparse_formula(
     term_cost: float = float(np.log(1.25)),
 ) -> BlindFormula:
     """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,))."""
-    from .._extras import require
+    from nnphd._extras import require
 
     STLSQ = require("pysindy", "the sparse (blind) explanation").STLSQ
 

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from .sparse import READABLE_MAX_REL_RMS, BlindFormula
+from nnphd.explain.sparse import READABLE_MAX_REL_RMS, BlindFormula
 
 READABLE_MAX_LENGTH = 30  # expression-tree nodes per component
 NODE_COST = float(np.log(1.25)) / 4
@@ -60,7 +60,7 @@ def genetic_formula(
     comes first). Same seed and inputs → the same formula (single-threaded search is deterministic; with more threads
     pyoperon's evaluation order may differ run to run).
     """
-    from .._extras import require
+    from nnphd._extras import require
 
     SymbolicRegressor = require("pyoperon.sklearn", "the genetic (blind) explanation").SymbolicRegressor
 

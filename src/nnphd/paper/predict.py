@@ -39,8 +39,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .data import Dataset, rk4_scan, trajectory_dataset
-from .models import (
+from nnphd.engine.data import Dataset, rk4_scan, trajectory_dataset
+from nnphd.engine.models import (
     _Z,
     ModelConfig,
     _first_layer,
@@ -53,9 +53,9 @@ from .models import (
     mlp_apply,
     uan_force,
 )
-from .report import ensure_writable_dir, save_figure, write_json
-from .systems import get_system
-from .train import TrainConfig, make_trainer, pnorm
+from nnphd.engine.systems import get_system
+from nnphd.engine.train import TrainConfig, make_trainer, pnorm
+from nnphd.io.results import ensure_writable_dir, save_figure, write_json
 
 MODELS = ("nnphd", "lnn", "blackbox")
 LABELS = {"nnphd": "NNPhD", "lnn": "LNN", "blackbox": "black box"}
@@ -138,7 +138,7 @@ def _batch_forces(kind: str, cfg: ModelConfig, uan_time: bool):
 
 @functools.partial(jax.jit, static_argnames=("accel", "n_steps"))
 def _rk4_rollout(accel, params, x0, t0, dt, n_steps):
-    # the same integrator as nnphd.data.rk4_trajectory (shared code), with the model's parameters traced
+    # the same integrator as nnphd.engine.data.rk4_trajectory (shared code), with the model's parameters traced
     return rk4_scan(lambda q, qd, t: accel(params, q, qd, t), x0, dt, t0, n_steps)
 
 
@@ -446,7 +446,7 @@ def _claims(metrics, lnn_const, e_true) -> list[dict]:
 
 def plot_prediction(data: Dataset, rolls: dict, t_split: float):
     """Fig. 4: (a) θ1(t), (b) the true energy function along truth and each model's rollout."""
-    from .report import subplots
+    from nnphd.io.results import subplots
 
     energy = _energy_fn(get_system("double-pendulum"))
     e_data = np.asarray(energy(jnp.asarray(data.q), jnp.asarray(data.qd)))
@@ -473,7 +473,7 @@ def plot_prediction(data: Dataset, rolls: dict, t_split: float):
 
 
 def plot_energy_balance(series: dict):
-    from .report import subplots
+    from nnphd.io.results import subplots
 
     fig, ax = subplots(figsize=(7, 3.5))
     ax.plot(series["t"], series["dHdt"], "k-", lw=1.0, label="dH/dt (numerical, learned energy)")

@@ -13,7 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from nnphd.systems import System, get_system
+from nnphd.engine.systems import System, get_system
 
 __all__ = [
     "Dataset",

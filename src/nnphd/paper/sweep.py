@@ -15,12 +15,12 @@ from pathlib import Path
 import jax
 import numpy as np
 
-from .data import train_test
-from .detect import force_norm, verdict
-from .models import ModelConfig
-from .report import atomic_write_bytes, ensure_writable_dir, plot_sweep, save_figure, write_json
-from .systems import System, get_system
-from .train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
+from nnphd.engine.data import train_test
+from nnphd.engine.models import ModelConfig
+from nnphd.engine.systems import System, get_system
+from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
+from nnphd.engine.verdict import force_norm, verdict
+from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, plot_sweep, save_figure, write_json
 
 CHECKPOINT = ".sweep-checkpoint.pkl"
 

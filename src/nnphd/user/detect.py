@@ -1,7 +1,7 @@
 """``nnphd detect FILE``: new-physics detection on the user's own trajectories.
 
-Pipeline: :func:`nnphd.userdata.load_trajectories` (validation, one-line errors) → :func:`nnphd.userdata.to_dataset`
-(q̇, q̈ per trajectory with a noise estimate) → :func:`nnphd.trust.assess` (standardised units, λ-sweep on held-out
+Pipeline: :func:`nnphd.user.derivatives.load_trajectories` (validation, one-line errors) → :func:`nnphd.user.derivatives.to_dataset`
+(q̇, q̈ per trajectory with a noise estimate) → :func:`nnphd.user.assess.assess` (standardised units, λ-sweep on held-out
 trajectories, the checks that tell non-conservation from under-fitting, repeated seeds) → the blind explanation of
 the learned non-conservative force in the file's own coordinate names → ``report.json``, ``report.html`` and the
 figures in ``--out``. Every file is written atomically, and only after the whole analysis succeeded.
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .report import atomic_write_bytes, ensure_writable_dir, subplots, write_json
+from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, subplots, write_json
 
 Progress = Callable[[str], None]
 
@@ -32,7 +32,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     ones; ``law_level``: "pointwise" (fits to the estimated q̈ only), "trajectory" (re-ranked by multiple shooting
     on the positions) or "auto" (trajectory whenever the data oscillate enough for shooting windows).
     """
-    from .userdata import load_trajectories
+    from nnphd.user.derivatives import load_trajectories
 
     if law_level not in ("auto", "pointwise", "trajectory"):
         raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
@@ -45,15 +45,15 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
 def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int = 1000, sr_time: float = 10.0,
                 n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
                 laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> tuple[dict, dict]:
-    """:func:`detect_file` on validated data (:class:`nnphd.userdata.UserData`); returns (report, model) with
+    """:func:`detect_file` on validated data (:class:`nnphd.user.derivatives.UserData`); returns (report, model) with
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
-    from ._extras import MissingExtra
-    from .explain.laws import parse_law
-    from .explain.sparse import sparse_formula
-    from .explain.symbolic import genetic_formula
-    from .trust import assess
-    from .userdata import suggest_angles
+    from nnphd._extras import MissingExtra
+    from nnphd.explain.laws import parse_law
+    from nnphd.explain.sparse import sparse_formula
+    from nnphd.explain.symbolic import genetic_formula
+    from nnphd.user.assess import assess
+    from nnphd.user.derivatives import suggest_angles
 
     say = progress or (lambda msg: None)
     if law_level not in ("auto", "pointwise", "trajectory"):
@@ -148,7 +148,7 @@ def _dataset(ud, trim):
     """to_dataset with the ends trimmed (``trim="auto"``: drop the half-window at each end of every trajectory,
     where the one-sided derivative estimates are ~20x worse, unless that would leave a trajectory with less than
     TRIM_KEEP_MIN of its rows). Returns (dataset, info, the trim actually used)."""
-    from .userdata import DataError, to_dataset
+    from nnphd.user.derivatives import DataError, to_dataset
 
     if trim != "auto":
         return (*to_dataset(ud, trim=bool(trim)), bool(trim))
@@ -206,7 +206,7 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
 def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, say) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base; a law is claimed only when the verdict
     is "detected". Returns (the table as a dict, the winning LawFit or None)."""
-    from .trust import conservative_fn
+    from nnphd.user.assess import conservative_fn
 
     cons = res.get("_conservative")
     if cons is None:
@@ -227,13 +227,13 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, sa
 
 def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn=None, laws=(), level="auto",
              seed=0, progress: Progress | None = None):
-    """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.userdata.to_dataset`
+    """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
     (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
     the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
     shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
     (on the rows / as a JAX function); without it the conservative library alone. Returns a LawTable."""
-    from .evidence import dominant_period
-    from .explain.laws import _segments, rank_laws, rank_trajectory
+    from nnphd.engine.evidence import dominant_period
+    from nnphd.explain.laws import _segments, rank_laws, rank_trajectory
 
     say = progress or (lambda msg: None)
     say("candidate laws (pointwise joint fits)")

@@ -31,7 +31,7 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
-from .report import atomic_write_bytes, ensure_writable_dir, write_json
+from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
 
 EXPERIMENTS = ("discover", "predict", "lambda-p", "data-quality")
 MARKER = "reproduce.json"
@@ -137,7 +137,7 @@ def reproduce(out: str | Path = "out/reproduce", quick: bool = False, seed: int 
     results: dict[str, object] = {}
 
     # Fig. 3 / Table II: one unit per system
-    from .discover import discover, write_discovery, write_table2
+    from nnphd.paper.discover import discover, write_discovery, write_table2
 
     dk = dict(kw["discover"])
     systems = list(dk.pop("systems"))
@@ -159,8 +159,8 @@ def reproduce(out: str | Path = "out/reproduce", quick: bool = False, seed: int 
     write_table2(disc, outdir / "discover")
     results["discover"] = disc
 
-    from .predict import run_prediction
-    from .studies import data_quality_study, lambda_p_study
+    from nnphd.paper.lambda_p import data_quality_study, lambda_p_study
+    from nnphd.paper.predict import run_prediction
 
     def _progress3(label):
         return lambda done, tot, desc: say(f"{label} ({done}/{tot}): {desc}")
@@ -298,7 +298,7 @@ def _discover_body(disc: list[dict]) -> str:
 
 
 def _predict_body(res: dict) -> str:
-    from .predict import LABELS, MODELS, THETA_TOL
+    from nnphd.paper.predict import LABELS, MODELS, THETA_TOL
 
     tkey = f"t_error_exceeds_{THETA_TOL:g}"
     rows = [[_e(LABELS[k]), _fmt(res["metrics"][k]["theta1_rmse_30_40"]), _fmt(res["metrics"][k]["theta1_rmse_30_200"]),

@@ -33,17 +33,17 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import trajectory_dataset
-from .explain.laws import rank_laws
-from .explain.parametric import fit_drag_power, fit_linear_friction, fit_perturber
-from .explain.sparse import sparse_formula
-from .explain.symbolic import genetic_formula
-from .features import FEATURE_SETS, SYSTEM_FEATURES, train_constrained
-from .models import ModelConfig
-from .report import ensure_writable_dir, plot_sweep, save_figure, write_json
-from .run import run_sweep
-from .systems import get_system, gw_k
-from .train import PAPER_LAMBDAS
+from nnphd.engine.data import trajectory_dataset
+from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES, train_constrained
+from nnphd.engine.models import ModelConfig
+from nnphd.engine.systems import get_system, gw_k
+from nnphd.engine.train import PAPER_LAMBDAS
+from nnphd.explain.laws import rank_laws
+from nnphd.explain.parametric import fit_drag_power, fit_linear_friction, fit_perturber
+from nnphd.explain.sparse import sparse_formula
+from nnphd.explain.symbolic import genetic_formula
+from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
+from nnphd.paper.sweep import run_sweep
 
 DISCOVERY_SYSTEMS = ("double-pendulum", "neptune", "gw")
 # trajectory lengths (RK4 steps) used by default; the paper's are 300, 1000, 300 (see the module docstring for gw)

@@ -30,7 +30,7 @@ Window length and noise: the windows are ≈ 0.75 of the dominant period (from m
 ``MIN_WINDOW`` and at most ``MAX_WINDOW`` samples; the residuals are weighted by the estimated position noise of each
 coordinate (floored at 1e-3 of its spread, for noise-free data).
 
-Both statistics are computed in the standardised units of :mod:`nnphd.trust` and reported in the file's units.
+Both statistics are computed in the standardised units of :mod:`nnphd.user.assess` and reported in the file's units.
 """
 from __future__ import annotations
 

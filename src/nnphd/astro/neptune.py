@@ -1,6 +1,6 @@
 """``nnphd demo neptune``: Neptune rediscovered by NNPhD from Uranus' real orbit (JPL DE405), as Le Verrier did in 1846.
 
-Data (:func:`nnphd.ephemeris.uranus_dataset`): Uranus in the ecliptic plane, 1600–2200, in units L = 19.2 AU and
+Data (:func:`nnphd.astro.ephemeris.uranus_dataset`): Uranus in the ecliptic plane, 1600–2200, in units L = 19.2 AU and
 T = sqrt(L³/GM_sun) = 13.40 yr, with q̈ = −q/|q|³ + a_res; a_res is Uranus' real acceleration minus the pull of the
 bodies known in 1846 — essentially Neptune's pull, 8e-6 … 1.8e-4 of the Sun's.
 
@@ -20,15 +20,15 @@ Pipeline (no Neptune value enters it; the truth is only used afterwards, to scor
    L_e ≈ 1.5–4e-7 and GM +0.5…+1.2 %, R ≤ 0.3 % in every run. ``uan_scale`` alone is worse than nothing (f_n 86 %
    off: the c-jitter then exceeds what the scaled-down UAN can follow). 2000 steps (the paper's) are too few either
    way (f_n ~70 % off); 4000 are marginal, 6000 suffice, the default is 10 000.
-3. **Verdict** (:func:`nnphd.detect.verdict`): L_e jumps across λ = 1 (UAN on: the remainder is learned; UAN off:
+3. **Verdict** (:func:`nnphd.engine.verdict.verdict`): L_e jumps across λ = 1 (UAN on: the remainder is learned; UAN off:
    L_e = the remainder). The size floor is 1e-6 of the force instead of the library's 1e-4 (which is meant for
    simulated trajectories and noisy data): DE405's accelerations are consistent to ~1e-9, the remainder is 4e-5.
    The verdict under the library's defaults is reported too.
 4. **Explanation** of the learned f_n at λ = 0.2 with :func:`nnphd.explain.parametric.fit_perturber` (a point mass
    on a circular orbit; the Kepler-informed starts use the learned Sun, c3/(2√(c1c2))), converted to GM (AU³/d²,
    and over GM_sun), radius (AU), period (yr) and longitude at J2000 (deg), with the fit's standard errors.
-5. **Score** against :func:`nnphd.ephemeris.neptune_truth` (goals: GM ±5 %, radius ±1 %, period ±1 %, longitude
-   ±1°), with the ground-truth pipeline :func:`nnphd.ephemeris.fit_neptune` (a direct fit to a_res) for reference.
+5. **Score** against :func:`nnphd.astro.ephemeris.neptune_truth` (goals: GM ±5 %, radius ±1 %, period ±1 %, longitude
+   ±1°), with the ground-truth pipeline :func:`nnphd.astro.ephemeris.fit_neptune` (a direct fit to a_res) for reference.
 
 Why the L1 norm matters: Neptune's time-averaged pull on Uranus is mostly radial and nearly constant over Uranus'
 narrow range of distances (0.95–1.05 L), so it looks almost like a change of the Sun's GM. A least-squares split
@@ -43,11 +43,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .data import Dataset
-from .detect import MIN_RATIO, MIN_RELATIVE_SIZE, force_norm, verdict
-from .features import FEATURE_SETS, SYSTEM_FEATURES, FeatureLagrangian, train_constrained
-from .models import ModelConfig
-from .train import PAPER_LRS, SweepPoint
+from nnphd.engine.data import Dataset
+from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES, FeatureLagrangian, train_constrained
+from nnphd.engine.models import ModelConfig
+from nnphd.engine.train import PAPER_LRS, SweepPoint
+from nnphd.engine.verdict import MIN_RATIO, MIN_RELATIVE_SIZE, force_norm, verdict
 
 __all__ = [
     "DEMO_LAMBDAS",
@@ -144,10 +144,10 @@ def run_neptune_demo(
     ``lambdas`` must contain ``explain_lambda`` (< 1) and values above 1. Returns a JSON-ready dict; with ``out``
     writes ``results.json`` and ``neptune_demo.png`` there. ``reference=False`` skips the direct fit of the ephemeris
     residual (the ground-truth pipeline, reported for comparison only; ~10 s). Raises
-    :class:`nnphd.ephemeris.EphemerisUnavailable` when the ephemeris packages are missing.
+    :class:`nnphd.astro.ephemeris.EphemerisUnavailable` when the ephemeris packages are missing.
     """
-    from . import ephemeris as E
-    from .explain.parametric import fit_perturber
+    from nnphd.astro import ephemeris as E
+    from nnphd.explain.parametric import fit_perturber
 
     say = progress or (lambda msg: None)
     t0 = time.perf_counter()
@@ -216,7 +216,7 @@ def run_neptune_demo(
         ref = E.fit_neptune(res_eph, ndim=2)
         direct = {"gm_ratio": ref.gm_ratio, "radius_au": ref.radius_au, "period_yr": ref.period_yr,
                   "longitude_j2000_deg": ref.longitude_deg, "errors": E.compare(ref, truth),
-                  "what": "nnphd.ephemeris.fit_neptune on the ephemeris residual itself (ground-truth pipeline, "
+                  "what": "nnphd.astro.ephemeris.fit_neptune on the ephemeris residual itself (ground-truth pipeline, "
                           "not NNPhD)"}
     else:
         direct = None
@@ -253,7 +253,7 @@ def run_neptune_demo(
         "truth": {"gm_au3_per_day2": truth.gm, "gm_ratio": truth.gm_ratio, "radius_au": truth.radius_au,
                   "period_yr": truth.period_yr, "longitude_j2000_deg": truth.longitude_deg,
                   "mean_longitude_j2000_deg": truth.mean_longitude_deg, "longitude_1846_09_23_deg": galle_true,
-                  "source": "nnphd.ephemeris.neptune_truth (DE405)"},
+                  "source": "nnphd.astro.ephemeris.neptune_truth (DE405)"},
         "errors": err,
         "goals": goals,
         "all_goals_met": bool(all(g["met"] for g in goals.values())),
@@ -296,7 +296,7 @@ def write_neptune_demo(result: dict, out: str | Path, figdata: _FigureData | Non
 
     With ``t0`` (a ``time.perf_counter()`` value) ``result["wall_time_s"]`` is set just before the JSON is written.
     """
-    from .report import ensure_writable_dir, save_figure, write_json
+    from nnphd.io.results import ensure_writable_dir, save_figure, write_json
 
     outdir = ensure_writable_dir(out)
     if figdata is not None:
@@ -307,8 +307,8 @@ def write_neptune_demo(result: dict, out: str | Path, figdata: _FigureData | Non
 
 
 def _figure(result: dict, fd: _FigureData):
-    from . import ephemeris as E
-    from .report import subplots
+    from nnphd.astro import ephemeris as E
+    from nnphd.io.results import subplots
 
     ud, fit = fd.ud, fd.fit
     year = E.jd_to_year(ud.jd)

@@ -20,7 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from .models import ModelConfig, Params, init_nnphd, nnphd_forces
+from nnphd.engine.models import ModelConfig, Params, init_nnphd, nnphd_forces
 
 PAPER_LAMBDAS: tuple[float, ...] = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 PAPER_LRS: tuple[float, ...] = (1e-2, 1e-3, 1e-4, 1e-5)

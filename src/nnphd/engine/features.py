@@ -18,8 +18,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .models import ModelConfig, accel_from_lagrangian, init_uan, uan_force
-from .train import TrainConfig, make_trainer, pnorm
+from nnphd.engine.models import ModelConfig, accel_from_lagrangian, init_uan, uan_force
+from nnphd.engine.train import TrainConfig, make_trainer, pnorm
 
 
 @dataclass(frozen=True, eq=False)

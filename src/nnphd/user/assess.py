@@ -1,6 +1,6 @@
 r"""A verdict users can trust: is a jump of L_e at λ = 1 new physics, or a Lagrangian network that has not fit yet?
 
-The naive verdict (:func:`nnphd.detect.verdict`) reads "new physics" off a jump of the error L_e across λ = 1. A jump
+The naive verdict (:func:`nnphd.engine.verdict.verdict`) reads "new physics" off a jump of the error L_e across λ = 1. A jump
 has two causes: (1) a force no Lagrangian explains, or (2) a conservative LNN that has not fit an unusual potential
 while, below λ = 1, the free UAN soaked up its error. :func:`assess` takes trajectory data (q, q̇, t, q̈; several
 trajectories told apart by ``traj``; no ground truth) and separates the two with checks whose answer does not depend
@@ -16,7 +16,7 @@ Method (per seed; ``n_seeds`` repeats with other initialisations, minibatches an
   sin/cos(ω_j t'), ω_j = 2πj/span(t') ≤ 3 (at most 24 pairs): a plain MLP of a raw t spanning tens of periods could
   not represent a periodic drive (measured: with the package's UAN of (q, q̇, t), a 2.5 % drive cos(1.3 t) gave no
   jump at all, L_e below λ = 1 ≈ L_e above). Angles (``angles``) keep their radians (no shift or scale) and enter
-  every network as (sin θ, cos θ) (:attr:`nnphd.models.ModelConfig.periodic`), so whole turns and unwrapped values
+  every network as (sin θ, cos θ) (:attr:`nnphd.engine.models.ModelConfig.periodic`), so whole turns and unwrapped values
   of ±100 rad are the same states as their remainders; they are unwrapped per trajectory for integration.
 * **Data quality** (:func:`data_quality`, before any training): positions that are mostly noise (σ/std ≥
   NOISE_REL_MAX for every coordinate) or motion sampled below MIN_SAMPLES_PER_PERIOD samples per oscillation →
@@ -49,7 +49,7 @@ Checks (all numbers in ``checks``; every threshold is a module constant)
    drift counts only together with a fit gap (check 3). Computed over whole trajectories; it counts as evidence
    only with ≥ 3 trajectories and usable derivatives (the spread over trajectories: a bootstrap). On single
    records blocks of a few oscillations lost the trend, so there the trajectory-level evidence (0) decides.
-0. **Trajectory-level evidence** (:mod:`nnphd.evidence`), from the conservative model (b): the trend of its energy
+0. **Trajectory-level evidence** (:mod:`nnphd.engine.evidence`), from the conservative model (b): the trend of its energy
    over whole periods of the whole record (cross-checked by the per-period kinetic energy, which replaces it when
    the learned energy is not usable) and a multiple-shooting fit of the *positions* with a damping probe
    q̈ = (1 + c) f_c − D q̇. Significant (:func:`trajectory_evidence`) when both agree in sign with |z| ≥ Z_BOTH, or
@@ -126,11 +126,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .data import Dataset
-from .detect import verdict as naive_verdict
-from .evidence import dominant_period, energy_trend, shooting_fit
-from .models import ModelConfig, init_lnn, lnn_accel, lnn_derivatives, lnn_energy, mlp_apply
-from .train import SweepPoint, TrainConfig, make_trainer, pnorm
+from nnphd.engine.data import Dataset
+from nnphd.engine.evidence import dominant_period, energy_trend, shooting_fit
+from nnphd.engine.models import ModelConfig, init_lnn, lnn_accel, lnn_derivatives, lnn_energy, mlp_apply
+from nnphd.engine.train import SweepPoint, TrainConfig, make_trainer, pnorm
+from nnphd.engine.verdict import verdict as naive_verdict
 
 __all__ = [
     "assess",
@@ -454,7 +454,7 @@ def _net_q(q, cfg: ModelConfig):
     periodic = getattr(cfg, "periodic", ())
     if not periodic:
         return q
-    from .models import embed_periodic
+    from nnphd.engine.models import embed_periodic
 
     return embed_periodic(q, periodic)
 
@@ -682,7 +682,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     improved = float(np.mean(np.asarray(errs["timed"]) < np.asarray(errs["state"])))
 
     # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
-    # the multiple-shooting fit of the positions with a damping probe (nnphd.evidence)
+    # the multiple-shooting fit of the positions with a damping probe (nnphd.engine.evidence)
     period = ctx["period"]
     trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, period, seed=seed, kinetic=kin_l)
     trend["orientation"] = orient
@@ -882,7 +882,7 @@ def data_quality(period_samples: float, noise_rel, derivative_error=None) -> dic
     are mostly noise (σ/std ≥ NOISE_REL_MAX for every coordinate) or the motion is sampled below
     MIN_SAMPLES_PER_PERIOD samples per oscillation (derivatives, periods and integration all fail there).
     ``pointwise_ok`` is False when the estimated relative q̈ error (``derivative_error``, per coordinate, from
-    nnphd.userdata) exceeds QDD_ERR_MAX for every coordinate.
+    nnphd.user.derivatives) exceeds QDD_ERR_MAX for every coordinate.
     """
     noise_rel = np.asarray(noise_rel, float)
     reasons, usable = [], True
@@ -926,13 +926,13 @@ def assess(
 ) -> dict:
     """Is there new physics in trajectory data (q, q̇, t, q̈), with checks against under-fitting?
 
-    ``data``: a :class:`~nnphd.data.Dataset` (its fc/fn, if any, are ignored); ``traj``: a trajectory id per row
+    ``data``: a :class:`~nnphd.engine.data.Dataset` (its fc/fn, if any, are ignored); ``traj``: a trajectory id per row
     (None: a single trajectory); ``steps``: training steps per λ and per extra round of the conservative and free
     models; ``n_seeds``: seeds seed, seed+1, … (each with its own held-out trajectories); ``width``: hidden units of
     every network (two layers); ``long_factor``: extra rounds for the conservative model;
     ``angles``: (n,) bools, coordinates that are angles (enter every network as sin, cos; whole turns are fine);
     ``position_noise``: (n,) σ of the positions (default: estimated); ``derivative_error``: (n,) relative RMS
-    error of the estimated q̈ (from :func:`nnphd.userdata.to_dataset`; None: q̈ assumed exact);
+    error of the estimated q̈ (from :func:`nnphd.user.derivatives.to_dataset`; None: q̈ assumed exact);
     ``progress(done, total, message)``: called after every training round. The method: module docstring.
 
     Returns a dict:
@@ -967,7 +967,7 @@ def assess(
     dts = np.concatenate([np.diff(tp[s]) for s in segs])
     period_samples = period / float(np.median(dts)) if np.isfinite(period) else 0.0
     if position_noise is None:
-        from .userdata import noise_level
+        from nnphd.user.derivatives import noise_level
 
         position_noise = [float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs])))
                           for j in range(n)]
@@ -1132,7 +1132,7 @@ def _agg(seeds, name, keys):
 
 def _validate(data, traj, steps, lambdas, n_seeds):
     if not isinstance(data, Dataset):
-        raise ValueError(f"data must be a nnphd.data.Dataset, got {type(data).__name__}")
+        raise ValueError(f"data must be a nnphd.engine.data.Dataset, got {type(data).__name__}")
     for name in ("q", "qd", "t", "qdd"):
         a = getattr(data, name)
         if not np.all(np.isfinite(a)):

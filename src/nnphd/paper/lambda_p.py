@@ -4,7 +4,7 @@ r"""The λ/p study (paper section III.C, Fig. 5 a–h) and the data-quality stud
 (p = 1, 2, 3 and MSE) one λ-sweep at the paper's settings — 10³ Gaussian training and 10³ test samples, 13 λ,
 2000 Adam steps per λ, warm start with increasing λ (appendix B), inputs standardised as ``nnphd sweep`` does. Each
 sub-run is exactly ``nnphd sweep --system S --p P`` (same data, initialisation and numbers). Recorded: L_e(λ) on the
-test set (Fig. 5 a–d), the verdict of :func:`nnphd.detect.verdict` per (system, p), m_c(λ) and m_n(λ) for HO+LD
+test set (Fig. 5 a–d), the verdict of :func:`nnphd.engine.verdict.verdict` per (system, p), m_c(λ) and m_n(λ) for HO+LD
 (Fig. 5 g–h here) and the learned f_c, f_n of HO+LD at a few λ on the test points against the truth f_c = −q,
 f_n = −½q̇ (Fig. 5 e–f here: f_c^NN against q, f_n^NN against q̇, since the true parts depend on q and q̇ only).
 
@@ -48,7 +48,7 @@ force — only holds on the data's own distribution (on the full plane the conse
 wrong by the full damping on the other half). So the primary numbers are on a held-out test set drawn from the same
 distribution as the training set (same α or β, another seed); L_e on the training set itself and, for contrast,
 L_e and m on a full (balanced) Gaussian test set are reported beside them. m_c, m_n follow the paper's formula
-(rms over samples and components, :func:`nnphd.train.alignment`).
+(rms over samples and components, :func:`nnphd.engine.train.alignment`).
 
 Both studies cache their sub-runs in ``out`` (one JSON per (system, p) sweep under ``out/runs/``, one per data-quality
 grid): a repeated call with the same settings loads them (flag ``cached``) instead of training, and an interrupted
@@ -68,13 +68,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .data import Dataset, gaussian_dataset, imbalanced_dataset, pie_dataset, train_test
-from .detect import MIN_RATIO, force_norm, verdict
-from .models import ModelConfig, init_nnphd
-from .report import ensure_writable_dir, save_figure, subplots, write_json
-from .run import CHECKPOINT, _fingerprint, _load_checkpoint, _save_checkpoint
-from .systems import SYSTEMS, get_system
-from .train import (
+from nnphd.engine.data import Dataset, gaussian_dataset, imbalanced_dataset, pie_dataset, train_test
+from nnphd.engine.models import ModelConfig, init_nnphd
+from nnphd.engine.systems import SYSTEMS, get_system
+from nnphd.engine.train import (
     PAPER_LAMBDAS,
     TrainConfig,
     _as_arrays,
@@ -85,6 +82,9 @@ from .train import (
     sweep,
     validate_lambdas,
 )
+from nnphd.engine.verdict import MIN_RATIO, force_norm, verdict
+from nnphd.io.results import ensure_writable_dir, save_figure, subplots, write_json
+from nnphd.paper.sweep import CHECKPOINT, _fingerprint, _load_checkpoint, _save_checkpoint
 
 __all__ = [
     "TOY_SYSTEMS",
@@ -194,7 +194,7 @@ def _load_cached(path: Path, fp: str) -> dict | None:
 
 def _lambda_p_subrun(system: str, p, steps: int, seed: int, lambdas, subdir: Path | None, force_lams,
                      n_train: int, n_test: int, progress: Callable[[int, float], None] | None) -> dict:
-    """One λ-sweep, set up exactly as :func:`nnphd.run.run_sweep` (warm mode, standardised inputs)."""
+    """One λ-sweep, set up exactly as :func:`nnphd.paper.sweep.run_sweep` (warm mode, standardised inputs)."""
     sysm = get_system(system)
     tcfg = TrainConfig(steps=steps, p=p)
     train, test = train_test(sysm, seed=seed, n_train=n_train, n_test=n_test)

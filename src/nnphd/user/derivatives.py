@@ -1145,7 +1145,7 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
 
 
 def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
-    """Stack all trajectories into a :class:`nnphd.data.Dataset` (q as given, q̇/q̈ given or estimated per trajectory).
+    """Stack all trajectories into a :class:`nnphd.engine.data.Dataset` (q as given, q̇/q̈ given or estimated per trajectory).
 
     Returns ``(dataset, info)``.  ``info`` is JSON-ready except for ``info["_rows"]``, which callers should pop before
     serialising:
@@ -1166,7 +1166,7 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
       of every row's q̇ / q̈ (NaN in given columns) — larger at the trajectory ends and next to gaps, for weighting or
       trimming rows.
     """
-    from .data import Dataset
+    from nnphd.engine.data import Dataset
 
     parts = {"q": [], "qd": [], "qdd": [], "t": [], "qd_err_rows": [], "qdd_err_rows": []}
     results, per_traj, weights = [], [], []

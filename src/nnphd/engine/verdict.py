@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .train import SweepPoint, pnorm
+from nnphd.engine.train import SweepPoint, pnorm
 
 MIN_RATIO = 3.0
 MIN_RELATIVE_SIZE = 1e-4

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from ._extras import MissingExtra
+from nnphd._extras import MissingExtra
 
 __all__ = [
     "BODIES",
@@ -443,8 +443,8 @@ class UranusData:
     time_unit_days: float
 
     def dataset(self):
-        """As :class:`nnphd.data.Dataset` (q, q̇, t, q̈, fc = a_kepler, fn = a_res)."""
-        from nnphd.data import Dataset
+        """As :class:`nnphd.engine.data.Dataset` (q, q̇, t, q̈, fc = a_kepler, fn = a_res)."""
+        from nnphd.engine.data import Dataset
 
         return Dataset(q=self.q, qd=self.qd, t=self.t, qdd=self.qdd, fc=self.a_kepler, fn=self.a_res)
 

@@ -1,0 +1,76 @@
+"""The package tree shows the architecture: every import goes to the same or a lower layer, and there are no cycles."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+SRC = Path(__file__).resolve().parents[1] / "src" / "nnphd"
+# lower number = lower layer; a module may import its own layer and the layers below
+LAYERS = {"_extras": 0, "io": 0, "engine": 1, "explain": 2, "user": 3, "paper": 4, "astro": 4, "api": 5, "cli": 6,
+          "__init__": 6}
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for p in SRC.rglob("*.py"):
+        parts = p.relative_to(SRC.parent).with_suffix("").parts
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+        out[name] = p
+    return out
+
+
+def _imports(path: Path, mods: dict[str, Path]) -> set[str]:
+    found = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("nnphd"):
+            assert node.level == 0, f"{path}: relative import"
+            for a in node.names:
+                sub = f"{node.module}.{a.name}"
+                found.add(sub if sub in mods else node.module)
+        elif isinstance(node, ast.Import):
+            found |= {a.name for a in node.names if a.name.startswith("nnphd")}
+    return found - {"nnphd"}
+
+
+def _layer(mod: str) -> int:
+    parts = mod.split(".")
+    return LAYERS[parts[1] if len(parts) > 1 else "__init__"]
+
+
+def test_no_import_from_a_higher_layer():
+    mods = _modules()
+    bad = [(m, i) for m, p in mods.items() for i in _imports(p, mods) if _layer(i) > _layer(m)]
+    assert bad == []
+
+
+def test_every_subpackage_has_a_layer():
+    assert {m.split(".")[1] for m in _modules() if "." in m} <= set(LAYERS)
+
+
+def test_import_graph_has_no_cycles():
+    mods = _modules()
+    graph = {m: {i for i in _imports(p, mods) if i in mods and i != m} for m, p in mods.items()}
+    state: dict[str, int] = {}
+    cycle: list[str] = []
+
+    def visit(m, stack):
+        state[m] = 1
+        for n in graph[m]:
+            if state.get(n) == 1:
+                cycle.extend(stack[stack.index(n):] + [n])
+                return True
+            if n not in state and visit(n, stack + [n]):
+                return True
+        state[m] = 2
+        return False
+
+    for m in sorted(graph):
+        if m not in state and visit(m, [m]):
+            break
+    assert cycle == []
+
+
+def test_the_parser_sees_the_imports():  # the checks above are only as good as the edges they see
+    mods = _modules()
+    assert {"nnphd.engine.train", "nnphd.user.derivatives"} <= _imports(mods["nnphd.user.assess"], mods)
+    assert _layer("nnphd.paper.discover") > _layer("nnphd.engine.train")

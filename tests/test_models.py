@@ -217,3 +217,33 @@ def test_input_standardisation_is_folded_into_the_first_layer():
     lag_std = lnn_value(params["lnn"], q, qd, cfg) - 0.5 * jnp.sum(qd**2, 1)
     lag_raw = lnn_value(params["lnn"], zs[:, :2], zs[:, 2:4], raw) - 0.5 * jnp.sum(zs[:, 2:4] ** 2, 1)
     np.testing.assert_allclose(lag_std, lag_raw, atol=1e-12)
+
+
+@pytest.mark.parametrize("time", ["none", "one", "features"])
+def test_free_mlp_with_angles_and_standardisation(time):
+    """The one free MLP: angles as (sin, cos), standardisation folded into the first layer on the non-angle q, q̇ and
+    a single time column (not on time features), any number of time columns."""
+    from nnphd.engine.models import free_force, init_free
+
+    rng = np.random.default_rng(6)
+    q, qd, t = rng.normal(3, 2, (40, 2)), rng.normal(-1, 0.5, (40, 2)), rng.uniform(0, 50, 40)
+    cfg = ModelConfig(n=2, uan_widths=(8, 8), periodic=(1,)).standardized(q, qd, t)
+    raw = cfg.replace(input_shift=None, input_scale=None)
+    mu, sd = np.asarray(cfg.input_shift), np.asarray(cfg.input_scale)
+    tin = {"none": None, "one": t, "features": np.stack([np.sin(t), np.cos(t), t], 1)}[time]
+    n_time = {"none": 0, "one": 1, "features": 3}[time]
+    layers = init_free(jax.random.PRNGKey(1), cfg, n_time=n_time)
+    assert layers[0]["w"].shape == (5 + n_time, 8)  # x, sin θ, cos θ, ẋ, θ̇, time
+    q_s = q.copy()
+    q_s[:, 0] = (q[:, 0] - mu[0]) / sd[0]  # the angle keeps its radians (sin/cos of the raw value)
+    qd_s = (qd - mu[2:4]) / sd[2:4]
+    t_s = None if tin is None else ((t - mu[4]) / sd[4] if time == "one" else tin)
+    got = free_force(layers, jnp.asarray(q), jnp.asarray(qd), None if tin is None else jnp.asarray(tin), cfg)
+    want = free_force(layers, jnp.asarray(q_s), jnp.asarray(qd_s), None if t_s is None else jnp.asarray(t_s), raw)
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    x = np.concatenate([q_s[:, :1], np.sin(q[:, 1:]), np.cos(q[:, 1:]), qd_s] + ([] if t_s is None else
+                                                                                 [np.reshape(t_s, (40, -1))]), 1)
+    h = x
+    for layer in layers[:-1]:
+        h = np.where(h @ layer["w"] + layer["b"] > 0, 1.0, 0.2) * (h @ layer["w"] + layer["b"])
+    np.testing.assert_allclose(got, h @ layers[-1]["w"] + layers[-1]["b"], atol=1e-12)  # leaky ReLU 0.2, by hand

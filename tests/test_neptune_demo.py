@@ -22,7 +22,7 @@ FAST = dict(step_days=60.0, steps=5000, lambdas=(0.2, 2.0), reference=False)
 def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("neptune")
     msgs = []
-    res = run_neptune_demo(out=out, seed=0, progress=msgs.append, **FAST)
+    res = run_neptune_demo(out=out, seed=0, progress=lambda done, total, m: msgs.append((done, total, m)), **FAST)
     return res, out, msgs
 
 
@@ -34,7 +34,9 @@ def test_nnphd_detects_the_non_conservative_residual(demo):
     # λ > 1: the UAN is off and L_e is the remainder, ~4e-5 of the force (below the library's default 1e-4 floor)
     assert 1e-5 < v["relative_size"] < 1e-4
     assert res["verdict_default_thresholds"]["new_physics"] is False
-    assert any("λ = 0.2" in m for m in msgs)
+    assert any("λ = 0.2" in m for *_, m in msgs)
+    done = [d for d, _, _ in msgs]  # one progress interface: (done, total, message), done counting up to total
+    assert done == sorted(done) and all(d <= t for d, t, _ in msgs) and len({t for _, t, _ in msgs}) == 1
 
 
 def test_learned_split_kepler_plus_neptune(demo):

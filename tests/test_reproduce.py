@@ -23,7 +23,7 @@ TINY = {
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("rep")
     msgs = []
-    summary = reproduce(out=out, quick=True, seed=0, overrides=TINY, progress=msgs.append)
+    summary = reproduce(out=out, quick=True, seed=0, overrides=TINY, progress=lambda done, total, m: msgs.append((done, total, m)))
     return out, summary, msgs
 
 
@@ -63,7 +63,8 @@ def test_summary_claims_and_settings(run):
     assert summary["settings"]["predict"]["steps"] == 8
     assert set(summary["runs"]) == {"discover/double-pendulum", "predict", "lambda-p", "data-quality"}
     assert not any(r["cached"] for r in summary["runs"].values())
-    assert any("discover double-pendulum" in m for m in msgs)
+    assert any("discover double-pendulum" in m for *_, m in msgs)
+    assert {t for _, t, _ in msgs} == {4} and {d for d, _, _ in msgs} <= {0, 1, 2, 3}  # units of the whole run
     for rel in ("discover/double-pendulum/results.json", "discover/table2.json", "predict/results.json",
                 "lambda-p/results.json", "data-quality/results.json"):
         assert (out / rel).is_file()

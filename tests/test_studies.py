@@ -5,7 +5,8 @@ import math
 import pytest
 
 from nnphd.cli import main
-from nnphd.paper.lambda_p import data_quality_study, lambda_p_study, transition_sharpness
+from nnphd.paper.data_quality import data_quality_study
+from nnphd.paper.lambda_p import lambda_p_study, transition_sharpness
 from nnphd.paper.sweep import run_sweep
 
 LP = dict(steps=200, seed=0, lambdas=(0.1, 0.5, 2.0, 10.0, 50.0), ps=(1, "mse"), systems=("ho+ld", "ho+mf"))

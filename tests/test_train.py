@@ -116,7 +116,7 @@ def test_sweep_resumes_after_interruption(tmp_path):
     assert resumed["resumed_lambdas"] == [0.1, 0.5]
     np.testing.assert_allclose([r["L_e"] for r in resumed["table"]], [r["L_e"] for r in full["table"]], rtol=1e-9)
     assert (tmp_path / "results.json").exists() and (tmp_path / "loss_vs_lambda.png").exists()
-    assert not (tmp_path / ".sweep-checkpoint.pkl").exists()
+    assert not (tmp_path / ".checkpoint.npz").exists()
 
 
 # ---- verdict on hand-made curves ----------------------------------------------------------------------------------
@@ -168,3 +168,41 @@ def test_phase_transition_reduced(name):
 def test_verdict_exact_fit_below_one():
     v = verdict(_pts([0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3]), force_norm=1.0)
     assert v.L_below == 0.0 and v.new_physics and v.ratio > 1e9
+
+
+def test_lambda_sweep_modes():
+    """The one λ-sweep: "scratch" equals "vmap" (every λ from the same start and key), "warm" chains, ``accept``
+    chooses what the chain keeps, ``resume`` skips finished λ."""
+    from nnphd.engine.train import _as_arrays, lambda_sweep
+
+    sysm = get_system("ho+ld")
+    tr = gaussian_dataset(sysm, 64, 0)
+    tcfg = TrainConfig(steps=40)
+    train = make_trainer(SMALL, tcfg)
+    p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
+    arrays, key, lams = _as_arrays(tr, jnp.float64), jax.random.PRNGKey(1), (0.1, 2.0, 0.5)
+    scratch = lambda_sweep(train, p0, arrays, lams, key, "scratch")
+    vm = lambda_sweep(train, p0, arrays, lams, key, "vmap")
+    assert list(scratch) == [0.1, 0.5, 2.0]
+    for lam in lams:
+        direct, _ = train(p0, arrays, jnp.asarray(lam), key)
+        for a, b, c in zip(jax.tree_util.tree_leaves(scratch[lam]), jax.tree_util.tree_leaves(vm[lam]),
+                           jax.tree_util.tree_leaves(direct)):
+            np.testing.assert_allclose(a, b, atol=1e-10)
+            np.testing.assert_array_equal(a, c)
+    seen = []
+    warm = lambda_sweep(train, p0, arrays, lams, key, "warm", on_point=lambda lam, p: seen.append(lam))
+    k = jax.random.split(key, 3)
+    p1, _ = train(p0, arrays, jnp.asarray(0.1), k[0])
+    p2, _ = train(p1, arrays, jnp.asarray(0.5), k[1])
+    np.testing.assert_array_equal(jax.tree_util.tree_leaves(warm[0.5])[0], jax.tree_util.tree_leaves(p2)[0])
+    assert seen == [0.1, 0.5, 2.0]
+    # accept keeps the old params: the chain continues from them; resume skips a λ and continues from its params
+    kept = lambda_sweep(train, p0, arrays, lams, key, "warm", accept=lambda lam, p: p0)
+    np.testing.assert_array_equal(jax.tree_util.tree_leaves(kept[2.0])[0], jax.tree_util.tree_leaves(p0)[0])
+    seen.clear()
+    res = lambda_sweep(train, p0, arrays, lams, key, "warm", resume={0.1: p1}, on_point=lambda lam, p: seen.append(lam))
+    assert seen == [0.5, 2.0]
+    np.testing.assert_array_equal(jax.tree_util.tree_leaves(res[0.5])[0], jax.tree_util.tree_leaves(p2)[0])
+    with pytest.raises(ValueError, match="mode must be one of"):
+        lambda_sweep(train, p0, arrays, lams, key, "cold")

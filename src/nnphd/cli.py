@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 import sys
-import time
+from contextlib import contextmanager
 
 import typer
 from rich.console import Console
@@ -34,6 +34,15 @@ def _root(version: bool = typer.Option(False, "--version", "-V", is_eager=True, 
 
 # typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
 _ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+@contextmanager
+def _progress(title: str):
+    """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)``."""
+    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=console, transient=False) as prog:
+        task = prog.add_task(title, total=None)
+        yield lambda done, total, message: prog.update(task, completed=done, total=total, description=message)
 
 
 class InputError(Exception):
@@ -127,12 +136,10 @@ def sweep(
     from nnphd.paper.sweep import run_sweep
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=console, transient=False) as prog:
-        task = prog.add_task("λ-sweep (first λ includes compilation)", total=len(lams))
+    with _progress("λ-sweep (first λ includes compilation)") as bar:
         res = run_sweep(sysm, p=pp, steps=nsteps, seed=nseed, lambdas=lams, mode=mode, out=out, resume=resume,
                         standardize=standardize,
-                        progress=lambda i, lam: prog.update(task, completed=i, description=f"λ-sweep: done λ={lam:g}"))
+                        progress=bar)
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
     has_m = res["table"][0]["m_c"] is not None
     for col in ("λ", "L_e", "L_b") + (("m_c", "m_n") if has_m else ()):
@@ -200,9 +207,9 @@ def discover(
     systems_ = DISCOVERY_SYSTEMS if all_ else (system,)
     results = []
     for name in systems_:
-        with console.status(f"{name}: starting") as status:
+        with _progress(f"{name}: starting") as bar:
             res = run_discover(name, steps=nsteps, sweep_steps=nsweep, lam=lam_v, seed=nseed, standardize=standardize,
-                               progress=lambda msg, n=name: status.update(f"{n}: {msg}"), n_steps=ntraj or None,
+                               progress=bar, n_steps=ntraj or None,
                                sr_time=nsr)
         write_discovery(res, Path(out) / name)
         results.append(res)
@@ -260,8 +267,8 @@ def predict(
 
     from nnphd.paper.predict import LABELS, MODELS, THETA_TOL, run_prediction
 
-    with console.status("starting") as status:
-        res = run_prediction(seed=nseed, steps=nsteps, out=out, uan_time=uan_time, progress=status.update)
+    with _progress("starting") as bar:
+        res = run_prediction(seed=nseed, steps=nsteps, out=out, uan_time=uan_time, progress=bar)
     tkey = f"t_error_exceeds_{THETA_TOL:g}"
     t = Table(title=f"prediction from t = 30 (train t ≤ 30), {nsteps} training steps, seed {nseed}")
     for col in ("model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t",
@@ -342,11 +349,9 @@ def study_lambda_p(
 
     from nnphd.paper.lambda_p import lambda_p_study
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=console, transient=False) as prog:
-        task = prog.add_task("λ/p study (each sweep compiles first)", total=None)
+    with _progress("λ/p study (each sweep compiles first)") as bar:
         res = lambda_p_study(steps=nsteps, seed=nseed, lambdas=lams, ps=pvals, systems=syss, out=out,
-                             progress=lambda d, tot, desc: prog.update(task, completed=d, total=tot, description=desc))
+                             progress=bar)
     t = Table(title=f"verdicts — {nsteps} steps per λ, seed {nseed}, L_e on the test set")
     for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
         t.add_column(col, justify="right")
@@ -383,7 +388,7 @@ def study_data_quality(
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
     from nnphd.io.results import ensure_writable_dir
-    from nnphd.paper.lambda_p import DQ_GRID
+    from nnphd.paper.data_quality import DQ_GRID
 
     try:
         nsteps = _parse_int("--steps", steps, 4)
@@ -394,11 +399,11 @@ def study_data_quality(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from nnphd.paper.lambda_p import data_quality_study
+    from nnphd.paper.data_quality import data_quality_study
 
-    with console.status("data-quality study: starting") as status:
+    with _progress("data-quality study: starting") as bar:
         res = data_quality_study(steps=nsteps, seed=nseed, alphas=al, betas=be, out=out,
-                                 progress=lambda d, tot, desc: status.update(f"data-quality study ({d}/{tot}): {desc}"))
+                                 progress=bar)
     s = res["settings"]
     t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {nsteps} steps)")
     for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
@@ -437,10 +442,8 @@ def reproduce(
 
     from nnphd.paper.reproduce import reproduce as run_reproduce
 
-    t0 = time.perf_counter()
-    with console.status("reproduce: starting") as status:
-        s = run_reproduce(out=out, quick=quick, seed=nseed,
-                          progress=lambda m: status.update(f"[{time.perf_counter() - t0:5.0f} s] {m}"))
+    with _progress("reproduce: starting") as bar:
+        s = run_reproduce(out=out, quick=quick, seed=nseed, progress=bar)
     from nnphd.paper.reproduce import EXPERIMENTS, TITLES
 
     t = Table(title=f"nnphd reproduce ({s['mode']}, seed {nseed}): the paper's claims (details in the report)")
@@ -569,8 +572,8 @@ def demo_neptune(
     from nnphd.astro.neptune import print_summary, run_neptune_demo
 
     try:
-        with console.status("neptune: starting") as status:
-            res = run_neptune_demo(out=out, seed=nseed, progress=status.update)
+        with _progress("neptune: starting") as bar:
+            res = run_neptune_demo(out=out, seed=nseed, progress=bar)
     except EphemerisUnavailable as e:
         raise InputError(str(e)) from None
     print_summary(res, console)

@@ -9,7 +9,7 @@ Pipeline (no Neptune value enters it; the truth is only used afterwards, to scor
 1. **Scales from the data.** The constrained Kepler Lagrangian L = c1 ẋ² + c2 ẏ² + c3/r (the paper's form for its
    Neptune) is fitted directly to q̈ by least squares (c1 = 1 fixes the free overall scale). Its remainder has rms
    ``s`` (4.1e-5 at the defaults) — the size of whatever the Lagrangian cannot explain.
-2. **NNPhD on a λ-grid.** ``train_constrained`` trains c jointly with the UAN, loss L_e + λ L_b with p = 1 norms,
+2. **NNPhD on a λ-grid.** The constrained model (``constrained_model``, one ``lambda_sweep`` in "scratch" mode) trains c jointly with the UAN, loss L_e + λ L_b with p = 1 norms,
    Adam {1e-2, 1e-3, 1e-4, 1e-5}, batch 32, float64, from the same initialisation for every λ, with two rescalings
    that only change the units the optimiser works in: the UAN's output is multiplied by ``s`` (``uan_scale``) and
    c = c_LS + s·|c_LS|·θ (``c_init``, ``coef_scale``). The split itself is still chosen by the loss: c moves from
@@ -38,16 +38,17 @@ that NNPhD's loss selects keeps f_n ~90 % faithful (the peaks near conjunction d
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from nnphd.engine.data import Dataset
-from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES, FeatureLagrangian, train_constrained
+from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES, FeatureLagrangian, constrained_model
 from nnphd.engine.models import ModelConfig
-from nnphd.engine.train import PAPER_LRS, SweepPoint
+from nnphd.engine.train import PAPER_LRS, SweepPoint, lambda_sweep
 from nnphd.engine.verdict import MIN_RATIO, MIN_RELATIVE_SIZE, force_norm, verdict
+from nnphd.io.progress import Progress, Stages
 
 __all__ = [
     "DEMO_LAMBDAS",
@@ -132,7 +133,7 @@ def run_neptune_demo(
     seed: int = 0,
     steps: int = DEFAULT_STEPS,
     step_days: float = DEFAULT_STEP_DAYS,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     lambdas: Sequence[float] = DEMO_LAMBDAS,
     explain_lambda: float = EXPLAIN_LAMBDA,
     start_year: float | None = None,
@@ -149,7 +150,7 @@ def run_neptune_demo(
     from nnphd.astro import ephemeris as E
     from nnphd.explain.parametric import fit_perturber
 
-    say = progress or (lambda msg: None)
+    say = Stages(progress, len(set(lambdas)) + 4 + (out is not None))
     t0 = time.perf_counter()
     lams = sorted({float(x) for x in lambdas})
     if explain_lambda not in lams or not explain_lambda < 1:
@@ -173,13 +174,15 @@ def run_neptune_demo(
     cfg = ModelConfig(n=2).standardized(data.q, data.qd, data.t)
     fnorm = force_norm(data.qdd, 1.0)
 
-    # 2. NNPhD over the λ-grid (same initialisation for every λ)
+    # 2. NNPhD over the λ-grid (every λ from the same initialisation and minibatches)
+    say(f"neptune: NNPhD at {len(lams)} λ ({steps} steps each)")
+    cm = constrained_model(data, fl, steps=steps, seed=seed, p=1.0, cfg=cfg, c_init=c_ls, coef_scale=coef_scale,
+                           uan_scale=scale)
+    trained = lambda_sweep(cm.trainer(), cm.params0, cm.arrays, lams, cm.key, "scratch",
+                           progress=lambda d, tot, msg: say(f"neptune: NNPhD, done {msg} ({d}/{tot})"))
     fits, points, table = {}, [], []
-    for i, lam in enumerate(lams):
-        say(f"neptune: NNPhD at λ = {lam:g} ({i + 1}/{len(lams)}, {steps} steps)")
-        cf = train_constrained(data, fl, lam=lam, steps=steps, seed=seed, p=1.0, cfg=cfg,
-                               c_init=c_ls, coef_scale=coef_scale, uan_scale=scale)
-        fits[lam] = cf
+    for lam in lams:
+        cf = fits[lam] = cm.fit(trained[lam])
         points.append(SweepPoint(lam, cf.L_e, cf.L_b, cf.L_e, cf.L_b))
         gx, gy, _ = _kepler_gm(cf.coefs)
         table.append({"lam": lam, "L_e": cf.L_e, "L_b": cf.L_b, "coefficients": cf.coefs.tolist(),

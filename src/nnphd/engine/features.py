@@ -87,10 +87,32 @@ class ConstrainedFit:
     L_b: float
 
 
-def train_constrained(
+@dataclass
+class ConstrainedModel:
+    """A constrained Lagrangian L = c·φ with a UAN, set up on a data set: the initial parameters, the loss for
+    :func:`nnphd.engine.train.make_trainer`, and :meth:`fit` to read a trained state (see :func:`train_constrained`)."""
+
+    params0: dict
+    loss: Callable
+    forces: Callable
+    coefs: Callable
+    arrays: tuple
+    cfg: ModelConfig
+    tcfg: TrainConfig
+    key: jax.Array  # the minibatch key of the training run
+
+    def trainer(self):
+        return make_trainer(self.cfg, self.tcfg, loss_fn=self.loss)
+
+    def fit(self, params) -> ConstrainedFit:
+        fc, fn = jax.jit(self.forces)(params, *self.arrays[:3])
+        le, lb = self.loss(params, *self.arrays)
+        return ConstrainedFit(np.asarray(self.coefs(params)), np.asarray(fc), np.asarray(fn), float(le), float(lb))
+
+
+def constrained_model(
     data,
     fl: FeatureLagrangian,
-    lam: float = 0.2,
     steps: int = 2000,
     seed: int = 0,
     p: float | str = 1.0,
@@ -99,20 +121,8 @@ def train_constrained(
     c_init=None,
     coef_scale=None,
     uan_scale: float | None = None,
-) -> ConstrainedFit:
-    """Train L = c·φ jointly with the UAN on ``data`` (paper: λ = 0.2, Adam {1e-2…1e-5}, 2000 steps); c starts at 1.
-
-    Optional scaling for a faint remainder (all None = the paper's setup, unchanged):
-
-    * ``c_init`` — starting coefficients (default all ones);
-    * ``coef_scale`` — scalar or per-coefficient array s_c: the coefficients are trained as c = c_init + s_c·θ with θ
-      starting at 0, so Adam's steps on c are s_c times the learning rate (Adam's step size does not depend on the
-      size of the gradient, so without this c cannot be resolved below ~the last learning rate, 1e-5);
-    * ``uan_scale`` — the UAN's output is multiplied by it, so f_n starts at and is resolved on that scale instead
-      of O(1) (set it to the size of the remainder when f_n is many orders smaller than f).
-
-    ``L_e``, ``L_b``, ``fc``, ``fn`` and ``coefs`` are always in the data's units.
-    """
+) -> ConstrainedModel:
+    """The constrained model of :func:`train_constrained`, not yet trained (for λ-sweeps of it)."""
     n = data.q.shape[1]
     cfg = cfg or ModelConfig(n=n)
     tcfg = TrainConfig(steps=steps, p=p)
@@ -156,7 +166,35 @@ def train_constrained(
     else:
         params = {"dc": jnp.zeros(n_c, c_start.dtype), "uan": init_uan(k_init, cfg)}
     arrays = tuple(jnp.asarray(a) for a in (data.q, data.qd, data.t, data.qdd))
-    params, _ = make_trainer(cfg, tcfg, loss_fn=loss)(params, arrays, lam, k_train)
-    fc, fn = jax.jit(forces)(params, *arrays[:3])
-    le, lb = loss(params, *arrays)
-    return ConstrainedFit(np.asarray(coefs(params)), np.asarray(fc), np.asarray(fn), float(le), float(lb))
+    return ConstrainedModel(params, loss, forces, coefs, arrays, cfg, tcfg, k_train)
+
+
+def train_constrained(
+    data,
+    fl: FeatureLagrangian,
+    lam: float = 0.2,
+    steps: int = 2000,
+    seed: int = 0,
+    p: float | str = 1.0,
+    cfg: ModelConfig | None = None,
+    *,
+    c_init=None,
+    coef_scale=None,
+    uan_scale: float | None = None,
+) -> ConstrainedFit:
+    """Train L = c·φ jointly with the UAN on ``data`` (paper: λ = 0.2, Adam {1e-2…1e-5}, 2000 steps); c starts at 1.
+
+    Optional scaling for a faint remainder (all None = the paper's setup, unchanged):
+
+    * ``c_init`` — starting coefficients (default all ones);
+    * ``coef_scale`` — scalar or per-coefficient array s_c: the coefficients are trained as c = c_init + s_c·θ with θ
+      starting at 0, so Adam's steps on c are s_c times the learning rate (Adam's step size does not depend on the
+      size of the gradient, so without this c cannot be resolved below ~the last learning rate, 1e-5);
+    * ``uan_scale`` — the UAN's output is multiplied by it, so f_n starts at and is resolved on that scale instead
+      of O(1) (set it to the size of the remainder when f_n is many orders smaller than f).
+
+    ``L_e``, ``L_b``, ``fc``, ``fn`` and ``coefs`` are always in the data's units.
+    """
+    cm = constrained_model(data, fl, steps, seed, p, cfg, c_init=c_init, coef_scale=coef_scale, uan_scale=uan_scale)
+    params, _ = cm.trainer()(cm.params0, cm.arrays, lam, cm.key)
+    return cm.fit(params)

@@ -29,7 +29,7 @@ Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is s
 from __future__ import annotations
 
 import operator
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import jax
@@ -177,7 +177,9 @@ def _act_with_derivs(name: str, a):
 # initialisation
 
 
-def _init_mlp(key, sizes, dtype, out_scale=1.0):
+def init_mlp(key, sizes, dtype="float64", out_scale=1.0) -> list:
+    """Layers of an MLP with fan-ins ``sizes[:-1]``: weights N(0, 1/fan_in) (the last layer's × ``out_scale``),
+    zero biases, in ``dtype``."""
     layers = []
     keys = jax.random.split(key, len(sizes) - 1)
     for i, (k, fan_in, fan_out) in enumerate(zip(keys, sizes[:-1], sizes[1:])):
@@ -200,7 +202,6 @@ def _first_layer(layers: list, cfg: ModelConfig, cols: slice) -> list:
 
 
 _Z = slice(0, -1)  # (q, q̇) columns of (q, q̇, t)
-_ALL = slice(None)
 
 
 def _lnn_first_layer(layers: list, cfg: ModelConfig) -> list:
@@ -231,12 +232,18 @@ def lnn_input_size(cfg: ModelConfig) -> int:
 
 def init_lnn(key, cfg: ModelConfig) -> list:
     sizes = (lnn_input_size(cfg), *cfg.lnn_widths, 1)
-    return _init_mlp(key, sizes, jnp.dtype(cfg.dtype), cfg.lnn_out_scale)
+    return init_mlp(key, sizes, jnp.dtype(cfg.dtype), cfg.lnn_out_scale)
+
+
+def init_free(key, cfg: ModelConfig, n_time: int = 1, widths: Sequence[int] | None = None) -> list:
+    """A free MLP for :func:`free_force`: inputs [φ(q), q̇] and ``n_time`` time columns (0: none), hidden
+    ``widths`` (default the UAN's), output n, in ``cfg.dtype``."""
+    sizes = (lnn_input_size(cfg) + n_time, *(cfg.uan_widths if widths is None else widths), cfg.n)
+    return init_mlp(key, sizes, jnp.dtype(cfg.dtype))
 
 
 def init_uan(key, cfg: ModelConfig) -> list:
-    sizes = (2 * cfg.n + 1, *cfg.uan_widths, cfg.n)
-    return _init_mlp(key, sizes, jnp.dtype(cfg.dtype))
+    return init_free(key, cfg)
 
 
 def init_nnphd(key, cfg: ModelConfig) -> Params:
@@ -420,10 +427,42 @@ def mlp_apply(layers: list, x, activation: str = "leaky_relu", slope: float = 0.
     return x @ layers[-1]["w"] + layers[-1]["b"]
 
 
+def _fold_free(layers: list, cfg: ModelConfig, n_time: int) -> list:
+    """The input standardisation of :func:`free_force` folded into the first layer: (x − shift)/scale on the
+    non-periodic q, on q̇ and on a single time column; sin/cos columns and time features are left as they are."""
+    if cfg.input_shift is None:
+        return layers
+    if not cfg.periodic and n_time <= 1:
+        return _first_layer(layers, cfg, slice(0, 2 * cfg.n + n_time))
+    n, n_per = cfg.n, len(cfg.periodic)
+    dt = layers[0]["w"].dtype
+    rest, _ = _periodic_split(cfg.periodic, n)
+    m = 2 * n + n_per + n_time
+    cols = np.concatenate([rest, np.arange(n, 2 * n + (n_time == 1))])  # the input_shift entries used
+    keep = np.concatenate([np.arange(n - n_per), np.arange(n + n_per, 2 * n + n_per + (n_time == 1))])
+    mu, sd = np.zeros(m), np.ones(m)
+    mu[keep] = np.asarray(cfg.input_shift, float)[cols]
+    sd[keep] = np.asarray(cfg.input_scale, float)[cols]
+    w = layers[0]["w"] / jnp.asarray(sd, dt)[:, None]
+    return [{"w": w, "b": layers[0]["b"] - jnp.asarray(mu, dt) @ w}, *layers[1:]]
+
+
+def free_force(layers: list, q, qd, t, cfg: ModelConfig):
+    """The one free MLP (the UAN, the black box, the checks' free models): a batch q, q̇ (B, n) and ``t`` — (B,) one
+    time column, (B, k) time features, or None for no time input — → (B, n). Angles enter as (sin, cos) like the
+    LNN (``cfg.periodic``); ``cfg.input_shift``/``input_scale`` are folded into the first layer; the activation is
+    ``cfg.uan_activation`` (slope ``cfg.leaky_slope``). Initialise with :func:`init_free`."""
+    cols = [embed_periodic(q, cfg.periodic) if cfg.periodic else q, qd]
+    if t is not None:
+        cols.append(t[:, None] if t.ndim == 1 else t)
+    n_time = 0 if t is None else cols[-1].shape[-1]
+    x = jnp.concatenate(cols, axis=-1)
+    return mlp_apply(_fold_free(layers, cfg, n_time), x, cfg.uan_activation, cfg.leaky_slope)
+
+
 def uan_force(uan: list, q, qd, t, cfg: ModelConfig):
-    """f_n^NN(q, q̇, t) for a batch: q, q̇ (B, n), t (B,) → (B, n)."""
-    x = jnp.concatenate([q, qd, t[:, None]], axis=-1)
-    return mlp_apply(_first_layer(uan, cfg, _ALL), x, cfg.uan_activation, cfg.leaky_slope)
+    """f_n^NN(q, q̇, t) for a batch: q, q̇ (B, n), t (B,) → (B, n) (:func:`free_force` with one time column)."""
+    return free_force(uan, q, qd, t, cfg)
 
 
 def nnphd_forces(params: Params, q, qd, t, cfg: ModelConfig):

@@ -21,6 +21,7 @@ import numpy as np
 import optax
 
 from nnphd.engine.models import ModelConfig, Params, init_nnphd, nnphd_forces
+from nnphd.io.progress import Progress
 
 PAPER_LAMBDAS: tuple[float, ...] = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 PAPER_LRS: tuple[float, ...] = (1e-2, 1e-3, 1e-4, 1e-5)
@@ -177,6 +178,79 @@ class SweepPoint:
     params: Params | None = None
 
 
+SWEEP_MODES = ("warm", "vmap", "scratch")
+
+
+def lambda_sweep(
+    train: Callable,
+    params0,
+    arrays,
+    lambdas: Sequence[float],
+    key,
+    mode: str = "warm",
+    *,
+    descending: bool = False,
+    resume: dict | None = None,
+    accept: Callable | None = None,
+    on_point: Callable | None = None,
+    progress: Progress | None = None,
+) -> dict:
+    """The one λ-sweep: train ``train`` (any model and loss, from :func:`make_trainer`) at every λ; return λ → params.
+
+    ``mode``:
+
+    * ``"warm"`` — the paper's protocol (appendix B): λ in increasing order (decreasing with ``descending``), each run
+      starting from the previous λ's parameters; run j draws its minibatches from the j-th of ``split(key, len(λ))``;
+    * ``"vmap"`` — every λ from ``params0`` with the same ``key``, all in one vmapped run;
+    * ``"scratch"`` — the same as ``"vmap"`` (every λ from ``params0``, same ``key``), one λ after the other (less
+      memory; the same numbers up to rounding).
+
+    ``resume`` maps λ → finished params to skip (warm mode continues from them). ``accept(lam, params)`` (warm mode)
+    returns the params the chain keeps for λ and continues from (default: the new ones). ``on_point(lam, params)``
+    is called for every λ trained here; ``progress(done, total, message)`` after every λ.
+    """
+    lams = validate_lambdas(lambdas)
+    if mode not in SWEEP_MODES:
+        raise ValueError(f"mode must be one of {', '.join(SWEEP_MODES)}, got {mode!r}")
+    dtype = jax.tree_util.tree_leaves(arrays)[0].dtype
+    done = dict(resume or {})
+    out: dict = {}
+    order = sorted(lams, reverse=descending)
+
+    def tick(j, lam):
+        if progress:
+            progress(j + 1, len(order), f"λ = {lam:g}")
+
+    if mode == "vmap":
+        todo = [x for x in order if x not in done]
+        if todo:
+            vtrain = jax.jit(jax.vmap(train, in_axes=(None, None, 0, None)))
+            pstack, _ = vtrain(params0, arrays, jnp.asarray(todo, dtype), key)
+            for i, lam in enumerate(todo):
+                done[lam] = jax.tree_util.tree_map(lambda a, i=i: a[i], pstack)
+                if on_point:
+                    on_point(lam, done[lam])
+        for j, lam in enumerate(order):
+            out[lam] = done[lam]
+            tick(j, lam)
+        return out
+    keys = jax.random.split(key, len(order)) if mode == "warm" else None
+    params = params0
+    for j, lam in enumerate(order):
+        if lam in done:
+            params = done[lam]
+        else:
+            start = params if mode == "warm" else params0
+            params, _ = train(start, arrays, jnp.asarray(lam, dtype), keys[j] if mode == "warm" else key)
+            if accept is not None:
+                params = accept(lam, params)
+            if on_point:
+                on_point(lam, params)
+        out[lam] = params
+        tick(j, lam)
+    return out
+
+
 def sweep(
     train_data,
     cfg: ModelConfig,
@@ -185,28 +259,22 @@ def sweep(
     seed: int = 0,
     test_data=None,
     mode: str = "warm",
-    progress: Callable[[int, float], None] | None = None,
+    progress: Progress | None = None,
     resume: dict | None = None,
     on_point: Callable[[SweepPoint], None] | None = None,
     keep_params: bool = True,
 ) -> list[SweepPoint]:
-    """Train NNPhD for each λ and record L_e(λ), L_b(λ) (and m_c, m_n when the data carry the true split).
+    """Train NNPhD for each λ (:func:`lambda_sweep`) and record L_e(λ), L_b(λ) (and m_c, m_n when the data carry the
+    true split).
 
-    mode="warm": the paper's protocol (appendix B): λ in increasing order, each run starting from the previous λ's
-    parameters. mode="vmap": every λ trained independently from the same initialisation, all in one vmapped run.
-    ``resume`` maps λ → a finished :class:`SweepPoint` (with params) to skip (warm mode continues from its params).
+    ``mode``: see :func:`lambda_sweep`. ``resume`` maps λ → a finished :class:`SweepPoint` (with params) to skip
+    (warm mode continues from its params).
     """
     lams = validate_lambdas(lambdas)
-    if mode not in ("warm", "vmap"):
-        raise ValueError(f"mode must be 'warm' or 'vmap', got {mode!r}")
     dtype = jnp.dtype(cfg.dtype)
-    arrays = _as_arrays(train_data, dtype)
-    key = jax.random.PRNGKey(seed)
-    k_init, k_train = jax.random.split(key)
-    params0 = init_nnphd(k_init, cfg)
-    train = make_trainer(cfg, tcfg)
+    k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
     eval_data = test_data if test_data is not None else train_data
-    resume = dict(resume or {})
+    points = {lam: pt for lam, pt in (resume or {}).items() if pt.params is not None}
 
     def finish(lam, params):
         ev = evaluate(params, eval_data, cfg, tcfg.p)
@@ -215,41 +283,14 @@ def sweep(
         if eval_data.fc is not None:
             pt.m_c = alignment(ev.fc, eval_data.fc)
             pt.m_n = alignment(ev.fn, eval_data.fn)
-        return pt
+        points[lam] = pt
+        if on_point:
+            on_point(pt)
 
-    points: list[SweepPoint] = []
-    if mode == "warm":
-        order = sorted(range(len(lams)), key=lambda i: lams[i])
-        params = params0
-        keys = jax.random.split(k_train, len(lams))
-        for j, i in enumerate(order):
-            lam = lams[i]
-            if lam in resume and resume[lam].params is not None:
-                pt = resume[lam]
-                params = pt.params
-            else:
-                params, _ = train(params, arrays, jnp.asarray(lam, dtype), keys[j])
-                pt = finish(lam, params)
-                if on_point:
-                    on_point(pt)
-            points.append(pt)
-            if progress:
-                progress(j + 1, lam)
-    else:
-        vtrain = jax.jit(jax.vmap(train, in_axes=(None, None, 0, None)))
-        todo = [x for x in lams if x not in resume]
-        if todo:
-            pstack, _ = vtrain(params0, arrays, jnp.asarray(todo, dtype), k_train)
-            for i, lam in enumerate(todo):
-                resume[lam] = finish(lam, jax.tree_util.tree_map(lambda a, i=i: a[i], pstack))
-                if on_point:
-                    on_point(resume[lam])
-        for j, lam in enumerate(sorted(lams)):
-            points.append(resume[lam])
-            if progress:
-                progress(j + 1, lam)
-    points.sort(key=lambda pt: pt.lam)
+    lambda_sweep(make_trainer(cfg, tcfg), init_nnphd(k_init, cfg), _as_arrays(train_data, dtype), lams, k_train,
+                 mode, resume={lam: pt.params for lam, pt in points.items()}, on_point=finish, progress=progress)
+    out = sorted((points[lam] for lam in set(lams)), key=lambda pt: pt.lam)
     if not keep_params:
-        for pt in points:
+        for pt in out:
             pt.params = None
-    return points
+    return out

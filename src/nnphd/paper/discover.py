@@ -27,7 +27,7 @@ of the principle within the pendulum feature family has Γ11 = 0.0192, Γ21 = 0.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -42,6 +42,7 @@ from nnphd.explain.laws import rank_laws
 from nnphd.explain.parametric import fit_drag_power, fit_linear_friction, fit_perturber
 from nnphd.explain.sparse import sparse_formula
 from nnphd.explain.symbolic import genetic_formula
+from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
 from nnphd.paper.sweep import run_sweep
 
@@ -122,7 +123,7 @@ def discover(
     lam: float = 0.2,
     seed: int = 0,
     standardize: bool = True,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     n_steps: int | None = None,
     sr_time: float = 20.0,
     sweep_lambdas: Sequence[float] = PAPER_LAMBDAS,
@@ -134,7 +135,7 @@ def discover(
     """
     if system not in DISCOVERY_SYSTEMS:
         raise ValueError(f"discover works on {', '.join(DISCOVERY_SYSTEMS)}; got {system!r}")
-    say = progress or (lambda msg: None)
+    say = Stages(progress, 6)
     sysm = get_system(system)
     paper_n_steps = sysm.n_steps
     sysm = replace(sysm, n_steps=int(n_steps or DISCOVERY_N_STEPS[system]))

@@ -40,21 +40,10 @@ import jax.numpy as jnp
 import numpy as np
 
 from nnphd.engine.data import Dataset, rk4_scan, trajectory_dataset
-from nnphd.engine.models import (
-    _Z,
-    ModelConfig,
-    _first_layer,
-    _init_mlp,
-    init_lnn,
-    init_uan,
-    lnn_accel,
-    lnn_derivatives,
-    lnn_energy,
-    mlp_apply,
-    uan_force,
-)
+from nnphd.engine.models import ModelConfig, free_force, init_free, init_lnn, lnn_accel, lnn_derivatives, lnn_energy
 from nnphd.engine.systems import get_system
 from nnphd.engine.train import TrainConfig, make_trainer, pnorm
+from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, save_figure, write_json
 
 MODELS = ("nnphd", "lnn", "blackbox")
@@ -70,21 +59,14 @@ def init_model(kind: str, key, cfg: ModelConfig, uan_time: bool):
     """Initial parameters. NNPhD's LNN and UAN use the same subkeys as the LNN alone and the black box, so the three
     models start from the same networks where they share one."""
     k_lnn, k_uan = jax.random.split(key)
-    dtype = jnp.dtype(cfg.dtype)
     if kind == "nnphd":
-        uan = init_uan(k_uan, cfg) if uan_time else _init_mlp(k_uan, (2 * cfg.n, *cfg.uan_widths, cfg.n), dtype)
+        uan = init_free(k_uan, cfg, n_time=1 if uan_time else 0)
         return {"lnn": init_lnn(k_lnn, cfg), "uan": uan}
     if kind == "lnn":
         return {"lnn": init_lnn(k_lnn, cfg)}
     if kind == "blackbox":
-        return {"mlp": _init_mlp(k_uan, (2 * cfg.n, *cfg.lnn_widths, cfg.n), dtype)}
+        return {"mlp": init_free(k_uan, cfg, n_time=0, widths=cfg.lnn_widths)}
     raise ValueError(f"unknown model {kind!r}; expected one of: {', '.join(MODELS)}")
-
-
-def _mlp_qqd(layers, q, qd, cfg: ModelConfig):
-    """A LeakyReLU MLP of the standardised (q, q̇) (standardisation folded into the first layer)."""
-    x = jnp.concatenate([q, qd], axis=-1)
-    return mlp_apply(_first_layer(layers, cfg, _Z), x, cfg.uan_activation, cfg.leaky_slope)
 
 
 def model_forces(kind: str, params, q, qd, t, cfg: ModelConfig, uan_time: bool):
@@ -94,13 +76,13 @@ def model_forces(kind: str, params, q, qd, t, cfg: ModelConfig, uan_time: bool):
     """
     if kind == "nnphd":
         fc = lnn_accel(params["lnn"], q, qd, cfg)
-        fn = uan_force(params["uan"], q, qd, t, cfg) if uan_time else _mlp_qqd(params["uan"], q, qd, cfg)
+        fn = free_force(params["uan"], q, qd, t if uan_time else None, cfg)
         return fc, fn
     if kind == "lnn":
         fc = lnn_accel(params["lnn"], q, qd, cfg)
         return fc, jnp.zeros_like(fc)
     if kind == "blackbox":
-        fn = _mlp_qqd(params["mlp"], q, qd, cfg)
+        fn = free_force(params["mlp"], q, qd, None, cfg)
         return jnp.zeros_like(fn), fn
     raise ValueError(f"unknown model {kind!r}; expected one of: {', '.join(MODELS)}")
 
@@ -208,7 +190,7 @@ def run_prediction(
     seed: int = 0,
     steps: int = 2000,
     out: str | Path | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     lam: float = 0.2,
     widths: tuple[int, ...] = (200, 200),
     n_traj: int = 2000,
@@ -223,7 +205,7 @@ def run_prediction(
     Returns a JSON-ready dict (settings, metrics per model, energy balance, claims, wall time); with ``out`` also
     writes results.json, prediction.png (θ1(t) and E(t)) and energy_balance.png there.
     """
-    say = progress or (lambda msg: None)
+    say = Stages(progress, 2 + 2 * len(MODELS))
     widths = tuple(int(w) for w in widths)
     if not widths or any(w < 1 for w in widths):
         raise ValueError(f"widths must be positive integers, got {widths}")

@@ -31,6 +31,8 @@ from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 
+from nnphd.io.cache import Cache
+from nnphd.io.progress import Progress
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
 
 EXPERIMENTS = ("discover", "predict", "lambda-p", "data-quality")
@@ -79,8 +81,6 @@ FIGURES = {  # files (relative to out/) shown in each section, in order
     "data-quality": ["data-quality/fig6.png"],
 }
 
-Progress = Callable[[str], None]
-
 
 # ---------------------------------------------------------------------------------------------------- running
 def plan(quick: bool = False, overrides: dict[str, dict] | None = None) -> dict[str, dict]:
@@ -94,33 +94,25 @@ def plan(quick: bool = False, overrides: dict[str, dict] | None = None) -> dict[
     return out
 
 
-def _load_marked(d: Path, settings: dict, result_file: str = "results.json") -> dict | None:
-    """The cached results in ``d`` if its marker records exactly ``settings``; else None."""
-    try:
-        marker = json.loads((d / MARKER).read_text())
-        if marker.get("settings") != json.loads(json.dumps(settings)):
-            return None
-        return json.loads((d / result_file).read_text())
-    except (OSError, ValueError):
-        return None
-
-
-def _mark(d: Path, settings: dict, wall: float) -> None:
-    write_json(d / MARKER, {"settings": settings, "wall_time_s": wall,
-                            "finished": datetime.now(UTC).isoformat(timespec="seconds")})
-
-
 def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dict:
-    """Load the unit's results from ``d`` when its marker matches ``settings``, else run ``fn`` and mark ``d``."""
-    res = _load_marked(d, settings)
-    if res is not None:
-        log["cached"] = True
-        log["compute_time_s"] = float(json.loads((d / MARKER).read_text()).get("wall_time_s", 0.0))
-        return res
+    """Load the unit's results from ``d`` when its marker (:class:`nnphd.io.cache.Cache`) records exactly
+    ``settings``, else run ``fn`` (which writes ``d/results.json``) and mark ``d``."""
+    cache = Cache(d, settings)
+    marker = cache.load(MARKER)
+    if marker is not None:
+        try:
+            res = json.loads((d / "results.json").read_text())
+        except (OSError, ValueError):
+            res = None
+        if res is not None:
+            log["cached"] = True
+            log["compute_time_s"] = float(marker.get("wall_time_s", 0.0))
+            return res
     t0 = time.perf_counter()
     res = fn()
     wall = time.perf_counter() - t0
-    _mark(d, settings, wall)
+    cache.save({"settings": settings, "wall_time_s": wall,
+                "finished": datetime.now(UTC).isoformat(timespec="seconds")}, MARKER)
     log["cached"] = False
     log["compute_time_s"] = wall
     return res
@@ -129,12 +121,18 @@ def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dic
 def reproduce(out: str | Path = "out/reproduce", quick: bool = False, seed: int = 0,
               overrides: dict[str, dict] | None = None, progress: Progress | None = None) -> dict:
     """Run (or load from the cache) every experiment, write ``report.html`` and ``summary.json``; return the summary."""
-    say = progress or (lambda msg: None)
     outdir = ensure_writable_dir(out)
     kw = plan(quick, overrides)
     t_start = time.perf_counter()
     runs: dict[str, dict] = {}
     results: dict[str, object] = {}
+
+    n_units = len(kw["discover"]["systems"]) + 3
+
+    def part(i: int, label: str) -> Progress | None:  # the progress of unit i, counted in units of the whole
+        if progress is None:
+            return None
+        return lambda done, tot, msg: progress(i, n_units, f"{label} ({done}/{tot}): {msg}")
 
     # Fig. 3 / Table II: one unit per system
     from nnphd.paper.discover import discover, write_discovery, write_table2
@@ -142,39 +140,34 @@ def reproduce(out: str | Path = "out/reproduce", quick: bool = False, seed: int 
     dk = dict(kw["discover"])
     systems = list(dk.pop("systems"))
     disc = []
-    for name in systems:
+    for i, name in enumerate(systems):
         # "table2": how Table II is read (results cached by an older way are recomputed)
         settings = {"system": name, "seed": seed, "table2": "joint law fit", **dk}
         log: dict = {}
         d = outdir / "discover" / name
 
-        def run_one(name=name, d=d):
-            r = discover(name, seed=seed, progress=lambda m, n=name: say(f"discover {n}: {m}"), **dk)
+        def run_one(name=name, d=d, i=i):
+            r = discover(name, seed=seed, progress=part(i, f"discover {name}"), **dk)
             write_discovery(r, d)
             return r
 
-        say(f"discover {name}")
         disc.append(_run_unit(d, settings, run_one, log))
         runs[f"discover/{name}"] = log
     write_table2(disc, outdir / "discover")
     results["discover"] = disc
 
-    from nnphd.paper.lambda_p import data_quality_study, lambda_p_study
+    from nnphd.paper.data_quality import data_quality_study
+    from nnphd.paper.lambda_p import lambda_p_study
     from nnphd.paper.predict import run_prediction
-
-    def _progress3(label):
-        return lambda done, tot, desc: say(f"{label} ({done}/{tot}): {desc}")
-
     others = {
-        "predict": lambda d, k: run_prediction(seed=seed, out=d, progress=lambda m: say(f"predict: {m}"), **k),
-        "lambda-p": lambda d, k: lambda_p_study(seed=seed, out=d, progress=_progress3("λ/p study"), **k),
-        "data-quality": lambda d, k: data_quality_study(seed=seed, out=d, progress=_progress3("data-quality study"), **k),
+        "predict": lambda d, k: run_prediction(seed=seed, out=d, progress=part(len(systems), "predict"), **k),
+        "lambda-p": lambda d, k: lambda_p_study(seed=seed, out=d, progress=part(len(systems) + 1, "λ/p study"), **k),
+        "data-quality": lambda d, k: data_quality_study(seed=seed, out=d, progress=part(len(systems) + 2, "data-quality study"), **k),
     }
     for exp, fn in others.items():
         d = ensure_writable_dir(outdir / exp)
         settings = {"seed": seed, **kw[exp]}
         log = {}
-        say(exp)
         results[exp] = _run_unit(d, settings, lambda fn=fn, d=d, k=kw[exp]: fn(d, k), log)
         runs[exp] = log
 

@@ -4,69 +4,83 @@ This is what ``nnphd sweep`` calls; a notebook can call it the same way.
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import pickle
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import asdict
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import jax
-import numpy as np
 
-from nnphd.engine.data import train_test
-from nnphd.engine.models import ModelConfig
+from nnphd.engine.data import Dataset, train_test
+from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.systems import System, get_system
 from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
-from nnphd.engine.verdict import force_norm, verdict
-from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, plot_sweep, save_figure, write_json
-
-CHECKPOINT = ".sweep-checkpoint.pkl"
-
-
-def _fingerprint(settings: dict) -> str:
-    return hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
+from nnphd.engine.verdict import Verdict, force_norm, verdict
+from nnphd.io.cache import Cache
+from nnphd.io.progress import Progress
+from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
 
 
-def _load_checkpoint(path: Path, fp: str) -> dict[float, SweepPoint]:
-    if not path.exists():
-        return {}
-    try:
-        with open(path, "rb") as fh:
-            ck = pickle.load(fh)
-    except Exception:  # a corrupt or foreign checkpoint is ignored, never trusted
-        return {}
-    if ck.get("fingerprint") != fp:
-        return {}
-    return {pt.lam: pt for pt in ck["points"]}
+@dataclass
+class SweepPlan:
+    """A λ-sweep of a catalogue system, set up (data, model, settings, cache) but not yet run."""
+
+    system: System
+    lambdas: tuple[float, ...]
+    mode: str
+    seed: int
+    train: Dataset
+    test: Dataset | None  # None for trajectory systems (evaluated on the training trajectory, as the paper)
+    cfg: ModelConfig
+    tcfg: TrainConfig
+    settings: dict
+    cache: Cache  # keyed by ``settings``: the checkpoint of this sweep and any result saved under them
+
+    def run(self, progress: Progress | None = None) -> SystemSweep:
+        """Train (resuming from the checkpoint, saving one after every λ) and read the verdict."""
+        done = {lam: SweepPoint(lam, **m, params=prm)
+                for lam, (m, prm) in self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg)).items()}
+        resumed = sorted(done)
+
+        def on_point(pt: SweepPoint):
+            done[pt.lam] = pt
+            _save_checkpoint(self.cache, done)
+
+        t0 = time.perf_counter()
+        points = sweep(self.train, self.cfg, self.tcfg, self.lambdas, seed=self.seed, test_data=self.test,
+                       mode=self.mode, progress=progress, resume=done, on_point=on_point)
+        wall = time.perf_counter() - t0
+        ev = self.test if self.test is not None else self.train
+        return SystemSweep(self, points, verdict(points, force_norm(ev.qdd, self.tcfg.p)), wall, resumed)
 
 
-def _save_checkpoint(path: Path, fp: str, done: dict[float, SweepPoint]) -> None:
-    pts = []
-    for pt in done.values():
-        d = SweepPoint(**{**asdict(pt), "params": None})
-        d.params = jax.tree_util.tree_map(np.asarray, pt.params)
-        pts.append(d)
-    atomic_write_bytes(path, pickle.dumps({"fingerprint": fp, "points": pts}))
+@dataclass
+class SystemSweep:
+    """A finished λ-sweep of a catalogue system."""
+
+    plan: SweepPlan
+    points: list[SweepPoint]
+    verdict: Verdict
+    wall_time_s: float
+    resumed: list[float]
 
 
-def run_sweep(
+def plan_sweep(
     system: System | str,
     p: float | str = 1.0,
     steps: int = 2000,
     seed: int = 0,
     lambdas: Sequence[float] = PAPER_LAMBDAS,
     mode: str = "warm",
-    out: str | Path | None = None,
     model_cfg: ModelConfig | None = None,
     n_train: int = 1000,
     n_test: int = 1000,
-    progress: Callable[[int, float], None] | None = None,
-    resume: bool = True,
     standardize: bool = True,
-) -> dict:
-    """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given)."""
+    out: Path | None = None,
+    extra_settings: dict | None = None,
+) -> SweepPlan:
+    """Data of a catalogue system, the model and the settings of its λ-sweep (plus ``extra_settings``, for callers
+    that store more under the same key); the checkpoint lives in ``out``."""
     sysm = get_system(system) if isinstance(system, str) else system
     tcfg = TrainConfig(steps=steps, p=p)
     lams = validate_lambdas(lambdas)
@@ -74,7 +88,6 @@ def run_sweep(
     cfg = model_cfg or ModelConfig(n=sysm.n)
     if standardize:  # the networks see order-one inputs whatever the units (t runs to 100 on the Neptune orbit)
         cfg = cfg.standardized(train.q, train.qd, train.t)
-    outdir = ensure_writable_dir(out) if out is not None else None
     settings = {
         "system": sysm.name,
         "system_params": dict(sysm.params),
@@ -89,22 +102,40 @@ def run_sweep(
         "n_train": n_train if sysm.data == "gaussian" else None,
         "n_test": n_test if sysm.data == "gaussian" else None,
         "model": asdict(cfg),
+        **(extra_settings or {}),
     }
-    fp = _fingerprint(settings)
-    ckpath = outdir / CHECKPOINT if outdir is not None else None
-    done = _load_checkpoint(ckpath, fp) if (ckpath is not None and resume) else {}
-    resumed = sorted(done)
+    return SweepPlan(sysm, lams, mode, seed, train, test, cfg, tcfg, settings, Cache(out, settings))
 
-    def on_point(pt: SweepPoint):
-        done[pt.lam] = pt
-        if ckpath is not None:
-            _save_checkpoint(ckpath, fp, done)
 
-    t0 = time.perf_counter()
-    points = sweep(train, cfg, tcfg, lams, seed=seed, test_data=test, mode=mode, progress=progress, resume=done, on_point=on_point)
-    wall = time.perf_counter() - t0
-    evald = test if test is not None else train
-    v = verdict(points, force_norm(evald.qdd, tcfg.p))
+def _save_checkpoint(cache: Cache, done: dict[float, SweepPoint]) -> None:
+    keys = ("L_e", "L_b", "L_e_train", "L_b_train", "m_c", "m_n")
+    cache.checkpoint({lam: ({k: getattr(pt, k) for k in keys}, pt.params) for lam, pt in done.items()})
+
+
+def run_sweep(
+    system: System | str,
+    p: float | str = 1.0,
+    steps: int = 2000,
+    seed: int = 0,
+    lambdas: Sequence[float] = PAPER_LAMBDAS,
+    mode: str = "warm",
+    out: str | Path | None = None,
+    model_cfg: ModelConfig | None = None,
+    n_train: int = 1000,
+    n_test: int = 1000,
+    progress: Progress | None = None,
+    resume: bool = True,
+    standardize: bool = True,
+) -> dict:
+    """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given).
+
+    With ``out``, every finished λ is checkpointed there (``resume=False`` starts afresh)."""
+    outdir = ensure_writable_dir(out) if out is not None else None
+    if outdir is not None and not resume:
+        Cache(outdir, {}).clear_checkpoint()
+    plan = plan_sweep(system, p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize, outdir)
+    r = plan.run(progress)
+    sysm, v, points = plan.system, r.verdict, r.points
     table = [
         {"lam": pt.lam, "L_e": pt.L_e, "L_b": pt.L_b, "L_e_train": pt.L_e_train, "L_b_train": pt.L_b_train, "m_c": pt.m_c, "m_n": pt.m_n}
         for pt in points
@@ -122,15 +153,14 @@ def run_sweep(
             "max_m_c": max(r["m_c"] for r in aligned) if aligned else None,
             "max_m_n": max(r["m_n"] for r in aligned) if aligned else None,
         },
-        "settings": settings,
-        "evaluated_on": "test set" if test is not None else "training trajectory (as the paper)",
-        "wall_time_s": wall,
-        "resumed_lambdas": resumed,
+        "settings": plan.settings,
+        "evaluated_on": "test set" if plan.test is not None else "training trajectory (as the paper)",
+        "wall_time_s": r.wall_time_s,
+        "resumed_lambdas": r.resumed,
         "jax_version": jax.__version__,
     }
     if outdir is not None:
         write_json(outdir / "results.json", results)
-        save_figure(plot_sweep({sysm.name: table}, f"{sysm.name}, p={tcfg.p}: new physics = {v.new_physics}"), outdir / "loss_vs_lambda.png")
-        if ckpath is not None and ckpath.exists():
-            ckpath.unlink()
+        save_figure(plot_sweep({sysm.name: table}, f"{sysm.name}, p={plan.tcfg.p}: new physics = {v.new_physics}"), outdir / "loss_vs_lambda.png")
+        plan.cache.clear_checkpoint()
     return results

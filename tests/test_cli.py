@@ -46,11 +46,11 @@ BAD = [
     (["sweep", "--system", "ho+ld", "--lambdas", "0.5,x"], "--lambdas must be comma-separated numbers"),
     (["sweep", "--system", "ho+ld", "--p", "0.5"], "p must be a number ≥ 1 or 'mse'"),
     (["sweep", "--system", "ho+ld", "--p", "two"], "p must be a number ≥ 1 or 'mse'"),
-    (["sweep", "--system", "ho+ld", "--steps", "1.5"], "--steps must be an integer"),
-    (["sweep", "--system", "ho+ld", "--steps", "abc"], "--steps must be an integer"),
-    (["sweep", "--system", "ho+ld", "--steps", "0"], "--steps must be an integer"),
-    (["sweep", "--system", "ho+ld", "--seed", "-1"], "--seed must be an integer"),
-    (["sweep", "--system", "ho+ld", "--mode", "fast"], "--mode must be"),
+    (["sweep", "--system", "ho+ld", "--steps", "1.5"], "Invalid value for '--steps': Input should be a valid integer"),
+    (["sweep", "--system", "ho+ld", "--steps", "abc"], "Invalid value for '--steps': Input should be a valid integer"),
+    (["sweep", "--system", "ho+ld", "--steps", "0"], "Invalid value for '--steps': Input should be greater than or equal to 4"),
+    (["sweep", "--system", "ho+ld", "--seed", "-1"], "Invalid value for '--seed': Input should be greater than or equal to 0"),
+    (["sweep", "--system", "ho+ld", "--mode", "fast"], "'fast' is not one of 'warm', 'vmap', 'scratch'"),
     (["sweep", "--system", "ho+ld", "--param", "zeta=1"], "unknown parameter(s) 'zeta'"),
     (["sweep", "--system", "ho+ld", "--param", "gamma"], "--param must look like name=value"),
     (["sweep", "--system", "ho+ld", "--wat"], "No such option"),
@@ -109,12 +109,12 @@ def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     "argv,msg",
     [
         (["discover"], "give either --system"),
-        (["discover", "--system", "ho+ld"], "--system must be one of"),
+        (["discover", "--system", "ho+ld"], "'ho+ld' is not one of 'double-pendulum', 'neptune', 'gw'"),
         (["discover", "--all", "--system", "gw"], "give either --system"),
         (["discover", "--system", "gw", "--lam", "1.5"], "--lam must be a number in (0, 1)"),
-        (["discover", "--system", "gw", "--steps", "x"], "--steps must be an integer"),
+        (["discover", "--system", "gw", "--steps", "x"], "Invalid value for '--steps'"),
         (["discover", "--system", "gw", "--n-steps", "5"], "--n-steps must be 0 (default) or ≥ 20"),
-        (["discover", "--system", "gw", "--sr-time", "-1"], "--sr-time must be an integer ≥ 0"),
+        (["discover", "--system", "gw", "--sr-time", "-1"], "Invalid value for '--sr-time'"),
     ],
 )
 def test_discover_bad_input(argv, msg, tmp_path, capsys):
@@ -135,3 +135,17 @@ def test_version_and_short_help(capsys):
     assert "--law-fit" in out and "--angles" in out
     assert main(["sweep", "-h"]) == 0
     assert "--loss-p" in capsys.readouterr().out
+
+
+def test_options_are_typed(capsys):
+    """Ints are ints and choices are enums in --help; the discover choices are the discovery systems."""
+    from nnphd.cli import DiscoverySystem
+    from nnphd.paper.discover import DISCOVERY_SYSTEMS
+
+    assert tuple(s.value for s in DiscoverySystem) == tuple(DISCOVERY_SYSTEMS)
+    assert main(["sweep", "-h"]) == 0
+    out = capsys.readouterr().out
+    assert "<int range>" in out and "warm|vmap" in out
+    assert main(["detect", "-h"]) == 0
+    out = capsys.readouterr().out
+    assert "auto|point" in out and "auto|yes|no" in out

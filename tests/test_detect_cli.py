@@ -62,12 +62,12 @@ def test_bad_file_one_line_exit_2(case, tmp_path, capsys):
 def test_bad_angle_and_options(tmp_path, capsys):
     path = _csv(tmp_path / "d.csv", "t,x,v", _good_rows())
     for argv, msg in ((["--angles", "theta"], "angle 'theta' is not a coordinate"),
-                      (["--steps", "x"], "--steps must be an integer"),
+                      (["--steps", "x"], "Invalid value for '--steps'"),
                       (["--repeats", "0"], "--repeats"),
                       (["--angles", "x,"], "--angles must be comma-separated"),
-                      (["--width", "1"], "--width must be an integer ≥ 2"),
+                      (["--width", "1"], "Invalid value for '--width': Input should be greater than or equal to 2"),
                       (["--lambdas", "0.1,0.5"], "values both below and above 1"),
-                      (["--trim", "maybe"], "--trim must be auto, yes or no")):
+                      (["--trim", "maybe"], "'maybe' is not one of 'auto', 'yes', 'no'")):
         rc = main(["detect", str(path), "--out", str(tmp_path / "o"), *argv])
         err = capsys.readouterr().err
         assert rc == 2 and msg in err and len(err.strip().splitlines()) == 1, err

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 import sys
 from contextlib import contextmanager
+from enum import StrEnum
 
 import typer
 from rich.console import Console
@@ -45,18 +46,32 @@ def _progress(title: str):
         yield lambda done, total, message: prog.update(task, completed=done, total=total, description=message)
 
 
+class SweepMode(StrEnum):
+    warm = "warm"
+    vmap = "vmap"
+    scratch = "scratch"
+
+
+class DiscoverySystem(StrEnum):  # nnphd.paper.discover.DISCOVERY_SYSTEMS (a test keeps them equal)
+    double_pendulum = "double-pendulum"
+    neptune = "neptune"
+    gw = "gw"
+
+
+class LawLevel(StrEnum):
+    auto = "auto"
+    pointwise = "pointwise"
+    trajectory = "trajectory"
+
+
+class Trim(StrEnum):
+    auto = "auto"
+    yes = "yes"
+    no = "no"
+
+
 class InputError(Exception):
     """Bad user input: reported as one line, exit code 2."""
-
-
-def _parse_int(name: str, value: str, minimum: int) -> int:
-    try:
-        f = float(value)
-    except ValueError:
-        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}") from None
-    if not math.isfinite(f) or f != int(f) or int(f) < minimum:
-        raise InputError(f"{name} must be an integer ≥ {minimum}, got {value!r}")
-    return int(f)
 
 
 def _parse_lambdas(value: str | None):
@@ -96,10 +111,10 @@ def systems():
 def sweep(
     system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)"),
     p: str = typer.Option("1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"),
-    steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
-    seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
+    steps: int = typer.Option(2000, "--steps", min=4, help="training steps per λ (split over the 4 learning rates)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
-    mode: str = typer.Option("warm", "--mode", help="'warm' (paper: warm start, increasing λ) or 'vmap' (independent, one vmapped run)"),
+    mode: SweepMode = typer.Option(SweepMode.warm, "--mode", help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run) or scratch (the same, one λ after the other)"),
     param: list[str] = typer.Option([], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"),
     out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png"),
     resume: bool = typer.Option(True, "--resume/--no-resume", help="continue an interrupted sweep in --out"),
@@ -124,11 +139,9 @@ def sweep(
                 raise InputError(f"--param {k.strip()} must be a number, got {v!r}") from None
         sysm = get_system(system, **overrides)
         pp = parse_p(p)
-        nsteps = _parse_int("--steps", steps, 4)
-        nseed = _parse_int("--seed", seed, 0)
+        nsteps = steps
+        nseed = seed
         lams = _parse_lambdas(lambdas)
-        if mode not in ("warm", "vmap"):
-            raise InputError(f"--mode must be 'warm' or 'vmap', got {mode!r}")
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -137,7 +150,7 @@ def sweep(
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
     with _progress("λ-sweep (first λ includes compilation)") as bar:
-        res = run_sweep(sysm, p=pp, steps=nsteps, seed=nseed, lambdas=lams, mode=mode, out=out, resume=resume,
+        res = run_sweep(sysm, p=pp, steps=nsteps, seed=nseed, lambdas=lams, mode=mode.value, out=out, resume=resume,
                         standardize=standardize,
                         progress=bar)
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
@@ -162,15 +175,15 @@ def sweep(
 
 @app.command()
 def discover(
-    system: str | None = typer.Option(None, "--system", "-s", help="double-pendulum, neptune or gw"),
+    system: DiscoverySystem | None = typer.Option(None, "--system", "-s", help="one Table I system"),
     all_: bool = typer.Option(False, "--all", help="all three systems, our Table II beside the paper's, and Fig. 3"),
-    steps: str = typer.Option("2000", "--steps", help="training steps of the constrained Lagrangian + UAN"),
-    sweep_steps: str = typer.Option("2000", "--sweep-steps", help="training steps per λ of the detection sweep"),
-    lam: str = typer.Option("0.2", "--lam", help="λ of the constrained training (paper: 0.2)"),
-    seed: str = typer.Option("0", "--seed", help="random seed"),
+    steps: int = typer.Option(2000, "--steps", min=4, help="training steps of the constrained Lagrangian + UAN"),
+    sweep_steps: int = typer.Option(2000, "--sweep-steps", min=4, help="training steps per λ of the detection sweep"),
+    lam: float = typer.Option(0.2, "--lam", help="λ of the constrained training, in (0, 1) (paper: 0.2)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
     standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
-    n_steps: str = typer.Option("0", "--n-steps", help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"),
-    sr_time: str = typer.Option("20", "--sr-time", help="seconds of genetic symbolic regression per force component (0: skip)"),
+    n_steps: int = typer.Option(0, "--n-steps", min=0, help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"),
+    sr_time: int = typer.Option(20, "--sr-time", min=0, help="seconds of genetic symbolic regression per force component (0: skip)"),
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
@@ -180,19 +193,14 @@ def discover(
     try:
         if all_ == (system is not None):
             raise InputError("give either --system (double-pendulum, neptune, gw) or --all")
-        if system is not None and system not in DISCOVERY_SYSTEMS:
-            raise InputError(f"--system must be one of: {', '.join(DISCOVERY_SYSTEMS)}; got {system!r}")
-        nsteps = _parse_int("--steps", steps, 4)
-        nsweep = _parse_int("--sweep-steps", sweep_steps, 4)
-        nseed = _parse_int("--seed", seed, 0)
-        ntraj = _parse_int("--n-steps", n_steps, 0)
+        nsteps = steps
+        nsweep = sweep_steps
+        nseed = seed
+        ntraj = n_steps
         if 0 < ntraj < 20:
             raise InputError(f"--n-steps must be 0 (default) or ≥ 20, got {n_steps!r}")
-        nsr = _parse_int("--sr-time", sr_time, 0)
-        try:
-            lam_v = float(lam)
-        except ValueError:
-            raise InputError(f"--lam must be a number in (0, 1), got {lam!r}") from None
+        nsr = sr_time
+        lam_v = lam
         if not (0 < lam_v < 1):
             raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {lam!r}")
         ensure_writable_dir(out)
@@ -204,7 +212,7 @@ def discover(
     from nnphd.paper.discover import discover as run_discover
     from nnphd.paper.discover import write_discovery, write_table2
 
-    systems_ = DISCOVERY_SYSTEMS if all_ else (system,)
+    systems_ = DISCOVERY_SYSTEMS if all_ else (system.value,)
     results = []
     for name in systems_:
         with _progress(f"{name}: starting") as bar:
@@ -249,8 +257,8 @@ def _print_claims(claims) -> None:
 
 @app.command()
 def predict(
-    steps: str = typer.Option("2000", "--steps", help="training steps of each model (split over the 4 learning rates)"),
-    seed: str = typer.Option("0", "--seed", help="random seed (initialisation and minibatches)"),
+    steps: int = typer.Option(2000, "--steps", min=4, help="training steps of each model (split over the 4 learning rates)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed (initialisation and minibatches)"),
     uan_time: bool = typer.Option(False, "--uan-time/--no-uan-time",
                                   help="UAN sees (q, q̇, t) as in the paper (default: (q, q̇), see nnphd.paper.predict)"),
     out: str = typer.Option("out/predict", "--out", help="output directory for results.json and the figures"),
@@ -259,8 +267,8 @@ def predict(
     from nnphd.io.results import ensure_writable_dir
 
     try:
-        nsteps = _parse_int("--steps", steps, 4)
-        nseed = _parse_int("--seed", seed, 0)
+        nsteps = steps
+        nseed = seed
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -317,8 +325,8 @@ def _fraction(name: str):
 
 @study_app.command("lambda-p")
 def study_lambda_p(
-    steps: str = typer.Option("2000", "--steps", help="training steps per λ (split over the 4 learning rates)"),
-    seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
+    steps: int = typer.Option(2000, "--steps", min=4, help="training steps per λ (split over the 4 learning rates)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
     systems_: str | None = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
     ps: str | None = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
@@ -330,8 +338,8 @@ def study_lambda_p(
     from nnphd.paper.lambda_p import LOSSES, TOY_SYSTEMS, p_label
 
     try:
-        nsteps = _parse_int("--steps", steps, 4)
-        nseed = _parse_int("--seed", seed, 0)
+        nsteps = steps
+        nseed = seed
 
         def sys_conv(tok):
             if tok not in TOY_SYSTEMS:
@@ -380,8 +388,8 @@ def study_lambda_p(
 
 @study_app.command("data-quality")
 def study_data_quality(
-    steps: str = typer.Option("2000", "--steps", help="training steps per data set (split over the 4 learning rates)"),
-    seed: str = typer.Option("0", "--seed", help="random seed (data and initialisation)"),
+    steps: int = typer.Option(2000, "--steps", min=4, help="training steps per data set (split over the 4 learning rates)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
     alphas: str | None = typer.Option(None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"),
     betas: str | None = typer.Option(None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"),
     out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
@@ -391,8 +399,8 @@ def study_data_quality(
     from nnphd.paper.data_quality import DQ_GRID
 
     try:
-        nsteps = _parse_int("--steps", steps, 4)
-        nseed = _parse_int("--seed", seed, 0)
+        nsteps = steps
+        nseed = seed
         al = _parse_csv("--alphas", alphas, _fraction("--alphas"), DQ_GRID)
         be = _parse_csv("--betas", betas, _fraction("--betas"), DQ_GRID)
         ensure_writable_dir(out)
@@ -427,7 +435,7 @@ def study_data_quality(
 @app.command()
 def reproduce(
     quick: bool = typer.Option(False, "--quick", help="fewer training steps, same code (a smoke-scale run, ≤ 10 min on 2 cores)"),
-    seed: str = typer.Option("0", "--seed", help="random seed of every experiment"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed of every experiment"),
     out: str | None = typer.Option(None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
@@ -435,7 +443,7 @@ def reproduce(
 
     out = out or ("out/reproduce-quick" if quick else "out/reproduce")
     try:
-        nseed = _parse_int("--seed", seed, 0)
+        nseed = seed
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -467,43 +475,39 @@ def detect(
     file: str = typer.Argument(..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"),
     out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
     angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
-    seed: str = typer.Option("0", "--seed", help="random seed"),
-    steps: str = typer.Option("1000", "--steps", help="training steps per λ (and per extra round of the checks)"),
-    repeats: str = typer.Option("2", "--repeats", help="repeated seeds (other initialisation and held-out trajectories)"),
-    sr_time: str = typer.Option("10", "--sr-time", help="seconds of genetic symbolic regression per component (0: skip)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
+    steps: int = typer.Option(1000, "--steps", min=4, help="training steps per λ (and per extra round of the checks)"),
+    repeats: int = typer.Option(2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"),
+    sr_time: int = typer.Option(10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"),
     law: list[str] | None = typer.Option(None, "--law", help="a candidate law of your own, as a formula in the "
                                             "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
                                             "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)"),
-    law_level: str = typer.Option("auto", "--law-fit", help="auto | pointwise | trajectory: how the candidate laws "
-                                  "are ranked (trajectory: multiple shooting on the positions)"),
+    law_level: LawLevel = typer.Option(LawLevel.auto, "--law-fit", help="how the candidate laws are ranked "
+                                       "(trajectory: multiple shooting on the positions)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ of the sweep (default "
                                        "0.05,0.1,0.2,0.5,2,5,10; values below and above 1)"),
-    width: str = typer.Option("64", "--width", help="hidden width of the LNN and the UAN (two layers each)"),
-    trim: str = typer.Option("auto", "--trim", help="auto | yes | no: drop the ends of each trajectory, where the "
-                             "one-sided derivative estimates are ~20x worse"),
+    width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
+    trim: Trim = typer.Option(Trim.auto, "--trim", help="drop the ends of each trajectory, where the one-sided "
+                              "derivative estimates are ~20x worse"),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
     from nnphd.io.results import ensure_writable_dir
     from nnphd.user.derivatives import DataError, load_trajectories
 
     try:
-        nseed = _parse_int("--seed", seed, 0)
-        nsteps = _parse_int("--steps", steps, 4)
-        nrep = _parse_int("--repeats", repeats, 1)
-        nsr = _parse_int("--sr-time", sr_time, 0)
-        nwidth = _parse_int("--width", width, 2)
+        nseed = seed
+        nsteps = steps
+        nrep = repeats
+        nsr = sr_time
+        nwidth = width
         extra = {"width": nwidth}
         if lambdas is not None:
             extra["lambdas"] = _parse_lambdas(lambdas)
-        if trim not in ("auto", "yes", "no"):
-            raise InputError(f"--trim must be auto, yes or no, got {trim!r}")
-        trim_v = {"auto": "auto", "yes": True, "no": False}[trim]
+        trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
         ud = load_trajectories(file, ang)  # validate the file before anything is created
-        if law_level not in ("auto", "pointwise", "trajectory"):
-            raise InputError(f"--law-fit must be auto, pointwise or trajectory, got {law_level!r}")
         from nnphd.explain.laws import parse_law
 
         for x in law or []:
@@ -516,7 +520,7 @@ def detect(
 
     with console.status("detect: starting") as status:
         rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
-                          progress=status.update, laws=tuple(law or ()), law_level=law_level, trim=trim_v,
+                          progress=status.update, laws=tuple(law or ()), law_level=law_level.value, trim=trim_v,
                           **extra)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
@@ -555,14 +559,14 @@ app.add_typer(demo_app, name="demo")
 @demo_app.command("neptune")
 def demo_neptune(
     out: str = typer.Option("out/demo-neptune", "--out", help="output directory (results.json, figures)"),
-    seed: str = typer.Option("0", "--seed", help="random seed"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
 ):
     """Le Verrier again: Neptune located from Uranus' real JPL DE405 orbit by NNPhD."""
     from nnphd.astro.ephemeris import EphemerisUnavailable, available
     from nnphd.io.results import ensure_writable_dir
 
     try:
-        nseed = _parse_int("--seed", seed, 0)
+        nseed = seed
         if not available():
             raise InputError("the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
                              "(python3 dev.py setup installs them)")

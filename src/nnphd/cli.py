@@ -501,7 +501,7 @@ def detect(
         ud = load_trajectories(file, ang)  # validate the file before anything is created
         if law_level not in ("auto", "pointwise", "trajectory"):
             raise InputError(f"--law-fit must be auto, pointwise or trajectory, got {law_level!r}")
-        from nnphd.explain.laws import parse_law
+        from nnphd.explain.families import parse_law
 
         for x in law or []:
             parse_law(x, ud.coords)

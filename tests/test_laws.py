@@ -144,26 +144,26 @@ def test_table2_families_through_the_joint_fit(name, truth):
     import jax.numpy as jnp
 
     from nnphd.engine.data import trajectory_dataset
-    from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES
+    from nnphd.engine.features import FEATURE_SETS
     from nnphd.engine.systems import get_system, gw_k
-    from nnphd.paper.discover import DISCOVERY_LAW, _table2_params, joint_laws
+    from nnphd.paper.discover import _table2_params, joint_laws
 
     sysm = get_system(name)
     sysm = replace(sysm, n_steps=1000) if name == "neptune" else sysm
     d = trajectory_dataset(sysm)
-    fl = FEATURE_SETS[SYSTEM_FEATURES[name]]
+    fl = FEATURE_SETS[sysm.feature_set]
     true_c = {"double-pendulum": [2.0, 1.0, 1.0, 0.5, 1.0], "neptune": [0.5, 0.5, 1.0], "gw": [0.5, 0.5, 2.0]}[name]
     c = np.asarray(true_c) * (1 + 0.02 * np.cos(np.arange(len(true_c))))
     fc = np.asarray(jax.jit(fl.accel)(jnp.asarray(c), jnp.asarray(d.q), jnp.asarray(d.qd)))
-    table = joint_laws(name, sysm, d, fl, SimpleNamespace(coefs=c, fc=fc), n_boot=10)
+    table = joint_laws(sysm, d, fl, SimpleNamespace(coefs=c, fc=fc), n_boot=10)
     assert table.law is not None
-    hyp = next(r for r in table.rows if r.key == DISCOVERY_LAW[name])
-    got, se = _table2_params(name, sysm.coords, hyp)
+    hyp = next(r for r in table.rows if r.key == sysm.law_family)
+    got, se = _table2_params(sysm, hyp)
     if name == "gw":
         truth = {"k": gw_k(sysm.params), "m": 4.0}
     for k, v in truth.items():
         assert got[k] == pytest.approx(v, rel=1e-3, abs=2e-5), (k, got, se)
     if name != "double-pendulum":  # the pendulum's winner is the isotropic −γ q̇ (Γ = γ·1), the simplest of the ties
-        assert table.law.key == DISCOVERY_LAW[name]
+        assert table.law.key == sysm.law_family
     else:
         assert table.law.key == "linear" and table.law.params["gamma"] == pytest.approx(0.02, rel=1e-4)

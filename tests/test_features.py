@@ -6,7 +6,7 @@ import pytest
 import nnphd  # noqa: F401
 from nnphd.engine.data import trajectory_dataset
 from nnphd.engine.features import FEATURE_SETS, feature_lagrangian, train_constrained
-from nnphd.engine.systems import get_system
+from nnphd.engine.systems import SYSTEMS, get_system
 from nnphd.explain.parametric import fit_linear_friction
 
 
@@ -17,10 +17,11 @@ def _points(n=20, seed=0):
 
 def test_double_pendulum_features_at_true_coefficients_give_f_c():
     s = get_system("double-pendulum")
+    assert s.feature_set == "double-pendulum"
     q, qd = _points()
     c = jnp.array([2.0, 1.0, 1.0, 0.5, 1.0])  # (m1+m2)gl1, m2gl2, ½(m1+m2)l1², ½m2l2², m2l1l2
     expected = np.stack([np.asarray(s.f_c(a, b)) for a, b in zip(q, qd)])
-    np.testing.assert_allclose(FEATURE_SETS["double-pendulum"].accel(c, q, qd), expected, atol=1e-10)
+    np.testing.assert_allclose(FEATURE_SETS[s.feature_set].accel(c, q, qd), expected, atol=1e-10)
 
 
 @pytest.mark.parametrize("name", ["neptune", "gw"])
@@ -29,7 +30,14 @@ def test_kepler_features_at_true_coefficients_give_f_c(name):
     gm = s.params["GM"] if name == "neptune" else s.params["G"] * (s.params["M1"] + s.params["M2"])
     q, qd = _points()
     expected = np.stack([np.asarray(s.f_c(a, b)) for a, b in zip(q, qd)])
-    np.testing.assert_allclose(FEATURE_SETS["kepler"].accel(jnp.array([0.5, 0.5, gm]), q, qd), expected, atol=1e-10)
+    assert s.feature_set == "kepler"
+    np.testing.assert_allclose(FEATURE_SETS[s.feature_set].accel(jnp.array([0.5, 0.5, gm]), q, qd), expected,
+                               atol=1e-10)
+
+
+def test_every_named_feature_set_exists():
+    named = {s.feature_set for s in SYSTEMS.values() if s.feature_set is not None}
+    assert named == {"double-pendulum", "kepler"} and named <= set(FEATURE_SETS)
 
 
 def test_features_given_as_functions_and_formula():

@@ -1,5 +1,6 @@
 """Systems catalogue: forces against independently written formulas, Lagrangians, energies, conservation laws."""
 import math
+from dataclasses import replace
 
 import jax
 import jax.numpy as jnp
@@ -8,7 +9,7 @@ import pytest
 
 import nnphd  # noqa: F401  (enables float64)
 from nnphd.engine.data import rk4_trajectory
-from nnphd.engine.systems import SYSTEMS, get_system, gw_k
+from nnphd.engine.systems import SYSTEMS, Goal, get_system, gw_k
 
 NAMES = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "neptune", "gw"]
 
@@ -297,3 +298,98 @@ def test_gw_inspiral_follows_adiabatic_decay():
     # initial energy loss rate equals -k |v0|^10 = -k
     dEdt0 = (E[1] - E[0]) / s.dt
     assert dEdt0 == pytest.approx(-k, rel=0.01)
+
+
+# ---- what the rediscovery (Table II) needs --------------------------------------------------------------------------
+TABLE2 = ["double-pendulum", "neptune", "gw"]
+
+
+def test_table2_metadata():
+    assert [n for n, s in SYSTEMS.items() if s.law_family is not None] == TABLE2
+    for n, s in SYSTEMS.items():
+        assert len(s.angles) == s.n
+        if n not in TABLE2:
+            assert s.angles == (False,) * s.n and s.truth is None
+            assert s.feature_set is s.law_family is s.law_params is s.goals is s.discover_n_steps is None
+    assert SYSTEMS["double-pendulum"].angles == (True, True)
+    assert SYSTEMS["neptune"].angles == SYSTEMS["gw"].angles == (False, False)
+    assert {n: (SYSTEMS[n].law_family, SYSTEMS[n].feature_set, SYSTEMS[n].discover_n_steps) for n in TABLE2} == {
+        "double-pendulum": ("linear-full", "double-pendulum", 600), "neptune": ("perturber", "kepler", 1000),
+        "gw": ("power", "kepler", 1000)}
+    assert dict(SYSTEMS["double-pendulum"].law_params) == {
+        "Gamma_theta1theta1": "Gamma_11", "Gamma_theta1theta2": "Gamma_12", "Gamma_theta2theta1": "Gamma_21",
+        "Gamma_theta2theta2": "Gamma_22"}
+    for n in TABLE2:
+        s = SYSTEMS[n]
+        assert list(s.truth) == list(s.goals) and set(s.truth) == set(s.law_params.values())
+    with pytest.raises(ValueError, match="angles must have length"):
+        replace(SYSTEMS["gw"], angles=(True,))
+
+
+def test_law_params_are_parameters_of_the_hypothesis_family():
+    from nnphd.explain.families import families, perturber_family
+
+    for n in TABLE2:
+        s = SYSTEMS[n]
+        fams = {f.key: f for f in families(s.n, s.coords, np.ones(s.n))}
+        fams["perturber"] = perturber_family(s.coords)
+        f = fams[s.law_family]
+        assert set(s.law_params) <= set(f.coef_names + f.nl_names)
+
+
+def test_truth_follows_from_the_parameters():
+    assert SYSTEMS["double-pendulum"].truth == {"Gamma_11": 0.02, "Gamma_12": 0.0, "Gamma_21": 0.0, "Gamma_22": 0.02}
+    assert SYSTEMS["double-pendulum"].truth["Gamma_11"] == SYSTEMS["double-pendulum"].params["gamma"]
+    assert get_system("double-pendulum", gamma=0.05).truth["Gamma_22"] == 0.05
+    assert SYSTEMS["neptune"].truth == {"GM": 0.005, "R": 3.0, "omega": 3.0**-1.5}
+    assert get_system("neptune", GMn=0.01, rn=4.0).truth == {"GM": 0.01, "R": 4.0, "omega": 3.0**-1.5}
+    gw = SYSTEMS["gw"]
+    assert gw.truth == {"k": gw_k(gw.params), "m": 4.0}
+    assert gw.truth["k"] == pytest.approx(64 / 38880, rel=1e-14)
+    assert get_system("gw", c=2.0).truth["k"] == pytest.approx(64 / 5120, rel=1e-14)  # 32·2 / (5·2⁵·2⁵)
+
+
+@pytest.mark.parametrize("name", TABLE2)
+@pytest.mark.parametrize("overrides", [{}, {"double-pendulum": {"gamma": 0.07}, "neptune": {"GMn": 0.02, "rn": 3.5,
+                                                                                            "omega_n": 0.3},
+                                            "gw": {"M1": 2.0, "c": 2.5}}])
+def test_truth_is_the_law_of_f_n(name, overrides):
+    """The hypothesis family's formula at the true parameters is the system's f_n."""
+    s = get_system(name, **overrides.get(name, {}))
+    tr = s.truth
+    for q, qd, t in points_for(s, seed=3):
+        if name == "double-pendulum":
+            law = -np.array([[tr["Gamma_11"], tr["Gamma_12"]], [tr["Gamma_21"], tr["Gamma_22"]]]) @ qd
+        elif name == "neptune":
+            ang = tr["omega"] * t + s.params["phase_n"]
+            d = tr["R"] * np.array([math.cos(ang), math.sin(ang)]) - q
+            law = tr["GM"] * d / np.sum(d**2) ** 1.5
+        else:
+            law = -tr["k"] * np.sum(qd**2) ** tr["m"] * qd
+        np.testing.assert_allclose(s.f_n(q, qd, t), law, rtol=1e-12, atol=1e-15)
+
+
+def test_goal_labels():
+    assert {n: {k: g.label for k, g in SYSTEMS[n].goals.items()} for n in TABLE2} == {
+        "double-pendulum": {"Gamma_11": "± 0.0005", "Gamma_12": "|·| ≤ 0.0005", "Gamma_21": "|·| ≤ 0.0005",
+                            "Gamma_22": "± 0.0005"},
+        "neptune": {"GM": "± 2%", "R": "± 0.3%", "omega": "± 0.5%"},
+        "gw": {"k": "± 2%", "m": "± 0.03"}}
+    with pytest.raises(ValueError, match="kind"):
+        Goal("within", 0.1)
+    with pytest.raises(ValueError, match="positive"):
+        Goal("abs", 0.0)
+
+
+@pytest.mark.parametrize("name", TABLE2)
+def test_goals_accept_the_truth_and_reject_just_outside(name):
+    s = SYSTEMS[name]
+    for key, tv in s.truth.items():
+        g = s.goals[key]
+        assert g.met(tv, tv)
+        width = g.tol * abs(tv) if g.kind == "rel" else g.tol
+        centre = 0.0 if g.kind == "zero" else tv
+        assert width > 0
+        for sign in (1, -1):
+            assert g.met(centre + sign * 0.99 * width, tv), (key, sign)
+            assert not g.met(centre + sign * 1.01 * width, tv), (key, sign)

@@ -369,7 +369,8 @@ def load(path) -> NNPhD:
     import jax
 
     from nnphd.engine.models import ModelConfig, init_lnn
-    from nnphd.explain.laws import LawFit, family_from_spec
+    from nnphd.explain.families import family_from_spec
+    from nnphd.explain.table import LawFit
     from nnphd.user.assess import Scaling
 
     path = Path(path)

@@ -508,7 +508,7 @@ def detect(
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
         ud = load_trajectories(file, ang)  # validate the file before anything is created
-        from nnphd.explain.laws import parse_law
+        from nnphd.explain.families import parse_law
 
         for x in law or []:
             parse_law(x, ud.coords)

@@ -44,8 +44,9 @@ from pathlib import Path
 import numpy as np
 
 from nnphd.engine.data import Dataset
-from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES, FeatureLagrangian, constrained_model
+from nnphd.engine.features import FEATURE_SETS, FeatureLagrangian, constrained_model
 from nnphd.engine.models import ModelConfig
+from nnphd.engine.systems import get_system
 from nnphd.engine.train import PAPER_LRS, SweepPoint, lambda_sweep
 from nnphd.engine.verdict import MIN_RATIO, MIN_RELATIVE_SIZE, force_norm, verdict
 from nnphd.io.progress import Progress, Stages
@@ -165,7 +166,7 @@ def run_neptune_demo(
     ud = E.uranus_dataset(start_year, stop_year, step_days, ndim=2, kepler=True)
     data = Dataset(q=ud.q, qd=ud.qd, t=ud.t, qdd=ud.qdd)  # no truth columns: the pipeline never sees a_res
     L, T = ud.length_unit_au, ud.time_unit_days
-    fl = FEATURE_SETS[SYSTEM_FEATURES["neptune"]]
+    fl = FEATURE_SETS[get_system("neptune").feature_set]
 
     # 1. scales from the data
     c_ls, rem_ls = direct_feature_fit(data, fl)

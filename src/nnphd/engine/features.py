@@ -6,6 +6,8 @@ Built-in feature sets (:data:`FEATURE_SETS`) are the paper's:
 * ``double-pendulum``: L = c1 cos θ1 + c2 cos θ2 + c3 θ̇1² + c4 θ̇2² + c5 θ̇1 θ̇2 cos(θ1 − θ2)
 * ``kepler`` (Neptune, GW): L = c1 ẋ² + c2 ẏ² + c3 / √(x² + y²)
 
+A catalogue system names its set in :attr:`nnphd.engine.systems.System.feature_set`.
+
 Any other set is a mapping name → function(q, q̇) → scalar (see :func:`feature_lagrangian`). The overall scale of c is
 not identifiable (L and αL give the same motion); :meth:`FeatureLagrangian.normalized` divides by a reference term.
 """
@@ -75,7 +77,6 @@ FEATURE_SETS: dict[str, FeatureLagrangian] = {
         }
     ),
 }
-SYSTEM_FEATURES = {"double-pendulum": "double-pendulum", "neptune": "kepler", "gw": "kepler"}
 
 
 @dataclass

@@ -10,6 +10,13 @@ closed-form Lagrangian of the system, and a non-conservative remainder f_n(q, q�
 
 All force functions are pure ``jax.numpy``, act on single samples q, q̇ of shape (n,), and are jit/vmap-able:
 physical parameters are plain Python floats closed over.
+
+Each system also says which of its coordinates are angles, and the Table I systems carry what the rediscovery of
+their new physics (``nnphd discover``, Table II) needs: the name of their constrained-form Lagrangian (a key of
+:data:`nnphd.engine.features.FEATURE_SETS`), the hypothesis family of the law (a key of
+:mod:`nnphd.explain.families`) and how its fitted parameters map to the paper's names, the true values of those
+parameters (computed from the system's parameters), the acceptance band of each (:class:`Goal`), and the default
+trajectory length for the rediscovery.
 """
 from __future__ import annotations
 
@@ -20,7 +27,37 @@ from types import MappingProxyType
 
 import jax.numpy as jnp
 
-__all__ = ["System", "SYSTEMS", "get_system", "gw_k"]
+__all__ = ["Goal", "System", "SYSTEMS", "get_system", "gw_k"]
+
+
+@dataclass(frozen=True)
+class Goal:
+    """The acceptance band of a fitted value against the truth: ``"abs"`` |value − truth| ≤ tol, ``"rel"``
+    |value − truth| ≤ tol·|truth|, ``"zero"`` |value| ≤ tol (a parameter whose truth is 0)."""
+
+    kind: str
+    tol: float
+
+    def __post_init__(self):
+        if self.kind not in ("abs", "rel", "zero"):
+            raise ValueError(f"goal kind must be 'abs', 'rel' or 'zero', got {self.kind!r}")
+        if not (self.tol > 0 and math.isfinite(self.tol)):
+            raise ValueError(f"goal tolerance must be positive and finite, got {self.tol!r}")
+
+    @property
+    def label(self) -> str:
+        if self.kind == "abs":
+            return f"± {self.tol:g}"
+        if self.kind == "rel":
+            return f"± {100 * self.tol:g}%"
+        return f"|·| ≤ {self.tol:g}"
+
+    def met(self, value: float, truth: float) -> bool:
+        if self.kind == "abs":
+            return abs(value - truth) <= self.tol
+        if self.kind == "rel":
+            return abs(value - truth) <= self.tol * abs(truth)
+        return abs(value) <= self.tol
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,13 +77,25 @@ class System:
     _fn: Callable = field(repr=False)
     _lag: Callable = field(repr=False)
     _energy: Callable = field(repr=False)
+    angles: tuple[bool, ...] = ()  # which coordinates are angles (() = none)
+    # the rediscovery of the new physics (Table II); None for the systems without one
+    feature_set: str | None = None  # the constrained-form Lagrangian, a key of engine.features.FEATURE_SETS
+    law_family: str | None = None  # the paper's hypothesis family for f_n, a key of explain.families
+    law_params: Mapping[str, str] | None = None  # the family's parameter names → the paper's names (of truth)
+    goals: Mapping[str, Goal] | None = None  # the paper's name → acceptance band of the fitted value
+    discover_n_steps: int | None = None  # default trajectory length (RK4 steps) for the rediscovery
+    _truth: Callable | None = field(default=None, repr=False)  # params → the paper's name → true value
 
     def __post_init__(self):
         object.__setattr__(self, "params", MappingProxyType({k: float(v) for k, v in self.params.items()}))
         object.__setattr__(self, "coords", tuple(self.coords))
         object.__setattr__(self, "x0", tuple(float(v) for v in self.x0))
-        if len(self.coords) != self.n or len(self.x0) != 2 * self.n:
-            raise ValueError(f"system {self.name!r}: coords must have length n={self.n} and x0 length 2n")
+        object.__setattr__(self, "angles", tuple(bool(a) for a in self.angles) or (False,) * self.n)
+        for name in ("law_params", "goals"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, MappingProxyType(dict(getattr(self, name))))
+        if len(self.coords) != self.n or len(self.x0) != 2 * self.n or len(self.angles) != self.n:
+            raise ValueError(f"system {self.name!r}: coords and angles must have length n={self.n} and x0 length 2n")
         if self.data not in ("gaussian", "trajectory"):
             raise ValueError(f"system {self.name!r}: data must be 'gaussian' or 'trajectory', got {self.data!r}")
 
@@ -82,6 +131,11 @@ class System:
     def energy(self, q, qd):
         """Energy q̇·∂L/∂q̇ − L of the conservative part (closed form)."""
         return self._energy(jnp.asarray(q), jnp.asarray(qd), self.params)
+
+    @property
+    def truth(self) -> dict[str, float] | None:
+        """The true values of the hypothesis family's parameters (the paper's names), from the parameters."""
+        return None if self._truth is None else dict(self._truth(self.params))
 
     @property
     def conservative(self) -> bool:
@@ -303,6 +357,15 @@ _SYSTEM_LIST = [
         _fn=_ld_fn,
         _lag=_dp_lag,
         _energy=_dp_energy,
+        angles=(True, True),
+        feature_set="double-pendulum",
+        law_family="linear-full",
+        law_params={f"Gamma_{a}{b}": f"Gamma_{i + 1}{j + 1}"
+                    for i, a in enumerate(("theta1", "theta2")) for j, b in enumerate(("theta1", "theta2"))},
+        goals={"Gamma_11": Goal("abs", 0.0005), "Gamma_12": Goal("zero", 0.0005), "Gamma_21": Goal("zero", 0.0005),
+               "Gamma_22": Goal("abs", 0.0005)},
+        discover_n_steps=600,  # the paper's 300 do not identify Γ (nnphd.paper.discover's docstring)
+        _truth=lambda p: {"Gamma_11": p["gamma"], "Gamma_12": 0.0, "Gamma_21": 0.0, "Gamma_22": p["gamma"]},
     ),
     # Initial condition: the paper states x0 = (3, 0, 0, 1/√3), but with r_n = 3 and phase 0 that places Uranus
     # exactly on Neptune at t = 0 (infinite force).  The paper also says time is measured in units where Uranus'
@@ -326,6 +389,12 @@ _SYSTEM_LIST = [
         _fn=_nep_fn,
         _lag=_nep_lag,
         _energy=_nep_energy,
+        feature_set="kepler",
+        law_family="perturber",
+        law_params={"GM": "GM", "R": "R", "omega": "omega"},
+        goals={"GM": Goal("rel", 0.02), "R": Goal("rel", 0.003), "omega": Goal("rel", 0.005)},
+        discover_n_steps=1000,
+        _truth=lambda p: {"GM": p["GMn"], "R": p["rn"], "omega": p["omega_n"]},
     ),
     System(
         name="gw",
@@ -344,6 +413,12 @@ _SYSTEM_LIST = [
         _fn=_gw_fn,
         _lag=_gw_lag,
         _energy=_gw_energy,
+        feature_set="kepler",
+        law_family="power",
+        law_params={"k": "k", "m": "m"},
+        goals={"k": Goal("rel", 0.02), "m": Goal("abs", 0.03)},
+        discover_n_steps=1000,  # the paper's 300 (1.2 orbits) do not identify the law (nnphd.paper.discover's docstring)
+        _truth=lambda p: {"k": gw_k(p), "m": 4.0},
     ),
 ]
 

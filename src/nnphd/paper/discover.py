@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from nnphd.engine.data import trajectory_dataset
-from nnphd.engine.features import FEATURE_SETS, SYSTEM_FEATURES, train_constrained
+from nnphd.engine.features import FEATURE_SETS, train_constrained
 from nnphd.engine.models import ModelConfig
-from nnphd.engine.systems import get_system, gw_k
+from nnphd.engine.systems import SYSTEMS, get_system
 from nnphd.engine.train import PAPER_LAMBDAS
 from nnphd.explain.laws import rank_laws
 from nnphd.explain.parametric import fit_drag_power, fit_linear_friction, fit_perturber
@@ -46,15 +46,12 @@ from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
 from nnphd.paper.sweep import run_sweep
 
-DISCOVERY_SYSTEMS = ("double-pendulum", "neptune", "gw")
-# trajectory lengths (RK4 steps) used by default; the paper's are 300, 1000, 300 (see the module docstring for gw)
-DISCOVERY_N_STEPS = {"double-pendulum": 600, "neptune": 1000, "gw": 1000}
+# the systems with a Table II row; each names its feature Lagrangian, hypothesis family, truth, goals and default
+# trajectory length in the catalogue (nnphd.engine.systems.System)
+DISCOVERY_SYSTEMS = tuple(name for name, s in SYSTEMS.items() if s.law_family is not None)
 
-# the paper's hypothesis family for each system (its Table II parameters), in explain.laws' keys
-DISCOVERY_LAW = {"double-pendulum": "linear-full", "neptune": "perturber", "gw": "power"}
-DISCOVERY_ANGLES = {"double-pendulum": True, "neptune": False, "gw": False}
-
-# Table II of the paper (NNPhD + symbolic column)
+# Table II of the paper (NNPhD + symbolic column): the paper's results, kept here beside the experiment that is
+# compared with them (the catalogue holds the systems' physics and the truth)
 PAPER_TABLE2 = {
     "double-pendulum": {"Gamma_11": 0.018, "Gamma_12": 0.001, "Gamma_21": 0.001, "Gamma_22": 0.018},
     "neptune": {"GM": 0.0052, "R": 3.004, "omega": 0.192},
@@ -62,58 +59,33 @@ PAPER_TABLE2 = {
 }
 
 
-def _truth(sysm) -> dict:
-    p = sysm.params
-    if sysm.name == "double-pendulum":
-        return {"Gamma_11": p["gamma"], "Gamma_12": 0.0, "Gamma_21": 0.0, "Gamma_22": p["gamma"]}
-    if sysm.name == "neptune":
-        return {"GM": p["GMn"], "R": p["rn"], "omega": p["omega_n"]}
-    return {"k": gw_k(p), "m": 4.0}
-
-
-def _goal(name: str, key: str, truth: float, value: float) -> tuple[str, bool]:
-    """The issue's acceptance band for each Table II number."""
-    if name == "double-pendulum":
-        if key in ("Gamma_11", "Gamma_22"):
-            return "± 0.0005", abs(value - truth) <= 0.0005
-        return "|·| ≤ 0.0005", abs(value) <= 0.0005
-    if name == "neptune":
-        rel = {"GM": 0.02, "R": 0.003, "omega": 0.005}[key]
-        return f"± {100 * rel:g}%", abs(value - truth) <= rel * abs(truth)
-    if key == "k":
-        return "± 2%", abs(value - truth) <= 0.02 * truth
-    return "± 0.03", abs(value - truth) <= 0.03
-
-
-def _table2_params(name: str, coords, row) -> tuple[dict, dict]:
+def _table2_params(sysm, row) -> tuple[dict, dict]:
     """The Table II parameters (paper's names) and their standard errors from a law-table row."""
-    if name == "double-pendulum":
-        key = {f"Gamma_{coords[a]}{coords[b]}": f"Gamma_{a + 1}{b + 1}" for a in range(2) for b in range(2)}
-    elif name == "neptune":
-        key = {"GM": "GM", "R": "R", "omega": "omega"}
-    else:
-        key = {"k": "k", "m": "m"}
+    key = sysm.law_params
     return ({key[k]: v for k, v in row.params.items() if k in key},
             {key[k]: v for k, v in row.stderr.items() if k in key})
 
 
-def joint_laws(name: str, sysm, d, fl, cf, seed: int = 0, n_boot: int = 200):
+def joint_laws(sysm, d, fl, cf, seed: int = 0, n_boot: int = 200):
     """The law table of one Table I system: candidates fitted jointly with the constrained Lagrangian's force and
     its derivatives by the coefficients (see the module docstring)."""
     import jax
     import jax.numpy as jnp
 
     dfc = np.asarray(jax.jit(jax.jacfwd(fl.accel))(jnp.asarray(cf.coefs), jnp.asarray(d.q), jnp.asarray(d.qd)))
-    return rank_laws(d.q, d.qd, d.qdd, d.t, names=sysm.coords, angles=[DISCOVERY_ANGLES[name]] * sysm.n, fc=cf.fc,
-                     library=False, conservative_cols=dfc, perturber=not DISCOVERY_ANGLES[name], seed=seed, n_boot=n_boot)
+    return rank_laws(d.q, d.qd, d.qdd, d.t, names=sysm.coords, angles=list(sysm.angles), fc=cf.fc,
+                     library=False, conservative_cols=dfc, perturber=not any(sysm.angles), seed=seed, n_boot=n_boot)
 
 
-def _parametric(name: str, d, fn):
-    if name == "double-pendulum":
+def _parametric(sysm, d, fn):
+    """The post-hoc fit of the UAN's output by the parametric form of the system's hypothesis family."""
+    if sysm.law_family == "linear-full":
         return fit_linear_friction(d.qd, fn)
-    if name == "neptune":
+    if sysm.law_family == "perturber":
         return fit_perturber(d.q, d.t, fn)
-    return fit_drag_power(d.qd, fn)
+    if sysm.law_family == "power":
+        return fit_drag_power(d.qd, fn)
+    raise ValueError(f"no post-hoc parametric fit for the law family {sysm.law_family!r}")
 
 
 def discover(
@@ -130,7 +102,8 @@ def discover(
 ) -> dict:
     """Detection sweep, constrained Lagrangian + UAN at ``lam``, parametric Table II row and blind formulas.
 
-    ``n_steps``: trajectory length (None → :data:`DISCOVERY_N_STEPS`); ``sr_time``: seconds of genetic symbolic
+    ``n_steps``: trajectory length (None → the system's
+    :attr:`~nnphd.engine.systems.System.discover_n_steps`); ``sr_time``: seconds of genetic symbolic
     regression per force component (0 skips it).
     """
     if system not in DISCOVERY_SYSTEMS:
@@ -138,30 +111,30 @@ def discover(
     say = Stages(progress, 6)
     sysm = get_system(system)
     paper_n_steps = sysm.n_steps
-    sysm = replace(sysm, n_steps=int(n_steps or DISCOVERY_N_STEPS[system]))
+    sysm = replace(sysm, n_steps=int(n_steps or sysm.discover_n_steps))
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
     sw = run_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize, lambdas=sweep_lambdas)
     say(f"constrained Lagrangian + UAN at λ = {lam:g}")
     d = trajectory_dataset(sysm)
-    fl = FEATURE_SETS[SYSTEM_FEATURES[system]]
+    fl = FEATURE_SETS[sysm.feature_set]
     cfg = ModelConfig(n=sysm.n)
     if standardize:
         cfg = cfg.standardized(d.q, d.qd, d.t)
     cf = train_constrained(d, fl, lam=lam, steps=steps, seed=seed, cfg=cfg)
     say("the law: candidates fitted jointly with the constrained Lagrangian")
-    table = joint_laws(system, sysm, d, fl, cf, seed)
-    hyp = next(r for r in table.rows if r.key == DISCOVERY_LAW[system])
-    joint, joint_se = _table2_params(system, sysm.coords, hyp)
+    table = joint_laws(sysm, d, fl, cf, seed)
+    hyp = next(r for r in table.rows if r.key == sysm.law_family)
+    joint, joint_se = _table2_params(sysm, hyp)
     say("parametric explanation (post hoc, of the UAN's output)")
-    fit = _parametric(system, d, cf.fn)
-    truth, paper = _truth(sysm), PAPER_TABLE2[system]
+    fit = _parametric(sysm, d, cf.fn)
+    truth, paper = sysm.truth, PAPER_TABLE2[system]
     rows = []
     for key, tv in truth.items():
         ours = joint[key]
-        goal, met = _goal(system, key, tv, ours)
+        goal = sysm.goals[key]
         rows.append({"quantity": key, "truth": tv, "paper": paper[key], "ours": ours, "stderr": joint_se[key],
-                     "goal": goal, "goal_met": bool(met), "posthoc": fit.params[key],
+                     "goal": goal.label, "goal_met": bool(goal.met(ours, tv)), "posthoc": fit.params[key],
                      "posthoc_stderr": fit.stderr[key]})
     say("blind explanation (sparse regression)")
     names = list(sysm.coords) + [f"{c}_dot" for c in sysm.coords]
@@ -189,7 +162,7 @@ def discover(
         "table2": rows,
         "law": table.to_dict(),
         "law_winner": table.law.key if table.law else None,
-        "law_hypothesis": DISCOVERY_LAW[system],
+        "law_hypothesis": sysm.law_family,
         "blind": blind,
         "settings": {"steps": steps, "sweep_steps": sweep_steps, "sweep_lambdas": sorted(sw["settings"]["lambdas"]), "lambda": lam, "seed": seed, "standardize": standardize,
                      "sr_time_per_component_s": sr_time,

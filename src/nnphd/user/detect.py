@@ -28,7 +28,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
                 laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> dict:
     """Load ``path``, assess it, find the law of f_n; write report.json / report.html / PNGs to ``out`` if given.
 
-    ``laws``: user candidate laws (SymPy strings, :func:`nnphd.explain.laws.parse_law`), ranked with the built-in
+    ``laws``: user candidate laws (SymPy strings, :func:`nnphd.explain.families.parse_law`), ranked with the built-in
     ones; ``law_level``: "pointwise" (fits to the estimated q̈ only), "trajectory" (re-ranked by multiple shooting
     on the positions) or "auto" (trajectory whenever the data oscillate enough for shooting windows).
     """
@@ -49,7 +49,7 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
     from nnphd._extras import MissingExtra
-    from nnphd.explain.laws import parse_law
+    from nnphd.explain.families import parse_law
     from nnphd.explain.sparse import sparse_formula
     from nnphd.explain.symbolic import genetic_formula
     from nnphd.user.assess import assess
@@ -233,7 +233,9 @@ def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn
     shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
     (on the rows / as a JAX function); without it the conservative library alone. Returns a LawTable."""
     from nnphd.engine.evidence import dominant_period
-    from nnphd.explain.laws import _segments, rank_laws, rank_trajectory
+    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.laws import rank_laws
+    from nnphd.explain.trajectory import rank_trajectory
 
     say = progress or (lambda msg: None)
     say("candidate laws (pointwise joint fits)")

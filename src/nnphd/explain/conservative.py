@@ -1,0 +1,95 @@
+r"""The conservative part of the joint model: f_c is linear in its coefficients α — a per-coordinate scale of a
+given conservative force (the LNN's f_c, or a feature Lagrangian's), plus a correction library that is even under
+time reversal (q̇ → −q̇), as every force from a Lagrangian T(q, q̇) − V(q) is — gradients of potential monomials in
+the positions up to degree 4 (angles enter as sin θ, cos θ; gradients, not free per-coordinate polynomials, because
+on an orbit the velocity is a rotation of the position and a curl field would absorb friction), the quadratic
+velocity terms q̇_j q̇_k (Christoffel-type) — and the one time-reversal-odd conservative force, the gyroscopic
+(magnetic-type) term B q̇ with B antisymmetric (:func:`conservative_basis`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from nnphd.explain.families import _eye_cols
+
+__all__ = ["conservative_basis"]
+
+
+def _position_features(xp, q, angles, center=None):
+    """sin θ, cos θ of angles; other coordinates centred and scaled by ``center`` = (mean, std) (n,) each.
+    Returns (u (N, d), du (N, d), owner (d,)): the features, their derivatives along their coordinate, and which
+    coordinate each belongs to."""
+    feats, ders, owner = [], [], []
+    for j in range(q.shape[1]):
+        if angles[j]:
+            s_, c_ = xp.sin(q[:, j]), xp.cos(q[:, j])
+            feats += [s_, c_]
+            ders += [c_, -s_]
+            owner += [j, j]
+        else:
+            m, sd = (center[0][j], center[1][j]) if center is not None else (0.0, 1.0)
+            feats.append((q[:, j] - m) / sd)
+            ders.append(xp.ones_like(q[:, j]) / sd)
+            owner.append(j)
+    return xp.stack(feats, axis=1), xp.stack(ders, axis=1), owner
+
+
+def _pot_monomials(d: int) -> list[tuple[int, ...]]:
+    """Exponents of the potential monomials in d position features: degree 1…4 (1…3 beyond two features)."""
+    import itertools
+
+    deg = 4 if d <= 2 else 3
+    return sorted((e for e in itertools.product(range(deg + 1), repeat=d) if 0 < sum(e) <= deg),
+                  key=lambda e: (sum(e), e[::-1]))
+
+
+def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = True):
+    """(N, n, Kc) columns of the conservative model (see the module docstring): per-coordinate scale of ``fc``
+    (if given); gradients −∂V_e/∂q of potential monomials V_e in the position features (degree ≤ 4, ≤ 3 beyond two
+    features; angles enter as sin θ, cos θ) — curl-free, so that no combination of them is a rotation field, which
+    on an orbit would mimic friction (v ∝ a rotation of q); quadratic velocity terms; and the antisymmetric
+    gyroscopic term (n ≥ 2). ``library=False``: the scale of ``fc`` alone (when ``fc`` comes from a trusted form,
+    e.g. a system's feature Lagrangian)."""
+    N, n = q.shape
+    cols = []
+    if fc is not None:
+        cols.append(_eye_cols(xp, fc))
+    if not library:
+        if fc is None:
+            raise ValueError("library=False needs a conservative force fc")
+        return cols[0]
+    u, du, owner = _position_features(xp, q, angles, center)
+    d = u.shape[1]
+    onehot = np.zeros((d, n))
+    onehot[np.arange(d), owner] = 1.0
+    onehot = xp.asarray(onehot, dtype=q.dtype)
+    grads = []
+    for e in _pot_monomials(d):
+        parts = []
+        for f in range(d):  # ∂V_e/∂u_f
+            if e[f] == 0:
+                parts.append(xp.zeros_like(q[:, 0]))
+                continue
+            c = e[f] * u[:, f] ** (e[f] - 1)
+            for g, k in enumerate(e):
+                if g != f and k:
+                    c = c * u[:, g] ** k
+            parts.append(c)
+        dV = xp.stack(parts, axis=1) * du  # (N, d): ∂V/∂u_f · du_f/dq_owner(f)
+        grads.append(dV @ onehot)  # (N, n)
+    cols.append(xp.stack(grads, axis=2))
+    pc = []
+    for a in range(n):
+        for b in range(a, n):
+            pc.append(v[:, a] * v[:, b])
+    P = xp.stack(pc, axis=1)  # (N, M)
+    cols.append((P[:, None, :, None] * xp.eye(n, dtype=q.dtype)[None, :, None, :]).reshape(N, n, -1))
+    if n >= 2:
+        g = []
+        for a in range(n):
+            for b in range(a + 1, n):
+                col = xp.zeros_like(q)
+                col = col + v[:, b][:, None] * (xp.arange(n) == a)[None] - v[:, a][:, None] * (xp.arange(n) == b)[None]
+                g.append(col)
+        cols.append(xp.stack(g, axis=2))
+    return xp.concatenate(cols, axis=2)

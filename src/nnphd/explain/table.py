@@ -1,0 +1,196 @@
+r"""The ranked law table: one :class:`LawFit` per candidate, the :class:`LawTable`, and how the winner is chosen.
+
+Candidates are ranked by
+
+    IC = N_eff · log(held-out MSE) + k · log(N_eff),    N_eff = (rows × coordinates) / τ,
+
+k the number of law parameters (τ and N_eff shrunk by the overdispersion ĉ, :func:`_c_hat`); the zero law (f_c
+alone) is a candidate too. A candidate with a term within :data:`Z_TERM` standard errors of zero, a nonlinear
+parameter at the edge of its range, or a size at the rounding level of the data is not eligible. The winner is the
+lowest IC; among the candidates within :data:`IC_TIE` of it the one with the fewest parameters (then the earlier,
+more specific family). When no candidate beats zero, there is no law and the table says so
+(:attr:`LawTable.reason`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from nnphd.explain.families import DIGITS, Family
+
+__all__ = ["IC_TIE", "Z_TERM", "LawFit", "LawTable"]
+
+IC_TIE = 6.0  # candidates within this IC of the best count as equally good: the simplest wins (ΔIC < 6: no strong preference)
+Z_TERM = 2.0  # a term whose coefficient is within Z_TERM standard errors of zero makes its candidate ineligible
+C_HAT_MAX = 20.0  # at most this overdispersion ĉ
+
+
+@dataclass
+class LawFit:
+    """One fitted candidate (one row of the ranked table)."""
+
+    key: str
+    title: str
+    k: int  # law parameters (the complexity)
+    params: dict[str, float]
+    stderr: dict[str, float]
+    formula: dict[str, str]  # component name → SymPy string
+    latex: dict[str, str]
+    heldout_mse: float  # weighted held-out mean squared residual of the joint fit
+    heldout_ratio: float  # held-out rms / the zero law's
+    ic: float
+    delta_ic: float  # IC − IC of the zero law (negative: better than no law)
+    fn_rel: float  # rms of the law on the data / rms of q̈
+    terms: tuple[str, ...]
+    method: str = "pointwise"
+    significant: bool = True  # every term's coefficient is ≥ Z_TERM standard errors from zero
+    fn: np.ndarray | None = field(default=None, repr=False)  # the law on the data rows (N, n)
+    family: Family | None = field(default=None, repr=False)
+    theta: np.ndarray | None = field(default=None, repr=False)
+    beta: np.ndarray | None = field(default=None, repr=False)
+
+    def to_dict(self) -> dict:
+        return {"law": self.key, "title": self.title, "k": self.k, "params": self.params, "stderr": self.stderr,
+                "formula": self.formula, "latex": self.latex, "heldout_mse": self.heldout_mse,
+                "heldout_ratio": self.heldout_ratio, "ic": self.ic, "delta_ic": self.delta_ic,
+                "fn_rel": self.fn_rel, "terms": list(self.terms), "method": self.method,
+                "significant": self.significant}
+
+    def predict(self, q, qd, t, xp=np):
+        """The law at new states (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an integrator)."""
+        q, qd, t = (xp.asarray(a, dtype=float) for a in (q, qd, t))
+        if self.family is None:
+            return xp.zeros_like(q)
+        theta = xp.asarray(self.theta)
+        g = xp.einsum("snk,k->sn", self.family.basis(xp, theta, q, qd, t), xp.asarray(self.beta))
+        if self.family.fixed is not None:
+            g = g + self.family.fixed(xp, theta, q, qd, t)
+        return g
+
+
+@dataclass
+class LawTable:
+    """The ranked candidates (winner first), the law (None when no candidate beats zero) and why."""
+
+    rows: list[LawFit]
+    law: LawFit | None
+    reason: str
+    n_eff: float
+    tau: float
+    folds: str
+    settings: dict
+
+    def to_dict(self) -> dict:
+        return {"law": self.law.to_dict() if self.law else None, "reason": self.reason,
+                "candidates": [r.to_dict() for r in self.rows], "n_eff": self.n_eff, "tau": self.tau,
+                "folds": self.folds, "settings": {k: v for k, v in self.settings.items() if not k.startswith("_")}}
+
+
+
+def _overdispersion(se_boot, se_model, values=None) -> float | None:
+    """Mean (bootstrap se / model se)² over a candidate's law parameters, at most C_HAT_MAX (None without any, or
+    when the model error is at rounding level: exact data carry no information about overdispersion)."""
+    scale = np.abs(values) if values is not None else np.zeros_like(se_model)
+    ok = np.isfinite(se_boot) & np.isfinite(se_model) & (se_model > 1e-9 * scale) & (se_model > 0)
+    return float(min(C_HAT_MAX, np.mean((se_boot[ok] / se_model[ok]) ** 2))) if ok.any() else None
+
+
+def _c_hat(ratios, errors) -> float:
+    """Overdispersion ĉ ≥ 1 (as in QAIC, from the best-fitting model): (bootstrap / model variance) of the
+    candidate with the lowest held-out error — when the resampled fits scatter more than the residuals' own scatter
+    implies (misfit that varies along the record), the information in the data is smaller than its row count says,
+    and every IC difference shrinks by ĉ."""
+    ok = [(e, x) for x, e in zip(ratios, errors) if x is not None and np.isfinite(x)]
+    return float(max(1.0, min(ok)[1])) if ok else 1.0
+
+
+def _at_bound(fam: Family, theta) -> bool:
+    """A nonlinear parameter on (or past) a finite edge of its range: the optimum is not interior, the law is not
+    identified (e.g. a power law pushed to m = 8 to fit a few of the fastest rows)."""
+    if not fam.nl_names or theta is None or len(theta) == 0:
+        return False
+    lo, hi = (np.asarray(x, float) for x in fam.nl_bounds)
+    th = np.asarray(theta, float)
+    span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
+    tol = 1e-6 * np.maximum(span, 1e-12)
+    return bool(np.any((np.isfinite(lo) & (th <= lo + tol)) | (np.isfinite(hi) & (th >= hi - tol))))
+
+
+def _significance(rows: list[LawFit]) -> None:
+    for r in rows:
+        if r.family is not None and r.fn_rel < 1e-9:  # a law at the rounding level of the data is no law
+            r.significant = False
+            continue
+        if r.family is not None and _at_bound(r.family, r.theta):
+            r.significant = False
+            continue
+        if r.family is not None and r.family.per_term:
+            z = [abs(r.params[p]) / r.stderr[p] if r.stderr[p] > 0 else np.inf for p in r.family.coef_names]
+            r.significant = bool(min(z) >= Z_TERM) if z else True
+
+
+def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
+    """A table row: parameters ± se and the law as SymPy/LaTeX in the coordinates' names (IC set by the caller)."""
+    Q = [sp.Symbol(c) for c in names]
+    V = [sp.Symbol(f"{c}_dot") for c in names]
+    sym = fam.symbols(theta, Q, V, sp.Symbol("t"))
+    exprs = []
+    for i in range(len(names)):
+        e = sum((sp.Float(b, DIGITS) * s_ for b, s_ in zip(beta, sym[i]) if b != 0), sp.Integer(0))
+        if fam.fixed is not None:
+            e = e + sp.Symbol("(fixed part)")
+        exprs.append(e)
+    pn = list(fam.coef_names) + list(fam.nl_names)
+    vals = np.concatenate([beta, theta])
+    return LawFit(fam.key, fam.title, fam.k, {p: float(x) for p, x in zip(pn, vals)},
+                  {p: float(x) for p, x in zip(pn, se)}, {f"{c}_ddot": str(e) for c, e in zip(names, exprs)},
+                  {f"{c}_ddot": sp.latex(e) for c, e in zip(names, exprs)}, heldout_mse, 1.0, 0.0, 0.0, 0.0,
+                  fam.terms, method=method, family=fam, theta=np.asarray(theta, float), beta=np.asarray(beta, float))
+
+
+def _zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
+    zero = {f"{c}_ddot": "0" for c in names}
+    return LawFit("none", "no law (conservative model alone)", 0, {}, {}, zero, dict(zero), heldout_mse, 1.0, 0.0,
+                  0.0, 0.0, (), method=method, fn=np.zeros((N, len(names))))
+
+
+def _relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
+    """Held-out ratio and ΔIC against the zero law (rows[0]), and the law's size relative to q̈."""
+    z = rows[0]
+    for r in rows:
+        r.heldout_ratio = float(math.sqrt(r.heldout_mse / z.heldout_mse)) if z.heldout_mse > 0 else 1.0
+        r.delta_ic = r.ic - z.ic
+        r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / (y_rms or 1.0)
+
+
+def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
+    _significance(rows)
+    order = {id(r): i for i, r in enumerate(rows)}
+    rows = sorted(rows, key=lambda r: r.ic)
+    eligible = [r for r in rows if r.significant]
+    best = eligible[0]
+    tied = [r for r in eligible if r.ic <= best.ic + IC_TIE]
+    win = min(tied, key=lambda r: (r.k, r.key == "sparse", order[id(r)]))
+    rows.remove(win)
+    rows.insert(0, win)
+    if win.key == "none":
+        nxt = rows[1] if len(rows) > 1 else None
+        reason = ("no candidate beats zero: " + (
+            f"the best, {nxt.title}, changes the held-out error by {100 * (nxt.heldout_ratio - 1):+.2f}% and its "
+            f"{nxt.k} parameter(s) cost more (ΔIC = {nxt.delta_ic:+.1f})" if nxt else "no candidate could be fitted"))
+        law = None
+    else:
+        reason = (f"{win.title} lowers the held-out error by {100 * (1 - win.heldout_ratio):.2f}% with {win.k} "
+                  f"parameter(s) (ΔIC = {win.delta_ic:.1f} against no law)")
+        if len(tied) > 1:
+            reason += f"; {len(tied) - 1} other candidate(s) within ΔIC {IC_TIE:g} — the simplest is kept"
+        skipped = [r for r in rows if not r.significant and r.ic < win.ic]
+        if skipped:
+            reason += (f"; {len(skipped)} candidate(s) with a lower IC have a term within {Z_TERM:g} standard errors "
+                       f"of zero or a parameter at the edge of its range and are not eligible "
+                       f"({', '.join(r.key for r in skipped)})")
+        law = win
+    return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings)

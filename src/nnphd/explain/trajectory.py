@@ -1,0 +1,201 @@
+r"""Trajectory-level ranking of the law: the pointwise table's best candidates (and the zero law) re-fitted to the
+*positions* by multiple shooting and ranked again (:func:`rank_trajectory`) — for records whose pointwise q̈ is too
+noisy or biased for the law (a Coulomb force's jumps are smeared, cubic terms biased).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from nnphd.explain.conservative import conservative_basis
+from nnphd.explain.families import Family
+from nnphd.explain.jointfit import N_BOOT, _ridge, _segments, _solve
+from nnphd.explain.table import LawTable, _c_hat, _law_row, _overdispersion, _relative_to_zero, _select, _zero_row
+
+__all__ = ["rank_trajectory"]
+
+
+def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center, library: bool = True):
+    """q̈ = f_c + Σ_families gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…): every candidate is this
+    model with the other families' gates at 0 — one compiled shooting function for all of them. The parameters
+    actually fitted are u, with θ = base + u·D (``aux`` = (base, D))."""
+    import jax.numpy as jnp
+
+    sizes = [(len(f.coef_names), len(f.nl_names)) for f in fams]
+
+    def rhs(u, q, v, t, aux):
+        base, D = aux
+        theta = base + u @ D
+        fc = None if fc_fn is None else fc_fn(q, v)
+        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center, library), theta[:Kc])
+        off = Kc
+        for f, (K, m) in zip(fams, sizes):
+            b, th, gate = theta[off:off + K], theta[off + K:off + K + m], theta[off + K + m]
+            off += K + m + 1
+            g = jnp.einsum("wnk,k->wn", f.basis(jnp, th, q, v, t), b)
+            if f.fixed is not None:
+                g = g + f.fixed(jnp, th, q, v, t)
+            out = out + jnp.where(gate != 0, gate * g, 0.0)
+        return out
+    return rhs
+
+
+def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: float, angles=None, fc_fn=None,
+                    shortlist: int = 16, n_boot: int = N_BOOT, seed: int = 0, max_windows: int = 200) -> LawTable:
+    """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* by multiple shooting and
+    rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
+    :mod:`nnphd.engine.evidence`: windows of ¾ period with free initial states, RK4 at the recorded times).
+
+    The model is the same joint one, q̈ = f_c(q, q̇; α) + g(q, q̇, t; β, θ), with (α, β, θ) started from the
+    pointwise fit; held-out error = χ² of contiguous groups of windows predicted by the fit to the others (window
+    states re-fitted, linearised at the optimum); uncertainties = window bootstrap (or the model-based error, if
+    larger); IC as in :func:`nnphd.explain.laws.rank_laws` with the position residuals. ``fc_fn(q, v)`` (JAX) must reproduce the ``fc``
+    given to :func:`nnphd.explain.laws.rank_laws`; ``sigma`` (n,) the position noise.
+    """
+    import jax.numpy as jnp
+
+    from nnphd.engine.evidence import (
+        _blocks,
+        _pad_windows,
+        _schur,
+        lm_windows,
+        model_residuals_and_jac,
+        shooting_windows,
+    )
+
+    if table.settings.get("conservative_extra", 0):
+        raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
+    q_pos, qd, t = (np.asarray(a, float) for a in (q_pos, qd, t))
+    N, n = q_pos.shape
+    traj = np.zeros(N, int) if traj is None else np.asarray(traj)
+    angles = tuple(bool(a) for a in (np.zeros(n, bool) if angles is None else angles))
+    segs = _segments(traj)
+    wins = shooting_windows(segs, t, period)
+    if len(wins) > max_windows:
+        keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
+        wins = [wins[i] for i in keep]
+    if len(wins) < 6:
+        return table
+    spread = np.array([np.ptp(q_pos[:, j]) for j in range(n)])
+    sig = np.maximum(np.asarray(sigma, float), 1e-3 * np.maximum(spread, 1e-12))
+    tw, qw, mask, s0 = _pad_windows(wins, t, q_pos, (q_pos, qd))
+    t0w = tw[:, 0].copy()
+    tw = tw - tw[:, :1]
+    dtmax = float(np.max(np.diff(tw, axis=1)))
+    vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
+    nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
+    args = (jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(1.0 / sig))
+    W = len(wins)
+    G = min(W, 10)
+    groups = np.array_split(np.arange(W), G)
+    n_res = int(mask.sum()) * n
+    Kc = table.settings["conservative_columns"]
+    zero = next(r for r in table.rows if r.key == "none")
+    cands = [r for r in table.rows if r.key != "none"][:shortlist]  # the table holds one row per family
+    alpha0 = table.settings["_alpha"]
+    fams = [r.family for r in cands]
+    slots, off = [], Kc  # where each family's (β, θ, gate) sit in the universal θ
+    for f in fams:
+        K, m = len(f.coef_names), len(f.nl_names)
+        slots.append((off, K, m))
+        off += K + m + 1
+    P_glob = off
+    P_dir = Kc + max([K + m for _, K, m in slots], default=0)
+    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"],
+                         table.settings.get("library", True))
+    nl_defaults = np.zeros(P_glob)
+    for f, (o, K, m) in zip(fams, slots):
+        if m:
+            lo, hi = (np.asarray(x, float) for x in f.nl_bounds)
+            nl_defaults[o + K:o + K + m] = np.clip(1.0, lo, np.where(np.isfinite(hi), hi, 1.0))
+    results = []
+    for ci, row in enumerate([zero, *cands]):
+        fam = row.family
+        base = nl_defaults.copy()
+        idx = list(range(Kc))
+        u0 = list(alpha0[id(row)])
+        if fam is not None:
+            o, K, m = slots[ci - 1]
+            base[o + K + m] = 1.0
+            idx += list(range(o, o + K + m))
+            u0 += list(row.beta) + list(row.theta)
+            base[o:o + K + m] = 0.0
+        D = np.zeros((P_dir, P_glob))
+        D[np.arange(len(idx)), idx] = 1.0
+        u0 = np.concatenate([u0, np.zeros(P_dir - len(idx))])
+        aux = (jnp.asarray(base), jnp.asarray(D))
+
+        def resjac(s_, u_, aux=aux):
+            return model_residuals_and_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
+
+        free = np.zeros(P_dir, bool)
+        free[:len(idx)] = True
+        try:
+            s, th, r, jac, chi2 = lm_windows(resjac, s0, u0, free, iters=15)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+            continue
+        if not np.isfinite(chi2):
+            continue
+        if fam is not None and fam.nl_names:  # LM knows no bounds: out of them, fit again with θ clipped and fixed
+            lo, hi = (np.asarray(x, float) for x in fam.nl_bounds)
+            K = len(fam.coef_names)
+            nl = th[Kc + K:len(idx)]
+            if np.any(nl < lo) or np.any(nl > hi):
+                th1 = th.copy()
+                th1[Kc + K:len(idx)] = np.clip(nl, lo, hi)
+                free[Kc + K:len(idx)] = False
+                s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15)
+                if not np.isfinite(chi2):
+                    continue
+        th = th[:len(idx)]
+        free = free[:len(idx)]
+        jac = jac[:2 * n + len(idx)]
+        AtA, AtB, BtB, Atr, Btr, rr = _blocks(r, jac, 2 * n)
+        S, g, _XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free)
+        c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
+        Stot, gtot = S.sum(0), g.sum(0)
+        cv = 0.0
+        for grp in groups:
+            Sg, gg = S[grp].sum(0), g[grp].sum(0)
+            d = -_solve(_ridge(Stot - Sg), gtot - gg)
+            cv += float(c_loc[grp].sum() + 2 * gg @ d + d @ Sg @ d)
+        fi = np.flatnonzero(free)  # S, g are over the free parameters
+        rng = np.random.default_rng(seed)
+        reps = []
+        for _ in range(n_boot if fam is not None else 0):
+            idx = rng.integers(0, W, W)
+            rep = th.copy()
+            rep[fi] -= _solve(_ridge(S[idx].sum(0)), g[idx].sum(0))
+            reps.append(rep)
+        law_idx = np.arange(Kc, len(th))
+        se_b = np.asarray(reps)[:, law_idx].std(axis=0) if reps else np.zeros(len(law_idx))
+        s2 = chi2 / max(n_res - W * 2 * n - len(fi), 1)
+        var = np.zeros(len(th))
+        var[fi] = np.diag(s2 * np.linalg.pinv(_ridge(Stot)))
+        se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
+        R = r.reshape(W, -1)
+        rho = float(np.sum(R[:, n:] * R[:, :-n]) / max(np.sum(R * R), 1e-300))
+        results.append((row, th, max(cv, 1e-300), np.maximum(se_b, se_m), rho, _overdispersion(se_b, se_m, th[Kc:])))
+    if len(results) < 2 or results[0][0].key != "none":
+        return table
+    rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
+    c_hat = _c_hat([x[5] for x in results], [x[2] for x in results])
+    tau = (1 + rho) / (1 - rho) * c_hat
+    n_eff = n_res / tau
+    rows = []
+    for row, th, cv, se, _, _ in results:
+        fam = row.family
+        if fam is None:
+            new = _zero_row(table.settings["names"], cv / n_res, N, "trajectory")
+        else:
+            K = len(fam.coef_names)
+            new = _law_row(fam, th[Kc:Kc + K], th[Kc + K:], se, table.settings["names"], cv / n_res, "trajectory")
+            new.fn = new.predict(q_pos, qd, t)
+        new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
+        rows.append(new)
+    _relative_to_zero(rows, table.settings["_y_rms"])
+    return _select(rows, n_eff, tau, f"{G} held-out groups of shooting windows ({W} windows)",
+                   {**table.settings, "method": "trajectory", "windows": W, "substeps": nsub,
+                    "pointwise_candidates": [r.to_dict() for r in table.rows]})

@@ -128,8 +128,17 @@ import numpy as np
 
 from nnphd.engine.data import Dataset
 from nnphd.engine.evidence import dominant_period, energy_trend, shooting_fit
-from nnphd.engine.models import ModelConfig, init_lnn, lnn_accel, lnn_derivatives, lnn_energy, mlp_apply
-from nnphd.engine.train import SweepPoint, TrainConfig, make_trainer, pnorm
+from nnphd.engine.models import (
+    ModelConfig,
+    embed_periodic,
+    free_force,
+    init_free,
+    init_lnn,
+    lnn_accel,
+    lnn_derivatives,
+    lnn_energy,
+)
+from nnphd.engine.train import SweepPoint, TrainConfig, lambda_sweep, make_trainer, pnorm
 from nnphd.engine.verdict import verdict as naive_verdict
 
 __all__ = [
@@ -438,31 +447,6 @@ def ridge_fit_predict(X_tr, y_tr, X_te, alpha: float = 1e-3) -> np.ndarray:
 # models
 
 
-def _init_layers(key, sizes):
-    layers = []
-    for k, a, b in zip(jax.random.split(key, len(sizes) - 1), sizes[:-1], sizes[1:]):
-        layers.append({"w": jax.random.normal(k, (a, b), jnp.float64) / np.sqrt(a), "b": jnp.zeros((b,), jnp.float64)})
-    return layers
-
-
-def _mlp(layers, *cols):
-    return mlp_apply(layers, jnp.concatenate(cols, axis=-1), "leaky_relu", 0.2)
-
-
-def _net_q(q, cfg: ModelConfig):
-    """The coordinates as the free networks see them: angles as (sin, cos), like the LNN."""
-    periodic = getattr(cfg, "periodic", ())
-    if not periodic:
-        return q
-    from nnphd.engine.models import embed_periodic
-
-    return embed_periodic(q, periodic)
-
-
-def _q_width(cfg: ModelConfig) -> int:
-    return cfg.n + len(getattr(cfg, "periodic", ()))
-
-
 @functools.lru_cache(maxsize=64)
 def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
     """Jitted trainers, cached so repeated calls (seeds, tests) compile once. ``t`` carries the time features."""
@@ -470,14 +454,14 @@ def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
 
     if kind == "nnphd":
         def loss(params, q, qd, t, qdd):
-            fn = _mlp(params["uan"], _net_q(q, cfg), qd, t)
+            fn = free_force(params["uan"], q, qd, t, cfg)
             return pnorm(lnn_accel(params["lnn"], q, qd, cfg) + fn - qdd, p), pnorm(fn, p)
     elif kind == "lnn":
         def loss(params, q, qd, t, qdd):
             return pnorm(lnn_accel(params["lnn"], q, qd, cfg) - qdd, p), jnp.zeros((), q.dtype)
     elif kind == "free":
         def loss(params, q, qd, t, qdd):
-            return pnorm(_mlp(params["mlp"], _net_q(q, cfg), qd) - qdd, p), jnp.zeros((), q.dtype)
+            return pnorm(free_force(params["mlp"], q, qd, None, cfg) - qdd, p), jnp.zeros((), q.dtype)
     else:  # pragma: no cover
         raise ValueError(kind)
     return make_trainer(cfg, tcfg, loss)
@@ -486,7 +470,7 @@ def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
 @functools.partial(jax.jit, static_argnames=("cfg",))
 def _nnphd_eval(params, q, qd, t, cfg):
     fc = lnn_accel(params["lnn"], q, qd, cfg)
-    fn = _mlp(params["uan"], _net_q(q, cfg), qd, t)
+    fn = free_force(params["uan"], q, qd, t, cfg)
     _, hvv, _ = lnn_derivatives(params["lnn"], q, qd, cfg)
     return fc, fn, jnp.einsum("bi,bij,bj->b", qd, hvv, fn), jnp.abs(jnp.einsum("bi,bij,bj->b", qd, hvv, qd))
 
@@ -502,7 +486,7 @@ def _lnn_eval(lnn, q, qd, qdd, cfg):
 
 @functools.partial(jax.jit, static_argnames=("cfg",))
 def _free_eval(params, q, qd, cfg):
-    return _mlp(params["mlp"], _net_q(q, cfg), qd)
+    return free_force(params["mlp"], q, qd, None, cfg)
 
 
 @functools.lru_cache(maxsize=64)
@@ -552,11 +536,7 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
     order, warm-started from the largest-λ solution (the UAN then only has to add to a fitted LNN), and the better
     objective is kept."""
     lams = sorted(lambdas)
-    pts = {}
-    for lam, k in zip(lams, jax.random.split(k_sweep, len(lams))):
-        params, _ = train(params, A_tr, jnp.asarray(lam, jnp.float64), k)
-        pts[lam] = params
-        tick()
+    pts = lambda_sweep(train, params, A_tr, lams, k_sweep, "warm", progress=lambda *_: tick())
 
     def evaluate(p):
         fc, fn, power, kin = (np.asarray(x) for x in _nnphd_eval(p, *arrays[:3], cfg))
@@ -572,16 +552,17 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
     check = {"L_e_train_below": med_train(below), "L_e_train_above": med_train(above), "retrained": False}
     if below and above and check["L_e_train_below"] > 1.1 * check["L_e_train_above"]:
         check["retrained"] = True
-        p = pts[lams[-1]]
-        for lam, k in zip(sorted(below, reverse=True), jax.random.split(jax.random.fold_in(k_sweep, 1), len(below))):
-            p, _ = train(p, A_tr, jnp.asarray(lam, jnp.float64), k)
+
+        def keep_better(lam, p):  # the chain continues from whichever of the two has the lower objective
             ev = evaluate(p)
             obj_new = _l1(ev[4][tr]) + lam * _l1(ev[5][tr])
             obj_old = _l1(evals[lam][4][tr]) + lam * _l1(evals[lam][5][tr])
             if obj_new < obj_old:
                 pts[lam], evals[lam] = p, ev
-            else:
-                p = pts[lam]
+            return pts[lam]
+
+        lambda_sweep(train, pts[lams[-1]], A_tr, below, jax.random.fold_in(k_sweep, 1), "warm", descending=True,
+                     accept=keep_better)
         check["L_e_train_below_after"] = med_train(below)
     table = []
     for lam in lams:
@@ -598,7 +579,6 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
 def _one_seed(ctx: dict, seed: int, tick) -> dict:
     q, qd, tp, qdd, segs = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"]
     steps, lambdas, width, long_factor, sc = ctx["steps"], ctx["lambdas"], ctx["width"], ctx["long_factor"], ctx["sc"]
-    n = q.shape[1]
     feats = ctx["feats"]
     rng = np.random.default_rng(seed)
     tr_segs, te_segs = holdout(segs, ctx["holdout_frac"], rng)
@@ -613,10 +593,9 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     fnorm_tr = _l1(back(qdd[tr]))
     key = jax.random.PRNGKey(seed)
     k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
-    qw = _q_width(cfg)
 
     # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
-    params = {"lnn": init_lnn(k_lnn, cfg), "uan": _init_layers(k_uan, (qw + n + feats.shape[1], width, width, n))}
+    params = {"lnn": init_lnn(k_lnn, cfg), "uan": init_free(k_uan, cfg, n_time=feats.shape[1], widths=(width, width))}
     train = _trainer("nnphd", cfg, tcfg)
     pts, evals, table, opt_check = _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te,
                                           fnorm_te, tick)
@@ -655,7 +634,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     cons_tr, cons_te = hist_tr[best[0]], hist[best[0]]
 
     # (c) the free model of (q, q̇)
-    fp = {"mlp": _init_layers(k_free, (qw + n, width, width, n))}
+    fp = {"mlp": init_free(k_free, cfg, n_time=0, widths=(width, width))}
     ft = _trainer("free", cfg, tcfg)
     for k in jax.random.split(k_free, 1 + long_factor):
         fp, _ = ft(fp, A_tr, jnp.asarray(0.0, jnp.float64), k)
@@ -666,7 +645,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
     # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
     resid = qdd - fc_l
-    X_s, X_t = time_design(np.concatenate([np.asarray(_net_q(jnp.asarray(q), cfg)), qd], axis=1),
+    X_s, X_t = time_design(np.concatenate([np.asarray(embed_periodic(jnp.asarray(q), cfg.periodic)), qd], axis=1),
                            time_features(tp, float(tp.max() - tp.min()), oversample=2))
     errs = {"state": [], "timed": []}
     if len(segs) > 1:

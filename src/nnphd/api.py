@@ -370,7 +370,7 @@ def load(path) -> NNPhD:
 
     from nnphd.engine.models import ModelConfig, init_lnn
     from nnphd.explain.laws import LawFit, family_from_spec
-    from nnphd.user.assess import Scaling
+    from nnphd.user.scaling import Scaling
 
     path = Path(path)
     try:

@@ -38,12 +38,12 @@ class Trajectories:
     ``t``: (N,) times with ``traj`` (N,) trajectory ids, or a list of (N_i,) arrays, one per trajectory (lengths
     may differ); ``q``: (N,) / (N, n) likewise, or a list of them. ``names``: the coordinates' names (default
     q1, q2, …); ``angles``: the names that are angles (whole turns allowed); ``qd``/``qdd``: known derivatives, same
-    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.user.derivatives.DataError`
+    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.user.recording.DataError`
     (a ValueError) with a one-line message."""
 
     def __init__(self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (),
                  qd=None, qdd=None):
-        from nnphd.user.derivatives import DataError, _Rows, _validate
+        from nnphd.user.recording import DataError, _Rows, _validate
 
         if isinstance(t, (list, tuple)) and len(t) and np.ndim(t[0]) == 1:
             if traj is not None:
@@ -94,7 +94,7 @@ class Trajectories:
     @classmethod
     def from_csv(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """A CSV file (header t, [traj,] coordinates, optional <c>_dot / <c>_ddot; see ``nnphd detect --help``)."""
-        from nnphd.user.derivatives import load_trajectories
+        from nnphd.user.recording import load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".csv":
             raise ValueError(f"{path}: expected a .csv file")
@@ -103,7 +103,7 @@ class Trajectories:
     @classmethod
     def from_npz(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """An .npz file with one 1-D array per CSV column."""
-        from nnphd.user.derivatives import load_trajectories
+        from nnphd.user.recording import load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".npz":
             raise ValueError(f"{path}: expected a .npz file")
@@ -112,7 +112,7 @@ class Trajectories:
     @classmethod
     def from_dataframe(cls, df, angles: Sequence[str] = ()) -> Trajectories:
         """A pandas (or any mapping of columns) table with the CSV file's columns."""
-        from nnphd.user.derivatives import DataError, _Rows, _validate
+        from nnphd.user.recording import DataError, _Rows, _validate
 
         try:
             cols = {str(k): np.asarray(df[k], float) for k in df}

@@ -444,7 +444,7 @@ def assess(
     dts = np.concatenate([np.diff(tp[s]) for s in segs])
     period_samples = period / float(np.median(dts)) if np.isfinite(period) else 0.0
     if position_noise is None:
-        from nnphd.user.derivatives import noise_level
+        from nnphd.user.sampling import noise_level
 
         position_noise = [float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs])))
                           for j in range(n)]

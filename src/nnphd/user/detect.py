@@ -1,6 +1,6 @@
 """``nnphd detect FILE``: new-physics detection on the user's own trajectories.
 
-Pipeline: :func:`nnphd.user.derivatives.load_trajectories` (validation, one-line errors) → :func:`nnphd.user.derivatives.to_dataset`
+Pipeline: :func:`nnphd.user.recording.load_trajectories` (validation, one-line errors) → :func:`nnphd.user.derivatives.to_dataset`
 (q̇, q̈ per trajectory with a noise estimate) → :func:`nnphd.user.assess.assess` (standardised units, λ-sweep on held-out
 trajectories, the checks that tell non-conservation from under-fitting, repeated seeds) → the blind explanation of
 the learned non-conservative force in the file's own coordinate names → ``report.json``, ``report.html`` and the
@@ -32,7 +32,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     ones; ``law_level``: "pointwise" (fits to the estimated q̈ only), "trajectory" (re-ranked by multiple shooting
     on the positions) or "auto" (trajectory whenever the data oscillate enough for shooting windows).
     """
-    from nnphd.user.derivatives import load_trajectories
+    from nnphd.user.recording import load_trajectories
 
     if law_level not in ("auto", "pointwise", "trajectory"):
         raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
@@ -45,7 +45,7 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
 def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int = 1000, sr_time: float = 10.0,
                 n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
                 laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> tuple[dict, dict]:
-    """:func:`detect_file` on validated data (:class:`nnphd.user.derivatives.UserData`); returns (report, model) with
+    """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
     from nnphd._extras import MissingExtra
@@ -53,7 +53,7 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
     from nnphd.explain.sparse import sparse_formula
     from nnphd.explain.symbolic import genetic_formula
     from nnphd.user.assess import assess
-    from nnphd.user.derivatives import suggest_angles
+    from nnphd.user.recording import suggest_angles
 
     say = progress or (lambda msg: None)
     if law_level not in ("auto", "pointwise", "trajectory"):
@@ -148,7 +148,8 @@ def _dataset(ud, trim):
     """to_dataset with the ends trimmed (``trim="auto"``: drop the half-window at each end of every trajectory,
     where the one-sided derivative estimates are ~20x worse, unless that would leave a trajectory with less than
     TRIM_KEEP_MIN of its rows). Returns (dataset, info, the trim actually used)."""
-    from nnphd.user.derivatives import DataError, to_dataset
+    from nnphd.user.derivatives import to_dataset
+    from nnphd.user.recording import DataError
 
     if trim != "auto":
         return (*to_dataset(ud, trim=bool(trim)), bool(trim))

@@ -291,7 +291,7 @@ class NNPhD:
     # ------------------------------------------------------------------------------------------------ output
     def report(self, out) -> Path:
         """Write report.json, report.html and the figures to the folder ``out`` (as ``nnphd detect --out``)."""
-        from nnphd.user.detect import write_report
+        from nnphd.user.report import write_report
 
         self._check_fitted()
         m = self._model
@@ -302,20 +302,20 @@ class NNPhD:
 
     def figures(self) -> dict:
         """The report's figures as matplotlib Figures (data, L_e(λ), forces, energy trend where computed)."""
-        from nnphd.user import detect as ud
+        from nnphd.user import report as rp
 
         self._check_fitted()
         m = self._model
         if "data" not in m:
             raise RuntimeError("a loaded model keeps no data: figures() needs the model from fit()")
         r = self.report_
-        figs = {"data": ud.fig_data(m["data"], m["traj"], m["coords"])}
-        e = ud.fig_energy(r["evidence"]["energy_trend"])
+        figs = {"data": rp.fig_data(m["data"], m["traj"], m["coords"])}
+        e = rp.fig_energy(r["evidence"]["energy_trend"])
         if e is not None:
             figs["energy_trend"] = e
         if r["table"]:
-            figs["loss_vs_lambda"] = ud.fig_loss(r["table"])
-            figs["forces"] = ud.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
+            figs["loss_vs_lambda"] = rp.fig_loss(r["table"])
+            figs["forces"] = rp.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
         return figs
 
     # ------------------------------------------------------------------------------------------ persistence

@@ -9,12 +9,15 @@ import time
 
 import numpy as np
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
 import nnphd
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
-from nnphd.user.assess import make_case
 from nnphd.user.detect import detect_file
+from tests.fixtures.cases import make_case
 
 names = sys.argv[1].split(",")
 for name in names:

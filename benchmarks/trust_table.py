@@ -1,4 +1,4 @@
-"""Run nnphd.user.assess.assess on every constructed case and print a table.
+"""Run nnphd.user.assess.assess on every constructed case (tests/fixtures/cases.py) and print a table.
 
 Config (documented "moderate" default): every case simulated with RK4 from random initial conditions
 (8 trajectories, the case's T and dt; `--single` adds one-trajectory variants with 2T), assess(steps=1000 per λ and per
@@ -11,10 +11,14 @@ paper's protocol), detect.verdict. "naive(held-out)" is the ratio of assess's ow
 """
 import argparse
 import json
+import os
 import sys
 import time
 
 import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
 
 import nnphd
 
@@ -23,7 +27,8 @@ nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 from nnphd.engine.models import ModelConfig
 from nnphd.engine.train import PAPER_LAMBDAS, TrainConfig, sweep
 from nnphd.engine.verdict import force_norm, verdict
-from nnphd.user.assess import CASES, assess, make_case
+from nnphd.user.assess import assess
+from tests.fixtures.cases import CASES, make_case
 
 ap = argparse.ArgumentParser()
 ap.add_argument("--steps", type=int, default=1000)

@@ -1,5 +1,5 @@
 """nnphd.engine.evidence on analytic truths: the per-period energy trend and the multiple-shooting damping probe, with an
-exact conservative model (no networks), plus the verdict rules built on them (nnphd.user.assess)."""
+exact conservative model (no networks), plus the verdict rules built on them (nnphd.user.checks)."""
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -7,7 +7,7 @@ from scipy.integrate import solve_ivp
 
 import nnphd  # noqa: F401  (float64)
 from nnphd.engine.evidence import dominant_period, energy_trend, period_blocks, shooting_fit, shooting_windows
-from nnphd.user.assess import Z_BOTH, Z_ONE, _seed_status, clock_testable, trajectory_evidence
+from nnphd.user.checks import Z_BOTH, Z_ONE, _seed_status, clock_testable, trajectory_evidence
 
 W0 = 1.1
 

@@ -74,8 +74,8 @@ def test_user_law_linear_and_nonlinear_parameters():
 
 def _law_from_csv(path, angles=()):
     """A recording through the user-data path: positions only → derivatives → find_law (no LNN)."""
-    from nnphd.user.derivatives import load_trajectories
     from nnphd.user.detect import _dataset, find_law
+    from nnphd.user.recording import load_trajectories
 
     ud = load_trajectories(path, angles)
     data, info, _ = _dataset(ud, "auto")

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from nnphd.user.derivatives import load_trajectories  # noqa: E402
+from nnphd.user.recording import load_trajectories  # noqa: E402
 from tests.fixtures.recordings import (  # noqa: E402
     NAMES,
     Recording,

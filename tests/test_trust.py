@@ -1,30 +1,26 @@
-"""trust.assess: each check on synthetic inputs with known answers, then the whole assessment on two constructed
-systems (an under-fitting-prone conservative one and a weakly dissipative one) at a small, fast configuration."""
+"""nnphd.user.assess with its checks (nnphd.user.checks, nnphd.user.scaling): each check on synthetic inputs with
+known answers, then the whole assessment on two constructed systems (tests/fixtures/cases.py: an under-fitting-prone
+conservative one and a weakly dissipative one) at a small, fast configuration."""
 import numpy as np
 import pytest
 
 import nnphd  # noqa: F401
 from nnphd.engine.data import Dataset
-from nnphd.user.assess import (
-    CASES,
+from nnphd.user.assess import assess
+from nnphd.user.checks import (
     RHO_MIN,
-    assess,
     capacity_check,
     drift_check,
     energy_net_fraction,
-    fit_scaling,
     gap_check,
-    holdout,
-    make_case,
     net_power_fraction,
-    oscillations,
     ridge_fit_predict,
-    segments,
     slow_energy_ratio,
     time_check,
     time_design,
-    time_features,
 )
+from nnphd.user.scaling import fit_scaling, holdout, oscillations, segments, time_features
+from tests.fixtures.cases import CASES, make_case
 
 # ---------------------------------------------------------------------------------------------------------------
 # standardisation

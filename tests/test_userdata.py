@@ -29,14 +29,9 @@ from scipy.integrate import solve_ivp
 from scipy.signal import savgol_filter
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd.user.derivatives import (
-    MIN_SAMPLES,
-    DataError,
-    estimate_derivatives,
-    load_trajectories,
-    noise_level,
-    to_dataset,
-)
+from nnphd.user.derivatives import estimate_derivatives, to_dataset
+from nnphd.user.recording import MIN_SAMPLES, DataError, load_trajectories
+from nnphd.user.sampling import noise_level
 
 BOUNDS = {  # relative RMS error bounds (q̇, q̈), untrimmed and trimmed q̈
     0.0: (1e-8, 2e-7, 2e-7),
@@ -106,7 +101,7 @@ def test_pendulum_derivative_accuracy(pend, noise):
 
 def test_savgol_is_scipy_and_error_model_uses_its_weights():
     """The estimate is scipy's savgol_filter(mode='interp'); the stencils behind the error model reproduce it."""
-    from nnphd.user.derivatives import _sg_weights
+    from nnphd.user.localpoly import _sg_weights
 
     t = 0.1 * np.arange(60)
     y = np.sin(t) + 0.01 * np.random.default_rng(1).standard_normal(60)
@@ -437,7 +432,7 @@ def test_spring_cart_in_integer_pixels():
 
 
 def test_local_polynomial_is_exact_and_reproduces_savgol():
-    from nnphd.user.derivatives import _local_fit
+    from nnphd.user.localpoly import _local_fit
 
     rng = np.random.default_rng(7)
     t = 0.1 * np.arange(300) + rng.normal(0.0, 0.01, 300)  # 10 % jitter
@@ -463,7 +458,7 @@ def test_local_polynomial_is_exact_and_reproduces_savgol():
 
 
 def test_sampling_rules():
-    from nnphd.user.derivatives import _sampling
+    from nnphd.user.sampling import _sampling
 
     rng = np.random.default_rng(3)
     k = np.arange(400.0)
@@ -481,7 +476,7 @@ def test_sampling_rules():
 
 
 def test_quantization_step_and_noise_floor():
-    from nnphd.user.derivatives import _grid_step
+    from nnphd.user.sampling import _grid_step
 
     rng = np.random.default_rng(4)
     assert _grid_step(np.array([3.0, 7.0, 4.0, 12.0])) == 1.0
@@ -548,7 +543,7 @@ def test_to_dataset_reports_per_row_errors(tmp_path):
 
 
 def test_suggest_angles(tmp_path):
-    from nnphd.user.derivatives import suggest_angles
+    from nnphd.user.recording import suggest_angles
 
     t = 0.05 * np.arange(400)
     spin = 2.0 * t + 0.3 * np.sin(t)  # turns over: 80 rad

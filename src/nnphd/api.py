@@ -38,12 +38,12 @@ class Trajectories:
     ``t``: (N,) times with ``traj`` (N,) trajectory ids, or a list of (N_i,) arrays, one per trajectory (lengths
     may differ); ``q``: (N,) / (N, n) likewise, or a list of them. ``names``: the coordinates' names (default
     q1, q2, …); ``angles``: the names that are angles (whole turns allowed); ``qd``/``qdd``: known derivatives, same
-    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.user.derivatives.DataError`
+    layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.user.recording.DataError`
     (a ValueError) with a one-line message."""
 
     def __init__(self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (),
                  qd=None, qdd=None):
-        from nnphd.user.derivatives import DataError, _Rows, _validate
+        from nnphd.user.recording import DataError, _Rows, _validate
 
         if isinstance(t, (list, tuple)) and len(t) and np.ndim(t[0]) == 1:
             if traj is not None:
@@ -94,7 +94,7 @@ class Trajectories:
     @classmethod
     def from_csv(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """A CSV file (header t, [traj,] coordinates, optional <c>_dot / <c>_ddot; see ``nnphd detect --help``)."""
-        from nnphd.user.derivatives import load_trajectories
+        from nnphd.user.recording import load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".csv":
             raise ValueError(f"{path}: expected a .csv file")
@@ -103,7 +103,7 @@ class Trajectories:
     @classmethod
     def from_npz(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """An .npz file with one 1-D array per CSV column."""
-        from nnphd.user.derivatives import load_trajectories
+        from nnphd.user.recording import load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".npz":
             raise ValueError(f"{path}: expected a .npz file")
@@ -112,7 +112,7 @@ class Trajectories:
     @classmethod
     def from_dataframe(cls, df, angles: Sequence[str] = ()) -> Trajectories:
         """A pandas (or any mapping of columns) table with the CSV file's columns."""
-        from nnphd.user.derivatives import DataError, _Rows, _validate
+        from nnphd.user.recording import DataError, _Rows, _validate
 
         try:
             cols = {str(k): np.asarray(df[k], float) for k in df}
@@ -291,7 +291,7 @@ class NNPhD:
     # ------------------------------------------------------------------------------------------------ output
     def report(self, out) -> Path:
         """Write report.json, report.html and the figures to the folder ``out`` (as ``nnphd detect --out``)."""
-        from nnphd.user.detect import write_report
+        from nnphd.user.report import write_report
 
         self._check_fitted()
         m = self._model
@@ -302,20 +302,20 @@ class NNPhD:
 
     def figures(self) -> dict:
         """The report's figures as matplotlib Figures (data, L_e(λ), forces, energy trend where computed)."""
-        from nnphd.user import detect as ud
+        from nnphd.user import report as rp
 
         self._check_fitted()
         m = self._model
         if "data" not in m:
             raise RuntimeError("a loaded model keeps no data: figures() needs the model from fit()")
         r = self.report_
-        figs = {"data": ud.fig_data(m["data"], m["traj"], m["coords"])}
-        e = ud.fig_energy(r["evidence"]["energy_trend"])
+        figs = {"data": rp.fig_data(m["data"], m["traj"], m["coords"])}
+        e = rp.fig_energy(r["evidence"]["energy_trend"])
         if e is not None:
             figs["energy_trend"] = e
         if r["table"]:
-            figs["loss_vs_lambda"] = ud.fig_loss(r["table"])
-            figs["forces"] = ud.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
+            figs["loss_vs_lambda"] = rp.fig_loss(r["table"])
+            figs["forces"] = rp.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
         return figs
 
     # ------------------------------------------------------------------------------------------ persistence
@@ -371,7 +371,7 @@ def load(path) -> NNPhD:
     from nnphd.engine.models import ModelConfig, init_lnn
     from nnphd.explain.families import family_from_spec
     from nnphd.explain.table import LawFit
-    from nnphd.user.assess import Scaling
+    from nnphd.user.scaling import Scaling
 
     path = Path(path)
     try:

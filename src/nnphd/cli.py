@@ -492,7 +492,7 @@ def detect(
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
     from nnphd.io.results import ensure_writable_dir
-    from nnphd.user.derivatives import DataError, load_trajectories
+    from nnphd.user.recording import DataError, load_trajectories
 
     try:
         nseed = seed

@@ -23,8 +23,6 @@ judged met / not met and the settings used. ``out/summary.json`` holds the same 
 """
 from __future__ import annotations
 
-import base64
-import html
 import json
 import time
 from collections.abc import Callable
@@ -32,6 +30,8 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from nnphd.io.cache import Cache
+from nnphd.io.html import bullets, details, figure_file, figures, page, section, table
+from nnphd.io.html import escape as _e
 from nnphd.io.progress import Progress
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
 
@@ -218,43 +218,13 @@ def collect_claims(results: dict) -> list[dict]:
 
 
 # ---------------------------------------------------------------------------------------------------- HTML
-_CSS = """
-body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}
-h1{font-size:1.6em}h2{border-bottom:2px solid #ccc;padding-top:.5em}
-table{border-collapse:collapse;margin:.6em 0}td,th{border:1px solid #ccc;padding:3px 8px;text-align:right;vertical-align:top}
-td.l,th.l{text-align:left}.met{color:#0a0;font-weight:bold}.miss{color:#c00;font-weight:bold}
-.claim{background:#f4f4f8;border-left:4px solid #88a;padding:.5em 1em;margin:1em 0}
-.fig{display:flex;flex-wrap:wrap;gap:1em}.fig figure{margin:0;max-width:100%}.fig img{max-width:100%;border:1px solid #ddd}
-.quick{background:#fff4d0;border:1px solid #e0c060;padding:.5em 1em}code,pre{font-size:.85em}pre{white-space:pre-wrap}
-"""
-
-
-def _e(x) -> str:
-    return html.escape(str(x))
-
-
-def _table(header: list[str], rows: list[list], left: int = 1) -> str:
-    cls = lambda i: ' class="l"' if i < left else ""  # noqa: E731
-    th = "".join(f"<th{cls(i)}>{_e(h)}</th>" for i, h in enumerate(header))
-    body = "".join("<tr>" + "".join(f"<td{cls(i)}>{c}</td>" for i, c in enumerate(r)) + "</tr>" for r in rows)
-    return f"<table><tr>{th}</tr>{body}</table>"
-
-
 def _met(m: bool) -> str:
     return '<span class="met">met</span>' if m else '<span class="miss">not met</span>'
 
 
-def _figure(outdir: Path, rel: str) -> str:
-    if not (outdir / rel).is_file():
-        return f'<p class="miss">figure not produced: {_e(rel)}</p>'
-    data = base64.b64encode((outdir / rel).read_bytes()).decode()
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{_e(rel)}">'
-            f'<figcaption><a href="{_e(rel)}">{_e(rel)}</a></figcaption></figure>')
-
-
 def _claims_table(claims: list[dict]) -> str:
-    return _table(["claim", "paper", "ours", ""],
-                  [[_e(c["claim"]), _e(c["paper"]), _e(c["ours"]), _met(c["met"])] for c in claims], left=3)
+    return table(["claim", "paper", "ours", ""],
+                 [[_e(c["claim"]), _e(c["paper"]), _e(c["ours"]), _met(c["met"])] for c in claims], left=3)
 
 
 def _fmt(x, nd=4) -> str:
@@ -265,15 +235,15 @@ def _discover_body(disc: list[dict]) -> str:
     rows = [[_e(r["system"]), "new physics" if r["new_physics"] else "no new physics", _fmt(r["verdict"]["ratio"], 3),
              _fmt(r["settings"]["trajectory"]["n_steps"]), _fmt(r["settings"]["trajectory"]["paper_n_steps"]),
              _fmt(r["wall_time_s"], 3)] for r in disc]
-    s = "<h3>Verdicts</h3>" + _table(["system", "verdict", "L_e ratio across λ=1", "trajectory steps", "paper's steps",
-                                      "time (s)"], rows)
+    s = "<h3>Verdicts</h3>" + table(["system", "verdict", "L_e ratio across λ=1", "trajectory steps", "paper's steps",
+                                     "time (s)"], rows)
     t2 = []
     for r in disc:
         for row in r["table2"]:
             t2.append([_e(r["system"]), _e(row["quantity"]), _fmt(row["truth"]), _fmt(row["paper"]),
                        f"{_fmt(row['ours'])} ± {_fmt(row['stderr'], 2)}", _e(row["goal"]), _met(row["goal_met"]),
                        f"{_fmt(row['posthoc'])} ± {_fmt(row['posthoc_stderr'], 2)}"])
-    s += "<h3>Table II: ground truth, paper, ours</h3>" + _table(
+    s += "<h3>Table II: ground truth, paper, ours</h3>" + table(
         ["system", "quantity", "truth", "paper", "ours (joint law fit) ± stderr", "goal", "",
          "post hoc (the paper's way) ± stderr"], t2, left=2)
     s += "<h3>Explanations of the learned non-conservative force</h3>"
@@ -286,7 +256,7 @@ def _discover_body(disc: list[dict]) -> str:
                 else "nothing readable"
             ex.append([_e(r["system"]), f"blind ({_e(method)})", f + f"<br><small>{_e(b['note'])}</small>",
                        _fmt(b["rel_rms"], 3)])
-    s += _table(["system", "method", "formula", "rel. rms"], ex, left=3)
+    s += table(["system", "method", "formula", "rel. rms"], ex, left=3)
     return s
 
 
@@ -299,7 +269,7 @@ def _predict_body(res: dict) -> str:
              "never" if res["metrics"][k][tkey] is None else _fmt(res["metrics"][k][tkey], 3)] for k in MODELS]
     b = res["energy_balance"]
     return ("<h3>Metrics (rollout from t = 30)</h3>" +
-            _table(["model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t"], rows)
+            table(["model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t"], rows)
             + f"<p>Energy balance of the NNPhD rollout: dH/dt against the power of the learned f_n — rel. rms "
               f"difference {_fmt(b['dHdt_vs_power_rel_rms'], 3)}, correlation {_fmt(b['dHdt_vs_power_corr'], 4)}; "
               f"learned vs true dissipated power: correlation {_fmt(b['learned_vs_true_power_corr'], 3)}.</p>")
@@ -310,24 +280,23 @@ def _lambda_p_body(res: dict) -> str:
              _fmt(v["L_above"], 3), _fmt(v["ratio"], 3), "new physics" if v["new_physics"] else "none",
              "" if v["correct"] else '<span class="miss">wrong</span>',
              f"{_fmt(v['sharpness'], 3)} ({_e(v['transition'])})"] for v in res["verdicts"]]
-    return "<h3>Verdict per system and loss</h3>" + _table(
+    return "<h3>Verdict per system and loss</h3>" + table(
         ["system", "loss", "L_e λ<1", "L_e λ>1", "ratio", "verdict", "", "sharpness"], rows, left=2)
 
 
 def _data_quality_body(res: dict) -> str:
     a = [[_fmt(r["alpha"], 3), _fmt(r["L_e"]), _fmt(r["L_e_full"])] for r in res["alpha"]["table"]]
     b = [[_fmt(r["beta"], 3), _fmt(r["m_c"]), _fmt(r["m_n"])] for r in res["beta"]["table"]]
-    return ('<div class="fig"><div><h3>HO+CD, λ = 10: L_e(α)</h3>' +
-            _table(["α", "L_e (same-α test)", "L_e (full Gaussian)"], a) +
-            '</div><div><h3>HO+LD, λ = 0.5: misalignment(β)</h3>' + _table(["β", "m_c", "m_n"], b) + "</div></div>")
+    return figures(["<div><h3>HO+CD, λ = 10: L_e(α)</h3>" + table(["α", "L_e (same-α test)", "L_e (full Gaussian)"], a)
+                    + "</div>", "<div><h3>HO+LD, λ = 0.5: misalignment(β)</h3>" + table(["β", "m_c", "m_n"], b)
+                    + "</div>"])
 
 
 def render_html(outdir: Path, summary: dict, results: dict) -> str:
     """The self-contained report: one section per experiment, figures embedded as data URIs and linked."""
     bodies = {"discover": _discover_body(results["discover"]), "predict": _predict_body(results["predict"]),
               "lambda-p": _lambda_p_body(results["lambda-p"]), "data-quality": _data_quality_body(results["data-quality"])}
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>nnphd reproduce</title><style>{_CSS}</style>"
-             f"</head><body><h1>nnphd — reproduction of the paper's experiments</h1>"]
+    parts = ["<h1>nnphd — reproduction of the paper's experiments</h1>"]
     if summary["mode"] == "quick":
         parts.append('<p class="quick"><b>Quick mode:</b> the same code with fewer training steps (see the settings). '
                      "Its numbers are a smoke test, not the paper-scale results; run <code>nnphd reproduce</code> "
@@ -337,18 +306,14 @@ def render_html(outdir: Path, summary: dict, results: dict) -> str:
                  f"{datetime.now(UTC).isoformat(timespec='seconds')}. This run: {summary['wall_time_s']:.0f} s "
                  f"({n_cached} of {len(summary['runs'])} units loaded from the cache); compute time of all units as "
                  f"measured when they ran: {summary['compute_time_s']:.0f} s. Claims met: "
-                 f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p><ul>")
-    parts += [f'<li><a href="#{e}">{_e(TITLES[e])}</a></li>' for e in EXPERIMENTS]
-    parts.append("</ul>")
+                 f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p>")
+    parts.append(bullets(f'<a href="#{e}">{_e(TITLES[e])}</a>' for e in EXPERIMENTS))
     for exp in EXPERIMENTS:
-        figs = "".join(_figure(outdir, rel) for rel in FIGURES[exp])
         claims = [c for c in summary["claims"] if c["experiment"] == exp]
         settings = json.dumps(summary["settings"][exp], indent=1)
         units = {k: v for k, v in summary["runs"].items() if k.split("/")[0] == exp}
-        parts.append(
-            f'<section id="{exp}"><h2>{_e(TITLES[exp])}</h2><div class="claim"><b>Paper:</b> {_e(PAPER_CLAIMS[exp])}</div>'
-            f'<div class="fig">{figs}</div>{bodies[exp]}<h3>Claims</h3>{_claims_table(claims)}'
-            f"<details><summary>settings and run log</summary><pre>{_e(settings)}\n{_e(json.dumps(units, indent=1))}"
-            f"</pre></details></section>")
-    parts.append("</body></html>")
-    return "".join(parts)
+        parts.append(section(TITLES[exp], f'<div class="claim"><b>Paper:</b> {_e(PAPER_CLAIMS[exp])}</div>'
+                             + figures(figure_file(outdir, rel) for rel in FIGURES[exp]) + bodies[exp]
+                             + f"<h3>Claims</h3>{_claims_table(claims)}"
+                             + details("settings and run log", f"{settings}\n{json.dumps(units, indent=1)}"), exp))
+    return page("nnphd reproduce", "".join(parts))

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from nnphd.io.progress import Progress
 
 __all__ = ["Law", "NNPhD", "Trajectories", "Verdict", "load"]
 
@@ -194,7 +196,9 @@ class NNPhD:
         self._fc_jit = None
 
     # ------------------------------------------------------------------------------------------------ fitting
-    def fit(self, data: Trajectories, progress: Callable[[str], None] | None = None) -> NNPhD:
+    def fit(self, data: Trajectories, progress: Progress | None = None) -> NNPhD:
+        """Derivatives, the λ-sweep with the trust checks, the law. ``progress(done, total, message)`` (optional) is
+        told what runs."""
         from nnphd.user.detect import detect_data
 
         if not isinstance(data, Trajectories):

@@ -518,9 +518,9 @@ def detect(
 
     from nnphd.user.detect import detect_file
 
-    with console.status("detect: starting") as status:
+    with _progress("detect: starting") as status:
         rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
-                          progress=status.update, laws=tuple(law or ()), law_level=law_level.value, trim=trim_v,
+                          progress=status, laws=tuple(law or ()), law_level=law_level.value, trim=trim_v,
                           **extra)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "

@@ -9,14 +9,13 @@ figures in ``--out``. Every file is written atomically, and only after the whole
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from nnphd.io.progress import Progress, Stages
 from nnphd.user.report import write_report
-
-Progress = Callable[[str], None]
 
 
 def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed: int = 0, steps: int = 1000,
@@ -32,7 +31,8 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
 
     if law_level not in ("auto", "pointwise", "trajectory"):
         raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
-    (progress or (lambda msg: None))("reading the file")
+    if progress is not None:
+        progress(0, 1, "reading the file")
     ud = load_trajectories(path, angles)
     return detect_data(ud, out, seed=seed, steps=steps, sr_time=sr_time, n_seeds=n_seeds, progress=progress,
                        trim=trim, laws=laws, law_level=law_level, **assess_kw)[0]
@@ -51,7 +51,16 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
     from nnphd.user.assess import assess
     from nnphd.user.recording import suggest_angles
 
-    say = progress or (lambda msg: None)
+    done = [0, 1]  # the training rounds of the checks: the bar shows them; the other stages are messages
+
+    def say(message: str) -> None:
+        if progress is not None:
+            progress(done[0], done[1], message)
+
+    def training(d: int, total: int, message: str) -> None:
+        done[:] = [d, total]
+        say(f"training: {message}")
+
     if law_level not in ("auto", "pointwise", "trajectory"):
         raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
     t0 = time.perf_counter()
@@ -64,13 +73,14 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
     say("λ-sweep and trust checks")
     pc = info["per_coordinate"]
     res = assess(data, traj, seed=seed, steps=steps, n_seeds=n_seeds,
-                 progress=lambda done, total, msg: say(f"training ({done}/{total}): {msg}"),
+                 progress=training,
                  angles=[bool(a) for a in ud.is_angle], position_noise=[pc[c]["noise"] for c in ud.coords],
                  derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords], **assess_kw)
     coords = list(ud.coords)
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
-    law, law_fit = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, say)
+    law, law_fit = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed,
+                              lambda d, t, m: say(m))
     status, new_physics, confidence, reasons = _reconcile(res, law)
     blind = {}
     if res["status"] == "detected" and law.get("law") is None:  # fallback: no candidate family fits
@@ -200,7 +210,7 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
     return status, new, conf, reasons
 
 
-def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, say) -> tuple[dict, object]:
+def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, progress) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base; a law is claimed only when the verdict
     is "detected". Returns (the table as a dict, the winning LawFit or None)."""
     from nnphd.user.assess import conservative_fn
@@ -212,7 +222,7 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, sa
     fc = np.asarray(cons["fc"])
     ok = bool(np.all(np.isfinite(fc)))
     table = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, fc=fc if ok else None,
-                     fc_fn=conservative_fn(cons) if ok else None, laws=laws, level=level, seed=seed, progress=say)
+                     fc_fn=conservative_fn(cons) if ok else None, laws=laws, level=level, seed=seed, progress=progress)
     out = table.to_dict()
     if res["status"] != "detected" and out["law"] is not None:
         out["candidate_law"] = out["law"]
@@ -234,7 +244,7 @@ def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn
     from nnphd.explain.laws import rank_laws
     from nnphd.explain.trajectory import rank_trajectory
 
-    say = progress or (lambda msg: None)
+    say = Stages(progress, 2)
     say("candidate laws (pointwise joint fits)")
     err = None if row_err is None else row_err["qdd_err"]
     table = rank_laws(data.q, data.qd, data.qdd, data.t, traj, names=coords, angles=is_angle, qdd_err=err, fc=fc,

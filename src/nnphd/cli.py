@@ -139,8 +139,6 @@ def sweep(
                 raise InputError(f"--param {k.strip()} must be a number, got {v!r}") from None
         sysm = get_system(system, **overrides)
         pp = parse_p(p)
-        nsteps = steps
-        nseed = seed
         lams = _parse_lambdas(lambdas)
         ensure_writable_dir(out)
     except ValueError as e:
@@ -150,7 +148,7 @@ def sweep(
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
     with _progress("λ-sweep (first λ includes compilation)") as bar:
-        res = run_sweep(sysm, p=pp, steps=nsteps, seed=nseed, lambdas=lams, mode=mode.value, out=out, resume=resume,
+        res = run_sweep(sysm, p=pp, steps=steps, seed=seed, lambdas=lams, mode=mode.value, out=out, resume=resume,
                         standardize=standardize,
                         progress=bar)
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
@@ -193,13 +191,8 @@ def discover(
     try:
         if all_ == (system is not None):
             raise InputError("give either --system (double-pendulum, neptune, gw) or --all")
-        nsteps = steps
-        nsweep = sweep_steps
-        nseed = seed
-        ntraj = n_steps
-        if 0 < ntraj < 20:
+        if 0 < n_steps < 20:
             raise InputError(f"--n-steps must be 0 (default) or ≥ 20, got {n_steps!r}")
-        nsr = sr_time
         lam_v = lam
         if not (0 < lam_v < 1):
             raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {lam!r}")
@@ -216,9 +209,9 @@ def discover(
     results = []
     for name in systems_:
         with _progress(f"{name}: starting") as bar:
-            res = run_discover(name, steps=nsteps, sweep_steps=nsweep, lam=lam_v, seed=nseed, standardize=standardize,
-                               progress=bar, n_steps=ntraj or None,
-                               sr_time=nsr)
+            res = run_discover(name, steps=steps, sweep_steps=sweep_steps, lam=lam_v, seed=seed, standardize=standardize,
+                               progress=bar, n_steps=n_steps or None,
+                               sr_time=sr_time)
         write_discovery(res, Path(out) / name)
         results.append(res)
         v = res["verdict"]
@@ -267,8 +260,6 @@ def predict(
     from nnphd.io.results import ensure_writable_dir
 
     try:
-        nsteps = steps
-        nseed = seed
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -276,9 +267,9 @@ def predict(
     from nnphd.paper.predict import LABELS, MODELS, THETA_TOL, run_prediction
 
     with _progress("starting") as bar:
-        res = run_prediction(seed=nseed, steps=nsteps, out=out, uan_time=uan_time, progress=bar)
+        res = run_prediction(seed=seed, steps=steps, out=out, uan_time=uan_time, progress=bar)
     tkey = f"t_error_exceeds_{THETA_TOL:g}"
-    t = Table(title=f"prediction from t = 30 (train t ≤ 30), {nsteps} training steps, seed {nseed}")
+    t = Table(title=f"prediction from t = 30 (train t ≤ 30), {steps} training steps, seed {seed}")
     for col in ("model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t",
                 "train |Δq̈|"):
         t.add_column(col, justify="right")
@@ -338,8 +329,6 @@ def study_lambda_p(
     from nnphd.paper.lambda_p import LOSSES, TOY_SYSTEMS, p_label
 
     try:
-        nsteps = steps
-        nseed = seed
 
         def sys_conv(tok):
             if tok not in TOY_SYSTEMS:
@@ -358,9 +347,9 @@ def study_lambda_p(
     from nnphd.paper.lambda_p import lambda_p_study
 
     with _progress("λ/p study (each sweep compiles first)") as bar:
-        res = lambda_p_study(steps=nsteps, seed=nseed, lambdas=lams, ps=pvals, systems=syss, out=out,
+        res = lambda_p_study(steps=steps, seed=seed, lambdas=lams, ps=pvals, systems=syss, out=out,
                              progress=bar)
-    t = Table(title=f"verdicts — {nsteps} steps per λ, seed {nseed}, L_e on the test set")
+    t = Table(title=f"verdicts — {steps} steps per λ, seed {seed}, L_e on the test set")
     for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
         t.add_column(col, justify="right")
     for v in res["verdicts"]:
@@ -399,8 +388,6 @@ def study_data_quality(
     from nnphd.paper.data_quality import DQ_GRID
 
     try:
-        nsteps = steps
-        nseed = seed
         al = _parse_csv("--alphas", alphas, _fraction("--alphas"), DQ_GRID)
         be = _parse_csv("--betas", betas, _fraction("--betas"), DQ_GRID)
         ensure_writable_dir(out)
@@ -410,10 +397,10 @@ def study_data_quality(
     from nnphd.paper.data_quality import data_quality_study
 
     with _progress("data-quality study: starting") as bar:
-        res = data_quality_study(steps=nsteps, seed=nseed, alphas=al, betas=be, out=out,
+        res = data_quality_study(steps=steps, seed=seed, alphas=al, betas=be, out=out,
                                  progress=bar)
     s = res["settings"]
-    t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {nsteps} steps)")
+    t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {steps} steps)")
     for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
         t.add_column(col, justify="right")
     for r in res["alpha"]["table"]:
@@ -443,7 +430,6 @@ def reproduce(
 
     out = out or ("out/reproduce-quick" if quick else "out/reproduce")
     try:
-        nseed = seed
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -451,10 +437,10 @@ def reproduce(
     from nnphd.paper.reproduce import reproduce as run_reproduce
 
     with _progress("reproduce: starting") as bar:
-        s = run_reproduce(out=out, quick=quick, seed=nseed, progress=bar)
+        s = run_reproduce(out=out, quick=quick, seed=seed, progress=bar)
     from nnphd.paper.reproduce import EXPERIMENTS, TITLES
 
-    t = Table(title=f"nnphd reproduce ({s['mode']}, seed {nseed}): the paper's claims (details in the report)")
+    t = Table(title=f"nnphd reproduce ({s['mode']}, seed {seed}): the paper's claims (details in the report)")
     for col in ("experiment", "claims met", "not met"):
         t.add_column(col, justify="left")
     for exp in EXPERIMENTS:
@@ -495,12 +481,7 @@ def detect(
     from nnphd.user.recording import DataError, load_trajectories
 
     try:
-        nseed = seed
-        nsteps = steps
-        nrep = repeats
-        nsr = sr_time
-        nwidth = width
-        extra = {"width": nwidth}
+        extra = {"width": width}
         if lambdas is not None:
             extra["lambdas"] = _parse_lambdas(lambdas)
         trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
@@ -519,7 +500,7 @@ def detect(
     from nnphd.user.detect import detect_file
 
     with _progress("detect: starting") as status:
-        rep = detect_file(file, out=out, angles=ang, seed=nseed, steps=nsteps, n_seeds=nrep, sr_time=nsr,
+        rep = detect_file(file, out=out, angles=ang, seed=seed, steps=steps, n_seeds=repeats, sr_time=sr_time,
                           progress=status, laws=tuple(law or ()), law_level=law_level.value, trim=trim_v,
                           **extra)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
@@ -566,7 +547,6 @@ def demo_neptune(
     from nnphd.io.results import ensure_writable_dir
 
     try:
-        nseed = seed
         if not available():
             raise InputError("the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
                              "(python3 dev.py setup installs them)")
@@ -577,7 +557,7 @@ def demo_neptune(
 
     try:
         with _progress("neptune: starting") as bar:
-            res = run_neptune_demo(out=out, seed=nseed, progress=bar)
+            res = run_neptune_demo(out=out, seed=seed, progress=bar)
     except EphemerisUnavailable as e:
         raise InputError(str(e)) from None
     print_summary(res, console)

@@ -123,7 +123,19 @@ def constrained_model(
     coef_scale=None,
     uan_scale: float | None = None,
 ) -> ConstrainedModel:
-    """The constrained model of :func:`train_constrained`, not yet trained (for λ-sweeps of it)."""
+    """L = c·φ with a UAN on ``data``, set up for training (paper: Adam {1e-2…1e-5}, 2000 steps); c starts at 1.
+
+    Optional scaling for a faint remainder (all None = the paper's setup, unchanged):
+
+    * ``c_init`` — starting coefficients (default all ones);
+    * ``coef_scale`` — scalar or per-coefficient array s_c: the coefficients are trained as c = c_init + s_c·θ with θ
+      starting at 0, so Adam's steps on c are s_c times the learning rate (Adam's step size does not depend on the
+      size of the gradient, so without this c cannot be resolved below ~the last learning rate, 1e-5);
+    * ``uan_scale`` — the UAN's output is multiplied by it, so f_n starts at and is resolved on that scale instead
+      of O(1) (set it to the size of the remainder when f_n is many orders smaller than f).
+
+    ``L_e``, ``L_b``, ``fc``, ``fn`` and ``coefs`` are always in the data's units.
+    """
     n = data.q.shape[1]
     cfg = cfg or ModelConfig(n=n)
     tcfg = TrainConfig(steps=steps, p=p)
@@ -170,32 +182,9 @@ def constrained_model(
     return ConstrainedModel(params, loss, forces, coefs, arrays, cfg, tcfg, k_train)
 
 
-def train_constrained(
-    data,
-    fl: FeatureLagrangian,
-    lam: float = 0.2,
-    steps: int = 2000,
-    seed: int = 0,
-    p: float | str = 1.0,
-    cfg: ModelConfig | None = None,
-    *,
-    c_init=None,
-    coef_scale=None,
-    uan_scale: float | None = None,
-) -> ConstrainedFit:
-    """Train L = c·φ jointly with the UAN on ``data`` (paper: λ = 0.2, Adam {1e-2…1e-5}, 2000 steps); c starts at 1.
-
-    Optional scaling for a faint remainder (all None = the paper's setup, unchanged):
-
-    * ``c_init`` — starting coefficients (default all ones);
-    * ``coef_scale`` — scalar or per-coefficient array s_c: the coefficients are trained as c = c_init + s_c·θ with θ
-      starting at 0, so Adam's steps on c are s_c times the learning rate (Adam's step size does not depend on the
-      size of the gradient, so without this c cannot be resolved below ~the last learning rate, 1e-5);
-    * ``uan_scale`` — the UAN's output is multiplied by it, so f_n starts at and is resolved on that scale instead
-      of O(1) (set it to the size of the remainder when f_n is many orders smaller than f).
-
-    ``L_e``, ``L_b``, ``fc``, ``fn`` and ``coefs`` are always in the data's units.
-    """
-    cm = constrained_model(data, fl, steps, seed, p, cfg, c_init=c_init, coef_scale=coef_scale, uan_scale=uan_scale)
+def train_constrained(data, fl: FeatureLagrangian, lam: float = 0.2, **model_kw) -> ConstrainedFit:
+    """Train L = c·φ jointly with the UAN on ``data`` at one λ (paper: λ = 0.2); ``model_kw`` (steps, seed, p, cfg,
+    c_init, coef_scale, uan_scale) as :func:`constrained_model`."""
+    cm = constrained_model(data, fl, **model_kw)
     params, _ = cm.trainer()(cm.params0, cm.arrays, lam, cm.key)
     return cm.fit(params)

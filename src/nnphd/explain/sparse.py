@@ -115,6 +115,18 @@ def _best_small_subsets(theta_n: np.ndarray, y: np.ndarray, col_rms: np.ndarray)
     return out
 
 
+def regression_data(inputs: dict, fn, component_names) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """(names, x (N, k), y (N, n)) of a blind regression, checked: ValueError unless fn is (N, n) and all is finite."""
+    names = list(inputs)
+    x = np.stack([np.asarray(inputs[k], float) for k in names], axis=1)
+    y = np.asarray(fn, float)
+    if y.ndim != 2 or y.shape[0] != x.shape[0] or y.shape[1] != len(component_names):
+        raise ValueError(f"fn must have shape (N, {len(component_names)}) with N = {x.shape[0]}, got {y.shape}")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
+        raise ValueError("inputs and fn must be finite")
+    return names, x, y
+
+
 def sparse_formula(
     inputs: dict[str, np.ndarray],
     fn: np.ndarray,
@@ -132,13 +144,7 @@ def sparse_formula(
 
     STLSQ = require("pysindy", "the sparse (blind) explanation").STLSQ
 
-    names = list(inputs)
-    x = np.stack([np.asarray(inputs[k], float) for k in names], axis=1)
-    y = np.asarray(fn, float)
-    if y.ndim != 2 or y.shape[0] != x.shape[0] or y.shape[1] != len(component_names):
-        raise ValueError(f"fn must have shape (N, {len(component_names)}) with N = {x.shape[0]}, got {y.shape}")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        raise ValueError("inputs and fn must be finite")
+    names, x, y = regression_data(inputs, fn, component_names)
     vel_idx = [names.index(v) for v in velocities]
     t_idx = names.index(time) if time is not None else None
     theta, terms = _library(x, names, vel_idx, t_idx, degree, speed_powers, fourier)

@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from nnphd.explain.sparse import READABLE_MAX_REL_RMS, BlindFormula
+from nnphd.explain.sparse import READABLE_MAX_REL_RMS, BlindFormula, regression_data
 
 READABLE_MAX_LENGTH = 30  # expression-tree nodes per component
 NODE_COST = float(np.log(1.25)) / 4
@@ -64,13 +64,7 @@ def genetic_formula(
 
     SymbolicRegressor = require("pyoperon.sklearn", "the genetic (blind) explanation").SymbolicRegressor
 
-    names = list(inputs)
-    x = np.stack([np.asarray(inputs[k], float) for k in names], axis=1)
-    y = np.asarray(fn, float)
-    if y.ndim != 2 or y.shape[0] != x.shape[0] or y.shape[1] != len(component_names):
-        raise ValueError(f"fn must have shape (N, {len(component_names)}) with N = {x.shape[0]}, got {y.shape}")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        raise ValueError("inputs and fn must be finite")
+    names, x, y = regression_data(inputs, fn, component_names)
     # pyoperon names variables X1..Xk; SymPy needs names it can parse
     safe = [f"v{i}" for i in range(len(names))]
     back = {sp.Symbol(s): sp.Symbol(n) for s, n in zip(safe, names)}

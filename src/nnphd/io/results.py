@@ -94,3 +94,19 @@ def plot_sweep(curves: dict[str, Sequence[dict]], title: str = "", show_lb: bool
     ax.legend(fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def write_results(outdir: Path | None, result: dict, figures: dict | None = None, t0: float | None = None) -> dict:
+    """Finish a study: draw ``figures`` (file name → a function of ``result`` returning a Figure) into ``outdir``,
+    set ``result["wall_time_s"]`` from ``t0`` (time.perf_counter), then write results.json (last, so its presence
+    marks a finished run). Returns ``result``."""
+    import time
+
+    if outdir is not None:
+        for name, draw in (figures or {}).items():
+            save_figure(draw(result), Path(outdir) / name)
+    if t0 is not None:
+        result["wall_time_s"] = time.perf_counter() - t0
+    if outdir is not None:
+        write_json(Path(outdir) / "results.json", result)
+    return result

@@ -37,7 +37,7 @@ from nnphd.engine.train import TrainConfig, _as_arrays, alignment, evaluate, mak
 from nnphd.engine.verdict import MIN_RATIO
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
-from nnphd.io.results import ensure_writable_dir, save_figure, subplots, write_json
+from nnphd.io.results import ensure_writable_dir, subplots, write_results
 from nnphd.paper.lambda_p import _FORMAT, ALIGN_TOL, NEAR_ZERO_FRACTION
 
 __all__ = ["DQ_GRID", "data_quality_study"]
@@ -226,12 +226,7 @@ def data_quality_study(
         "wall_time_s": None,  # of this call (small when both grids come from the cache)
         "jax_version": jax.__version__,
     }
-    if outdir is not None:
-        save_figure(plot_fig6(result), outdir / "fig6.png")
-    result["wall_time_s"] = time.perf_counter() - t0
-    if outdir is not None:
-        write_json(outdir / "results.json", result)
-    return result
+    return write_results(outdir, result, {"fig6.png": plot_fig6}, t0)
 
 
 def plot_fig6(result: dict):

@@ -58,7 +58,7 @@ from nnphd.engine.train import (
 )
 from nnphd.engine.verdict import MIN_RATIO
 from nnphd.io.progress import Progress
-from nnphd.io.results import ensure_writable_dir, save_figure, subplots, write_json
+from nnphd.io.results import ensure_writable_dir, subplots, write_results
 from nnphd.paper.sweep import plan_sweep
 
 __all__ = [
@@ -401,14 +401,8 @@ def lambda_p_study(
         "wall_time_s": None,  # of this call (small when the sweeps come from the cache)
         "jax_version": jax.__version__,
     }
-    if outdir is not None:
-        save_figure(plot_fig5(result), outdir / "fig5.png")
-        if alignment_ is not None:
-            save_figure(plot_fig5_forces(result), outdir / "fig5_forces.png")
-    result["wall_time_s"] = time.perf_counter() - t0
-    if outdir is not None:
-        write_json(outdir / "results.json", result)
-    return result
+    figs = {"fig5.png": plot_fig5, **({"fig5_forces.png": plot_fig5_forces} if alignment_ is not None else {})}
+    return write_results(outdir, result, figs, t0)
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -112,28 +112,16 @@ def _save_checkpoint(cache: Cache, done: dict[float, SweepPoint]) -> None:
     cache.checkpoint({lam: ({k: getattr(pt, k) for k in keys}, pt.params) for lam, pt in done.items()})
 
 
-def run_sweep(
-    system: System | str,
-    p: float | str = 1.0,
-    steps: int = 2000,
-    seed: int = 0,
-    lambdas: Sequence[float] = PAPER_LAMBDAS,
-    mode: str = "warm",
-    out: str | Path | None = None,
-    model_cfg: ModelConfig | None = None,
-    n_train: int = 1000,
-    n_test: int = 1000,
-    progress: Progress | None = None,
-    resume: bool = True,
-    standardize: bool = True,
-) -> dict:
+def run_sweep(system: System | str, *, out: str | Path | None = None, progress: Progress | None = None,
+              resume: bool = True, **plan_kw) -> dict:
     """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given).
 
-    With ``out``, every finished λ is checkpointed there (``resume=False`` starts afresh)."""
+    ``plan_kw`` (p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize) as :func:`plan_sweep`. With
+    ``out``, every finished λ is checkpointed there (``resume=False`` starts afresh)."""
     outdir = ensure_writable_dir(out) if out is not None else None
     if outdir is not None and not resume:
         Cache(outdir, {}).clear_checkpoint()
-    plan = plan_sweep(system, p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize, outdir)
+    plan = plan_sweep(system, out=outdir, **plan_kw)
     r = plan.run(progress)
     sysm, v, points = plan.system, r.verdict, r.points
     table = [

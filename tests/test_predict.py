@@ -127,10 +127,10 @@ def test_cli_writes_results_and_figure(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv,msg",
     [
-        (["predict", "--steps", "x"], "--steps must be an integer"),
-        (["predict", "--steps", "2"], "--steps must be an integer ≥ 4"),
-        (["predict", "--steps", "1.5"], "--steps must be an integer"),
-        (["predict", "--seed", "-1"], "--seed must be an integer"),
+        (["predict", "--steps", "x"], "Invalid value for '--steps': Input should be a valid integer"),
+        (["predict", "--steps", "2"], "Invalid value for '--steps': Input should be greater than or equal to 4"),
+        (["predict", "--steps", "1.5"], "Invalid value for '--steps': Input should be a valid integer"),
+        (["predict", "--seed", "-1"], "Invalid value for '--seed': Input should be greater than or equal to 0"),
     ],
 )
 def test_cli_bad_input(argv, msg, tmp_path, capsys):

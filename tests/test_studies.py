@@ -154,15 +154,15 @@ def test_data_quality_cli_same_seed_same_numbers(dq, tmp_path, capsys):
 
 # ---- bad input ----------------------------------------------------------------------------------------------------
 BAD = [
-    (["study", "lambda-p", "--steps", "0"], "--steps must be an integer"),
-    (["study", "lambda-p", "--seed", "-1"], "--seed must be an integer"),
+    (["study", "lambda-p", "--steps", "0"], "Invalid value for '--steps': Input should be greater than or equal to 4"),
+    (["study", "lambda-p", "--seed", "-1"], "Invalid value for '--seed': Input should be greater than or equal to 0"),
     (["study", "lambda-p", "--systems", "ho+xx"], "--systems must be among"),
     (["study", "lambda-p", "--systems", "gw"], "--systems must be among"),
     (["study", "lambda-p", "--systems", "ho+ld,,ho+mf"], "--systems must be a comma-separated list"),
     (["study", "lambda-p", "--systems", "ho+ld,ho+ld"], "must not repeat"),
     (["study", "lambda-p", "--ps", "0.5"], "p must be a number ≥ 1 or 'mse'"),
     (["study", "lambda-p", "--lambdas", "0.2,0.5"], "both below and above 1"),
-    (["study", "data-quality", "--steps", "abc"], "--steps must be an integer"),
+    (["study", "data-quality", "--steps", "abc"], "Invalid value for '--steps': Input should be a valid integer"),
     (["study", "data-quality", "--alphas", "0.5,1.5"], "--alphas must be comma-separated numbers in [0, 1]"),
     (["study", "data-quality", "--betas", "x"], "--betas must be comma-separated numbers in [0, 1]"),
     (["study", "data-quality", "--wat"], "No such option"),

@@ -6,7 +6,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import nnphd  # noqa: F401  (float64)
-from nnphd.engine.evidence import dominant_period, energy_trend, period_blocks, shooting_fit, shooting_windows
+from nnphd.engine.evidence import dominant_period, energy_trend, period_blocks
+from nnphd.engine.shooting import shooting_fit, shooting_windows
 from nnphd.user.checks import Z_BOTH, Z_ONE, _seed_status, clock_testable, trajectory_evidence
 
 W0 = 1.1

@@ -56,7 +56,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
     """
     import jax.numpy as jnp
 
-    from nnphd.engine.evidence import (
+    from nnphd.engine.shooting import (
         _blocks,
         _pad_windows,
         _schur,

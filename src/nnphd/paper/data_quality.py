@@ -37,7 +37,8 @@ from nnphd.engine.train import TrainConfig, _as_arrays, alignment, evaluate, mak
 from nnphd.engine.verdict import MIN_RATIO
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
-from nnphd.io.results import ensure_writable_dir, subplots, write_results
+from nnphd.io.results import ensure_writable_dir, write_results
+from nnphd.paper.figures import plot_fig6
 from nnphd.paper.lambda_p import _FORMAT, ALIGN_TOL, NEAR_ZERO_FRACTION
 
 __all__ = ["DQ_GRID", "data_quality_study"]
@@ -46,8 +47,6 @@ DQ_GRID: tuple[float, ...] = tuple(i / 8 for i in range(9))  # α and β grid: 0
 DQ_LAM_ALPHA = 10.0
 DQ_LAM_BETA = 0.5
 DQ_P = 1.0
-
-
 
 
 def _stack(datasets: Sequence[Dataset]):
@@ -229,30 +228,3 @@ def data_quality_study(
     return write_results(outdir, result, {"fig6.png": plot_fig6}, t0)
 
 
-def plot_fig6(result: dict):
-    """Fig. 6 analogue: (a) L_e(α) of HO+CD at λ=10; (b) m_c(β), m_n(β) of HO+LD at λ=0.5."""
-    fig, (a, b) = subplots(1, 2, figsize=(10, 4))
-    rows = result["alpha"]["table"]
-    x = [r["alpha"] for r in rows]
-    a.plot(x, [max(r["L_e"], 1e-9) for r in rows], "o-", label="test, same α")
-    a.plot(x, [max(r["L_e_train"], 1e-9) for r in rows], "s--", ms=3, alpha=0.7, label="training set")
-    a.plot(x, [max(r["L_e_full"], 1e-9) for r in rows], "^:", ms=3, alpha=0.6, color="gray", label="full Gaussian")
-    a.axvline(0.5, color="k", lw=0.8, ls=":")
-    a.set_yscale("log")
-    a.set_xlabel(r"pie coverage $\alpha$")
-    a.set_ylabel(r"$L_e$ (p=1)")
-    a.set_title(rf"(a) HO+CD, $\lambda$={result['settings']['lam_alpha']:g}: incomplete coverage", fontsize=10)
-    a.legend(fontsize=7)
-    rows = result["beta"]["table"]
-    x = [r["beta"] for r in rows]
-    b.plot(x, [r["m_c"] for r in rows], "o-", label=r"$m_c$")
-    b.plot(x, [r["m_n"] for r in rows], "s-", label=r"$m_n$")
-    b.plot(x, [r["m_c_full"] for r in rows], "o:", ms=3, alpha=0.6, color="C0", label=r"$m_c$ on balanced data")
-    b.plot(x, [r["m_n_full"] for r in rows], "s:", ms=3, alpha=0.6, color="C1", label=r"$m_n$ on balanced data")
-    b.axvline(0.5, color="k", lw=0.8, ls=":")
-    b.set_xlabel(r"fraction $\beta$ of samples with $\dot q > 0$")
-    b.set_ylabel("misalignment")
-    b.set_title(rf"(b) HO+LD, $\lambda$={result['settings']['lam_beta']:g}: imbalanced data", fontsize=10)
-    b.legend(fontsize=7)
-    fig.tight_layout()
-    return fig

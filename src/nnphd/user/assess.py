@@ -42,28 +42,18 @@ reproduce its call — how often a similar record would give the same call, not 
 """
 from __future__ import annotations
 
-import functools
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from nnphd.engine.data import Dataset
-from nnphd.engine.evidence import dominant_period, energy_trend, shooting_fit
+from nnphd.engine.evidence import dominant_period
 from nnphd.engine.models import (
     ModelConfig,
-    embed_periodic,
-    free_force,
-    init_free,
-    init_lnn,
-    lnn_accel,
-    lnn_derivatives,
-    lnn_energy,
 )
-from nnphd.engine.train import SweepPoint, TrainConfig, lambda_sweep, make_trainer, pnorm
-from nnphd.engine.verdict import verdict as naive_verdict
+from nnphd.io.progress import Progress
 from nnphd.user.checks import (
     DRIFT_MIN,
     GAP_MIN,
@@ -77,26 +67,16 @@ from nnphd.user.checks import (
     Z_CONTRA,
     Z_MIN,
     Z_ONE,
-    _effect,
-    _seed_status,
-    capacity_check,
     clock_testable,
     data_quality,
-    drift_check,
-    energy_net_fraction,
-    gap_check,
-    ridge_fit_predict,
-    time_check,
-    time_design,
-    trajectory_evidence,
+)
+from nnphd.user.rounds import (
+    _accel_fn,
+    _one_seed,
 )
 from nnphd.user.scaling import (
     Scaling,
-    _shoot_units,
-    _trend_units,
     fit_scaling,
-    holdout,
-    oscillations,
     segments,
     time_features,
 )
@@ -104,261 +84,6 @@ from nnphd.user.scaling import (
 __all__ = ["assess", "conservative_fn"]
 
 DEFAULT_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
-REPRESENTATIVE_LAMBDA = 0.2
-
-
-# ------------------------------------------------------------------------------------------------------------------
-# models
-
-
-@functools.lru_cache(maxsize=64)
-def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
-    """Jitted trainers, cached so repeated calls (seeds, tests) compile once. ``t`` carries the time features."""
-    p = tcfg.p
-
-    if kind == "nnphd":
-        def loss(params, q, qd, t, qdd):
-            fn = free_force(params["uan"], q, qd, t, cfg)
-            return pnorm(lnn_accel(params["lnn"], q, qd, cfg) + fn - qdd, p), pnorm(fn, p)
-    elif kind == "lnn":
-        def loss(params, q, qd, t, qdd):
-            return pnorm(lnn_accel(params["lnn"], q, qd, cfg) - qdd, p), jnp.zeros((), q.dtype)
-    elif kind == "free":
-        def loss(params, q, qd, t, qdd):
-            return pnorm(free_force(params["mlp"], q, qd, None, cfg) - qdd, p), jnp.zeros((), q.dtype)
-    else:  # pragma: no cover
-        raise ValueError(kind)
-    return make_trainer(cfg, tcfg, loss)
-
-
-@functools.partial(jax.jit, static_argnames=("cfg",))
-def _nnphd_eval(params, q, qd, t, cfg):
-    fc = lnn_accel(params["lnn"], q, qd, cfg)
-    fn = free_force(params["uan"], q, qd, t, cfg)
-    _, hvv, _ = lnn_derivatives(params["lnn"], q, qd, cfg)
-    return fc, fn, jnp.einsum("bi,bij,bj->b", qd, hvv, fn), jnp.abs(jnp.einsum("bi,bij,bj->b", qd, hvv, qd))
-
-
-@functools.partial(jax.jit, static_argnames=("cfg",))
-def _lnn_eval(lnn, q, qd, qdd, cfg):
-    fc = lnn_accel(lnn, q, qd, cfg)
-    _, hvv, _ = lnn_derivatives(lnn, q, qd, cfg)
-    power = jnp.einsum("bi,bij,bj->b", qd, hvv, qdd - fc)
-    kin = jnp.einsum("bi,bij,bj->b", qd, hvv, qd)
-    return fc, power, jnp.abs(kin), lnn_energy(lnn, q, qd, cfg), lnn_energy(lnn, q, jnp.zeros_like(qd), cfg), kin
-
-
-@functools.partial(jax.jit, static_argnames=("cfg",))
-def _free_eval(params, q, qd, cfg):
-    return free_force(params["mlp"], q, qd, None, cfg)
-
-
-@functools.lru_cache(maxsize=64)
-def _accel_fn(cfg: ModelConfig):
-    """f_c(params, q, q̇) of an LNN config: one function object per config, so the shooting fit compiles once."""
-    def accel(lnn, q, qd):
-        return lnn_accel(lnn, q, qd, cfg)
-    return accel
-
-
-def _l1(r) -> float:
-    return float(np.mean(np.abs(r))) if np.size(r) else float("nan")
-
-
-def _seg_mean(x, segs):
-    return np.asarray([float(np.mean(x[s])) for s in segs])
-
-
-# ------------------------------------------------------------------------------------------------------------------
-# one seed
-
-
-def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick):
-    """The warm-started λ-sweep; then the optimisation check: the training error below λ = 1 (where the UAN is free)
-    must not exceed the one above it. Where it does (beyond 10 %), the λ < 1 points are retrained in decreasing
-    order, warm-started from the largest-λ solution (the UAN then only has to add to a fitted LNN), and the better
-    objective is kept."""
-    lams = sorted(lambdas)
-    pts = lambda_sweep(train, params, A_tr, lams, k_sweep, "warm", progress=lambda *_: tick())
-
-    def evaluate(p):
-        fc, fn, power, kin = (np.asarray(x) for x in _nnphd_eval(p, *arrays[:3], cfg))
-        return fc, fn, power, kin, back(fc + fn - qdd), back(fn)
-
-    evals = {lam: evaluate(pts[lam]) for lam in lams}
-    below = [lam for lam in lams if lam < 1]
-    above = [lam for lam in lams if lam > 1]
-
-    def med_train(ls):
-        return float(np.median([_l1(evals[lam][4][tr]) for lam in ls])) if ls else float("nan")
-
-    check = {"L_e_train_below": med_train(below), "L_e_train_above": med_train(above), "retrained": False}
-    if below and above and check["L_e_train_below"] > 1.1 * check["L_e_train_above"]:
-        check["retrained"] = True
-
-        def keep_better(lam, p):  # the chain continues from whichever of the two has the lower objective
-            ev = evaluate(p)
-            obj_new = _l1(ev[4][tr]) + lam * _l1(ev[5][tr])
-            obj_old = _l1(evals[lam][4][tr]) + lam * _l1(evals[lam][5][tr])
-            if obj_new < obj_old:
-                pts[lam], evals[lam] = p, ev
-            return pts[lam]
-
-        lambda_sweep(train, pts[lams[-1]], A_tr, below, jax.random.fold_in(k_sweep, 1), "warm", descending=True,
-                     accept=keep_better)
-        check["L_e_train_below_after"] = med_train(below)
-    table = []
-    for lam in lams:
-        _, _, _, _, r, fnb = evals[lam]
-        table.append({"lam": lam, "L_e": _l1(r[te]), "L_b": _l1(fnb[te]), "L_e_train": _l1(r[tr]),
-                      "L_b_train": _l1(fnb[tr]), "L_e_rel": _l1(r[te]) / fnorm_te, "L_b_rel": _l1(fnb[te]) / fnorm_te})
-    check["ok"] = not below or not above or med_train(below) <= 1.1 * med_train(above)
-    if below and above:  # the same comparison on held-out data: a free UAN that generalises worse than none
-        held = [float(np.median([r["L_e"] for r in table if (r["lam"] < 1) == side])) for side in (True, False)]
-        check.update(L_e_heldout_below=held[0], L_e_heldout_above=held[1], heldout_ok=held[0] <= 1.5 * held[1])
-    return pts, evals, table, check
-
-
-def _one_seed(ctx: dict, seed: int, tick) -> dict:
-    q, qd, tp, qdd, segs = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"]
-    steps, lambdas, width, long_factor, sc = ctx["steps"], ctx["lambdas"], ctx["width"], ctx["long_factor"], ctx["sc"]
-    feats = ctx["feats"]
-    rng = np.random.default_rng(seed)
-    tr_segs, te_segs = holdout(segs, ctx["holdout_frac"], rng)
-    tr, te = np.concatenate(tr_segs), np.concatenate(te_segs)
-    cfg = ctx["cfg"]
-    tcfg = TrainConfig(steps=steps)
-    arrays = tuple(jnp.asarray(a) for a in (q, qd, feats, qdd))
-    A_tr = tuple(a[tr] for a in arrays)
-    back = lambda r: sc.force_back(r)  # noqa: E731
-    fnorm = _l1(back(qdd))  # ‖f‖ over all data, original units
-    fnorm_te = _l1(back(qdd[te]))
-    fnorm_tr = _l1(back(qdd[tr]))
-    key = jax.random.PRNGKey(seed)
-    k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
-
-    # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
-    params = {"lnn": init_lnn(k_lnn, cfg), "uan": init_free(k_uan, cfg, n_time=feats.shape[1], widths=(width, width))}
-    train = _trainer("nnphd", cfg, tcfg)
-    pts, evals, table, opt_check = _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te,
-                                          fnorm_te, tick)
-    lams = sorted(lambdas)
-    lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
-    fc_rep, _, power_rep, kin_rep, _, fn_rep = evals[lam_rep]
-    rep = (lam_rep, back(fc_rep), fn_rep, power_rep, kin_rep)
-    params = pts[lams[-1]]
-    points = [SweepPoint(r["lam"], r["L_e"], r["L_b"], r["L_e_train"], r["L_b_train"]) for r in table]
-    try:
-        nv = naive_verdict(points, fnorm_te)
-        naive = {"new_physics": nv.new_physics, "ratio": nv.ratio, "reason": nv.reason}
-    except ValueError as e:  # no λ on one side of 1
-        naive = {"new_physics": None, "ratio": None, "reason": str(e)}
-
-    # (b) the LNN alone, continued from the largest λ; the conservative model is the round with the lowest
-    # *training* error (a round that diverges is not used; the held-out data play no part in the choice)
-    lnn_train = _trainer("lnn", cfg, tcfg)
-    lp = {"lnn": params["lnn"]}
-    hist, hist_tr, best = [], [], None
-    for i, k in enumerate([None, *jax.random.split(k_long, long_factor)]):
-        if k is not None:
-            lp, _ = lnn_train(lp, A_tr, jnp.asarray(0.0, jnp.float64), k)
-            tick()
-        ev = tuple(np.asarray(x) for x in _lnn_eval(lp["lnn"], *arrays[:2], arrays[3], cfg))
-        r = back(ev[0] - qdd)
-        hist.append(_l1(r[te]))
-        hist_tr.append(_l1(r[tr]) if np.all(np.isfinite(r[tr])) else np.inf)
-        if best is None or hist_tr[-1] < hist_tr[best[0]]:
-            best = (i, ev, lp["lnn"])
-    fc_l, power_l, kin_l, E_l, E_rest, kin_signed = best[1]
-    # L and −L give the same motion: orient the learned Lagrangian so that its kinetic term is positive (else its
-    # "energy" is −E and a decay reads as growth)
-    orient = -1.0 if np.median(kin_signed) < 0 else 1.0
-    lnn_best = best[2]
-    cons_tr, cons_te = hist_tr[best[0]], hist[best[0]]
-
-    # (c) the free model of (q, q̇)
-    fp = {"mlp": init_free(k_free, cfg, n_time=0, widths=(width, width))}
-    ft = _trainer("free", cfg, tcfg)
-    for k in jax.random.split(k_free, 1 + long_factor):
-        fp, _ = ft(fp, A_tr, jnp.asarray(0.0, jnp.float64), k)
-        tick()
-    r_free = back(np.asarray(_free_eval(fp, *arrays[:2], cfg)) - qdd)
-    free_tr, free_te = _l1(r_free[tr]), _l1(r_free[te])
-
-    # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
-    # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
-    resid = qdd - fc_l
-    X_s, X_t = time_design(np.concatenate([np.asarray(embed_periodic(jnp.asarray(q), cfg.periodic)), qd], axis=1),
-                           time_features(tp, float(tp.max() - tp.min()), oversample=2))
-    errs = {"state": [], "timed": []}
-    if len(segs) > 1:
-        for k, seg in enumerate(segs):
-            rest = np.concatenate([x for j, x in enumerate(segs) if j != k])
-            for name, X in (("state", X_s), ("timed", X_t)):
-                errs[name].append(_l1(back(resid[seg] - ridge_fit_predict(X[rest], resid[rest], X[seg]))))
-    else:
-        for name, X in (("state", X_s), ("timed", X_t)):
-            errs[name].append(_l1(back(resid[te] - ridge_fit_predict(X[tr], resid[tr], X[te]))))
-    w = np.asarray([len(x) for x in (segs if len(segs) > 1 else [te])], float)
-    e_state, e_timed = (float(np.average(errs[k], weights=w)) for k in ("state", "timed"))
-    improved = float(np.mean(np.asarray(errs["timed"]) < np.asarray(errs["state"])))
-
-    # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
-    # the multiple-shooting fit of the positions with a damping probe (nnphd.engine.evidence)
-    period = ctx["period"]
-    trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, period, seed=seed, kinetic=kin_l)
-    trend["orientation"] = orient
-    if np.all(np.isfinite(power_l)):
-        shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], period, seed=seed)
-    else:
-        shoot = {"valid": False, "reason": "the conservative model diverged"}
-    trend = _trend_units(trend, sc)
-    shoot = _shoot_units(shoot, sc)
-
-    # checks
-    osc = oscillations(np.concatenate([ctx["q_pos"], qd], axis=1), segs)
-    drift = drift_check(power_l, tp, segs, _seg_mean(kin_l, segs), osc, seed=seed)
-    drift["rho_from_energy"] = energy_net_fraction(E_l, segs).tolist()
-    uan_drift = drift_check(rep[3], tp, segs, _seg_mean(rep[4], segs), osc, seed=seed)
-    tchk = time_check(e_state, e_timed, fnorm, improved if len(segs) > 2 else None)
-    tchk.update(residual_state=e_state / fnorm, residual_timed=e_timed / fnorm, improved_fraction=improved,
-                valid=ctx["clock"][0], testable=ctx["clock"][1], n_trajectories=len(segs))
-    gap = gap_check(cons_tr, free_tr, cons_te, free_te)
-    gap.update(conservative_train=cons_tr / fnorm_tr, conservative_test=cons_te / fnorm_te,
-               free_train=free_tr / fnorm_tr, free_test=free_te / fnorm_te)
-    cap = capacity_check(hist)
-    cap.update(errors_rel=(np.asarray(hist) / fnorm_te).tolist(),
-               train_errors_rel=(np.asarray(hist_tr) / fnorm_tr).tolist(), chosen_round=best[0])
-    traj = trajectory_evidence(trend, shoot)
-    traj["effect"] = _effect(traj, trend, shoot)
-
-    if np.all(np.isfinite(power_l)) and np.isfinite(cons_tr):
-        status, reason, boot_agree = _seed_status(drift, tchk, gap, cap, traj, ctx["quality"], len(segs))
-    else:
-        status, reason, boot_agree = ("inconclusive", "the conservative model diverged (non-finite forces): "
-                                      "lower the learning rates or standardise the data differently", 1.0)
-    return {
-        "seed": seed,
-        "status": status,
-        "reason": reason,
-        "agreement": boot_agree,
-        "drift": drift,
-        "uan_power": {k: uan_drift[k] for k in ("rho_median", "magnitude_median", "significant", "bootstrap_fraction")}
-        | {"lam": rep[0]},
-        "time": tchk,
-        "gap": gap,
-        "capacity": cap,
-        "optimisation": opt_check,
-        "energy_trend": trend,
-        "shooting": shoot,
-        "trajectory_evidence": traj,
-        "naive": naive,
-        "table": table,
-        "forces": (rep[0], rep[1], rep[2]),
-        "holdout": [int(len(s)) for s in te_segs],
-        "force_norm": fnorm,
-        "_conservative": {"lnn": lnn_best, "cfg": cfg, "fc": back(fc_l)},
-    }
 
 
 # ------------------------------------------------------------------------------------------------------------------
@@ -372,7 +97,7 @@ def assess(
     steps: int = 1000,
     lambdas: Sequence[float] = DEFAULT_LAMBDAS,
     n_seeds: int = 2,
-    progress: Callable[[int, int, str], None] | None = None,
+    progress: Progress | None = None,
     width: int = 64,
     holdout_frac: float = 0.25,
     long_factor: int = 3,

@@ -1,0 +1,314 @@
+"""Multiple shooting: the positions fitted window by window by RK4 of q̈ = (1 + c)·f_c − D q̇ with free initial
+states; point 2 of :mod:`nnphd.engine.evidence`, which explains the method."""
+from __future__ import annotations
+
+import functools
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+MIN_WINDOW = 8
+
+
+MAX_WINDOW = 80
+
+
+WINDOW_PERIODS = 0.75
+
+
+def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> list[np.ndarray]:
+    """Row indices of consecutive windows of ≈ WINDOW_PERIODS·period within each segment (MIN_WINDOW…MAX_WINDOW
+    samples; a short remainder is merged into the previous window when that stays ≤ MAX_WINDOW, else dropped)."""
+    t = np.asarray(t, float)
+    if dt_median is None:
+        dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1])
+        dt_median = float(np.median(dts)) if dts.size else 1.0
+    L = WINDOW_PERIODS * period / dt_median if np.isfinite(period) else MAX_WINDOW
+    L = int(min(MAX_WINDOW, max(MIN_WINDOW, round(L))))
+    wins = []
+    for s in segs:
+        k = len(s) // L
+        if k == 0:
+            if len(s) >= MIN_WINDOW:
+                wins.append(s)
+            continue
+        parts = [s[i * L:(i + 1) * L] for i in range(k)]
+        rest = s[k * L:]
+        if len(rest) >= MIN_WINDOW:
+            parts.append(rest)
+        elif len(rest) and len(parts[-1]) + len(rest) <= MAX_WINDOW:
+            parts[-1] = np.concatenate([parts[-1], rest])
+        wins.extend(parts)
+    return wins
+
+
+@functools.lru_cache(maxsize=64)
+def _damping_rhs(accel):
+    """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
+    object per ``accel``, so the shooting fit compiles once per model)."""
+    def rhs(theta, q, v, t, params):
+        return (1.0 + theta[0]) * accel(params, q, v) - theta[1:] * v
+    return rhs
+
+
+def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
+    """Residuals (W, L, n) of the windows under the damping probe and their forward derivatives along every local
+    direction (one direction perturbs the same component of every window's initial state; windows are independent)
+    and every global one (see :func:`model_residuals_and_jac`)."""
+    t0w = jnp.zeros(tw.shape[0], tw.dtype)
+    return model_residuals_and_jac(s, theta, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel),
+                                   nsub=nsub)
+
+
+def _solve(A, b):
+    """A⁻¹b for one matrix or a stack; least squares where a matrix is singular (a window or parameter the data
+    do not constrain)."""
+    try:
+        return np.linalg.solve(A, b)
+    except np.linalg.LinAlgError:
+        if A.ndim == 2:
+            return np.linalg.lstsq(A, b, rcond=None)[0]
+        return np.stack([np.linalg.lstsq(a, bb, rcond=None)[0] for a, bb in zip(A, b)])
+
+
+def _blocks(r, jac, P_loc):
+    """Per-window normal-equation blocks from residuals (W, L, n) and forward derivatives (P, W, L, n)."""
+    W = r.shape[0]
+    R = r.reshape(W, -1)
+    J = jac.reshape(jac.shape[0], W, -1)
+    Jl, Jg = J[:P_loc], J[P_loc:]
+    AtA = np.einsum("iwx,jwx->wij", Jl, Jl)
+    AtB = np.einsum("iwx,kwx->wik", Jl, Jg)
+    BtB = np.einsum("kwx,lwx->wkl", Jg, Jg)
+    Atr = np.einsum("iwx,wx->wi", Jl, R)
+    Btr = np.einsum("kwx,wx->wk", Jg, R)
+    return AtA, AtB, BtB, Atr, Btr, np.sum(R * R, axis=1)
+
+
+def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
+    """Per-window Schur complements (W, G, G), (W, G) over the free global parameters, and the local solves."""
+    _W, P, _ = AtA.shape
+    diag = np.einsum("wii->wi", AtA)
+    scale = np.maximum(diag.mean(axis=1), 1e-300)[:, None, None]
+    damp = AtA + mu * diag[:, :, None] * np.eye(P)[None] + 1e-10 * scale * np.eye(P)[None]
+    rhs = np.concatenate([AtB[:, :, free], Atr[:, :, None]], axis=2)
+    X = _solve(damp, rhs)
+    XB, Xr = X[:, :, :-1], X[:, :, -1]
+    S = BtB[:, free][:, :, free] - np.einsum("wik,wil->wkl", AtB[:, :, free], XB)
+    g = Btr[:, free] - np.einsum("wik,wi->wk", AtB[:, :, free], Xr)
+    return S, g, XB, Xr
+
+
+def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
+    """Levenberg–Marquardt over window initial states and the free global parameters."""
+    def resjac(s_, th_):
+        return _residuals_and_jac(params, s_, th_, tw, qw, mask, inv_sigma, accel, nsub)
+    return lm_windows(resjac, s, theta, free, iters, tol)
+
+
+def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8):
+    """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
+    ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
+    window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²)."""
+    P_loc = s.shape[1]
+    mu = 1e-3
+    r, jac = (np.asarray(a) for a in resjac(s, theta))
+    cost = float(np.sum(r * r))
+    if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
+        return s, theta, r, jac, float("nan")
+    for _ in range(iters):
+        AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, P_loc)
+        improved = False
+        for _try in range(8):
+            S, g, XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, mu, free)
+            Stot = S.sum(0)
+            dth_free = -_solve(Stot + mu * np.diag(np.diag(Stot)), g.sum(0)) if free.any() else np.zeros(0)
+            ds = -Xr - np.einsum("wik,k->wi", XB, dth_free)
+            dth = np.zeros_like(theta)
+            dth[free] = dth_free
+            s_new, th_new = s + ds, theta + dth
+            r_new, jac_new = (np.asarray(a) for a in resjac(s_new, th_new))
+            c_new = float(np.sum(r_new * r_new))
+            if np.isfinite(c_new) and c_new <= cost:
+                rel = (cost - c_new) / max(cost, 1e-300)
+                s, theta, r, jac, cost = s_new, th_new, r_new, jac_new, c_new
+                mu = max(mu / 3.0, 1e-9)
+                improved = True
+                break
+            mu *= 10.0
+        if not improved or rel < tol:
+            break
+    return s, theta, r, jac, cost
+
+
+@functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
+def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+    """Like :func:`_residuals_and_jac` for any model q̈ = rhs(theta, q, v, t, aux) (batched over windows; t the
+    absolute time: window start ``t0w`` plus the window clock ``tw``; ``aux`` any data the model needs, not
+    differentiated — so one compiled function serves many models that differ only in data)."""
+    n = qw.shape[-1]
+
+    def simulate(s, theta):
+        q0, v0 = s[:, :n], s[:, n:]
+
+        def f(q, v, tt):
+            return v, rhs(theta, q, v, tt, aux)
+
+        def step(carry, x):
+            h = x / nsub
+            hh = h[:, None]
+
+            def sub(_, c):  # one RK4 sub-step (a loop, not unrolled: the graph stays small to compile)
+                q, v, tt = c
+                k1q, k1v = f(q, v, tt)
+                k2q, k2v = f(q + 0.5 * hh * k1q, v + 0.5 * hh * k1v, tt + 0.5 * h)
+                k3q, k3v = f(q + 0.5 * hh * k2q, v + 0.5 * hh * k2v, tt + 0.5 * h)
+                k4q, k4v = f(q + hh * k3q, v + hh * k3v, tt + h)
+                return (q + hh / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
+                        v + hh / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v), tt + h)
+
+            q, v, tt = jax.lax.fori_loop(0, nsub, sub, carry)
+            return (q, v, tt), q
+
+        dts = jnp.diff(tw, axis=1).T  # (L-1, W)
+        _, qs = jax.lax.scan(step, (q0, v0, t0w + tw[:, 0]), dts)
+        qs = jnp.concatenate([q0[None], qs], axis=0)
+        return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
+
+    r = simulate(s, theta)
+    P_loc, P_glob = s.shape[1], theta.shape[0]
+    ds = jnp.concatenate([jnp.broadcast_to(jnp.eye(P_loc, dtype=s.dtype)[:, None, :], (P_loc, *s.shape)),
+                          jnp.zeros((P_glob, *s.shape), s.dtype)], axis=0)
+    dth = jnp.concatenate([jnp.zeros((P_loc, P_glob), s.dtype), jnp.eye(P_glob, dtype=s.dtype)], axis=0)
+    jac = jax.vmap(lambda a, b: jax.jvp(simulate, (s, theta), (a, b))[1])(ds, dth)
+    return r, jac
+
+
+def _pad_windows(wins, t, q, x0):
+    W = len(wins)
+    L = max(len(w) for w in wins)
+    n = q.shape[1]
+    tw = np.empty((W, L))
+    qw = np.zeros((W, L, n))
+    mask = np.zeros((W, L))
+    for i, w in enumerate(wins):
+        m = len(w)
+        tw[i, :m] = t[w]
+        tw[i, m:] = t[w][-1]  # dt = 0: the state stays put
+        qw[i, :m] = q[w]
+        mask[i, :m] = 1.0
+    s0 = np.concatenate([x0[0][[w[0] for w in wins]], x0[1][[w[0] for w in wins]]], axis=1)
+    return tw, qw, mask, s0
+
+
+def shooting_fit(accel, params, q, qd, t, segs, sigma, period: float, kinetic_weights=None,
+                 n_boot: int = 200, seed: int = 0, max_windows: int = 400) -> dict:
+    """See :func:`_shooting_fit`; a fit that cannot be carried out (the model's trajectories leave the finite
+    numbers, singular normal equations) is reported as ``valid: False`` with the reason, never raised."""
+    try:
+        with np.errstate(all="ignore"):
+            return _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed,
+                                 max_windows)
+    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
+        return {"valid": False, "reason": f"the shooting fit failed ({e.__class__.__name__}: {e})"}
+
+
+def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows):
+    """Multiple-shooting fit of q̈ = (1 + c) f_c(q, q̇) − diag(d) q̇ to the positions (see the module docstring).
+
+    ``accel(params, q, qd)`` is the conservative model (batched, JAX); q, qd (N, n) the positions and the estimated
+    velocities (used only to start the windows); t (N,); segs: rows per trajectory; sigma (n,) the position noise;
+    period: oscillation period (sets the window length). ``kinetic_weights`` (n,): weights of d in d̄ (default
+    mean q̇_j²). Returns the fitted ``c``, ``d`` (n,), ``d_mean`` (= d̄), their standard errors (``se_*``: max of
+    jackknife over groups of windows and model-based), ``z`` = d̄/se(d̄), the χ² with and without d (``chi2``,
+    ``chi2_conservative``; positions weighted by sigma), the window count and length, and ``bootstrap_z`` (d̄ of
+    window-bootstrap replicas over se(d̄)).
+    """
+    q = np.asarray(q, float)
+    qd = np.asarray(qd, float)
+    t = np.asarray(t, float)
+    n = q.shape[1]
+    wins = shooting_windows(segs, t, period)
+    if len(wins) > max_windows:  # evenly spaced subset: bounded cost on very long records
+        keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
+        wins = [wins[i] for i in keep]
+    out = {"valid": False, "n_windows": len(wins)}
+    if len(wins) < 3:
+        out["reason"] = f"only {len(wins)} shooting windows"
+        return out
+    sig = np.asarray(sigma, float)
+    spread = np.array([np.ptp(q[:, j]) for j in range(n)])
+    sig = np.maximum(sig, 1e-3 * np.maximum(spread, 1e-12))
+    tw, qw, mask, s0 = _pad_windows(wins, t, q, (q, qd))
+    tw = tw - tw[:, :1]  # each window on its own clock (the model is autonomous)
+    dtmax = float(np.max(np.diff(tw, axis=1)))
+    vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
+    nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
+    inv_sigma = 1.0 / sig
+    args = (jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma))
+    theta0 = np.zeros(1 + n)
+    r0, j0 = (np.asarray(a) for a in _residuals_and_jac(params, s0, theta0, *args, accel, nsub))
+    bad = ~(np.all(np.isfinite(r0), axis=(1, 2)) & np.all(np.isfinite(j0), axis=(0, 2, 3)))
+    out["dropped_windows"] = int(bad.sum())
+    if bad.any():  # windows where the conservative model leaves the finite numbers from the data's start
+        if (~bad).sum() < 3:
+            out["reason"] = "the conservative model's trajectories leave the finite numbers in almost every window"
+            return out
+        wins = [w_ for w_, b in zip(wins, bad) if not b]
+        tw, qw, mask, s0 = (a[~bad] for a in (tw, qw, mask, s0))
+        args = (jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma))
+    free_c = np.array([True] + [False] * n)
+    free_all = np.ones(1 + n, dtype=bool)
+    s_c, th_c, _, _, chi2_c = _lm(params, accel, s0, theta0, *args, nsub, free_c)
+    _s, th, r, jac, chi2 = _lm(params, accel, s_c, th_c, *args, nsub, free_all)
+    if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
+        out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
+        return out
+    if np.array_equal(th[1:], th_c[1:]):
+        out["reason"] = "the shooting fit made no progress (no step lowered χ²): not converged"
+        return out
+    AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, 2 * n)
+    S, g, _, _ = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free_all)
+    Stot = S.sum(0)
+    n_res = int(mask.sum()) * n
+    n_par = len(wins) * 2 * n + 1 + n
+    s2 = chi2 / max(n_res - n_par, 1)
+    cov_model = s2 * np.linalg.pinv(Stot)
+    W = len(wins)
+    G = min(W, 20)
+    groups = np.array_split(np.arange(W), G)
+    reps = []
+    for grp in groups:
+        Sg, gg = S[grp].sum(0), g[grp].sum(0)
+        reps.append(th + _solve(Stot - Sg, gg))
+    reps = np.asarray(reps)
+    # jackknife variance (G-1)/G Σ (θ_(g) − θ̄)²; np.cov with bias=True divides by G
+    cov_jack = (G - 1) * np.cov(reps.T, bias=True) if G > 1 else np.zeros_like(Stot)
+    w = np.mean(qd**2, axis=0) if kinetic_weights is None else np.asarray(kinetic_weights, float)
+    w = w / w.sum() if w.sum() > 0 else np.full(n, 1.0 / n)
+    a = np.concatenate([[0.0], w])  # d̄ = a·θ
+    var_model = float(a @ cov_model @ a)
+    var_jack = float(a @ cov_jack @ a)
+    se_mean = math.sqrt(max(var_model, var_jack, 1e-300))
+    se_d = np.sqrt(np.maximum(np.diag(cov_model), np.diag(cov_jack)))
+    d_mean = float(a @ th)
+    rng = np.random.default_rng(seed)
+    zb = []
+    for _ in range(n_boot):
+        idx = rng.integers(0, W, W)
+        Sb, gb = S[idx].sum(0), g[idx].sum(0)
+        thb = th - _solve(Sb, gb)
+        zb.append(float(a @ thb) / se_mean)
+    out.update(
+        valid=bool(np.isfinite(chi2) and np.all(np.isfinite(th))),
+        c=float(th[0]), d=th[1:].tolist(), d_mean=d_mean, se_c=float(se_d[0]), se_d=se_d[1:].tolist(),
+        se_d_mean=se_mean, se_d_mean_model=math.sqrt(max(var_model, 0.0)),
+        se_d_mean_jackknife=math.sqrt(max(var_jack, 0.0)), z=d_mean / se_mean,
+        chi2=float(chi2), chi2_conservative=float(chi2_c), n_residuals=n_res, reduced_chi2=float(s2),
+        window_samples=int(max(len(w_) for w_ in wins)), window_median_samples=int(np.median([len(w_) for w_ in wins])),
+        substeps=nsub, weights=w.tolist(), bootstrap_z=zb, jackknife_groups=G,
+        rms_residual=(np.sqrt(np.sum((r * sig) ** 2, axis=(0, 1)) / mask.sum())).tolist(),
+    )
+    return out

@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
 """Set up the project in ./.venv (if needed) and run the demo or the tests. Needs only python3 (≥ 3.11).
 
-    python3 dev.py demo    # λ-sweeps on HO+LD (friction: a jump at λ=1) and HO+MF (conservative: no jump)
-    python3 dev.py test    # the test suite (pytest)
+python3 dev.py demo    # λ-sweeps on HO+LD (friction: a jump at λ=1) and HO+MF (conservative: no jump)
+python3 dev.py test    # the test suite (pytest)
 """
+
 import hashlib
 import os
 import subprocess
@@ -47,8 +48,10 @@ def main() -> None:
             run(str(BIN / "nnphd"), "sweep", "--system", system, "--out", f"out/demo/{system}")
         print("\nresults: out/demo/ho+ld/ and out/demo/ho+mf/ (results.json, loss_vs_lambda.png)")
     elif what == "test":
-        # lint (ruff, settings in pyproject.toml) beside the tests: both run, either failing fails
-        lint = subprocess.run([str(BIN / "ruff"), "check", "src", "tests", "benchmarks", "dev.py"], cwd=ROOT).returncode
+        # lint and format check (ruff, settings in pyproject.toml) beside the tests: all run, any failing fails
+        paths = ["src", "tests", "benchmarks", "dev.py"]
+        lint = subprocess.run([str(BIN / "ruff"), "check", *paths], cwd=ROOT).returncode
+        lint = subprocess.run([str(BIN / "ruff"), "format", "--check", *paths], cwd=ROOT).returncode or lint
         tests = subprocess.run([str(BIN / "python"), "-m", "pytest", "tests", *sys.argv[2:]], cwd=ROOT).returncode
         if lint or tests:
             sys.exit(tests or lint)

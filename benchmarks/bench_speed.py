@@ -12,6 +12,7 @@ state threaded through, as in training); the reported ms/step is the median over
 
 Run:  .venv/bin/python benchmarks/bench_speed.py [--quick] [--reps 50] [--blocks 3]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -53,8 +54,14 @@ def machine_info() -> dict:
         cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
     except (OSError, StopIteration):
         cpu = "unknown"
-    return {"nproc": len(os.sched_getaffinity(0)), "cpu_model": cpu, "jax_version": jax.__version__,
-            "jax_backend": jax.default_backend(), "python": platform.python_version(), "loadavg_1min": os.getloadavg()[0]}
+    return {
+        "nproc": len(os.sched_getaffinity(0)),
+        "cpu_model": cpu,
+        "jax_version": jax.__version__,
+        "jax_backend": jax.default_backend(),
+        "python": platform.python_version(),
+        "loadavg_1min": os.getloadavg()[0],
+    }
 
 
 def reference_loss(params, q, qd, t, qdd, cfg, p):
@@ -71,6 +78,7 @@ def plain_loss(params, q, qd, t, qdd, cfg, p):
 
 def make_step(loss_fn, opt):
     """One jitted training step: value_and_grad of L_e + λ L_b, then an Adam update (as in make_trainer)."""
+
     def objective(params, batch, lam):
         le, lb = loss_fn(params, *batch)
         return le + lam * lb
@@ -110,26 +118,37 @@ def bench_steps(reps: int, blocks: int) -> dict:
     cfg, opt = ModelConfig(n=N), optax.adam(1e-3)
     kp, kd = jax.random.split(jax.random.PRNGKey(0))
     nnphd_params, plain_params = init_nnphd(kp, cfg), init_uan(kp, cfg)
-    steps = {name: make_step(partial(fn, cfg=cfg, p=P), opt)
-             for name, fn in (("ours", loss_terms), ("reference", reference_loss), ("plain", plain_loss))}
+    steps = {
+        name: make_step(partial(fn, cfg=cfg, p=P), opt)
+        for name, fn in (("ours", loss_terms), ("reference", reference_loss), ("plain", plain_loss))
+    }
     out = {}
     for b in BATCHES:
         k = jax.random.split(kd, 4)
         batch = tuple(jax.random.normal(ki, s, jnp.float64) for ki, s in zip(k, [(b, N), (b, N), (b,), (b, N)]))
         ref_reps = reps if b < 1000 else max(5, reps // 10)
-        r = {"ours_ms": time_step(steps["ours"], nnphd_params, batch, opt, reps, blocks),
-             "reference_ms": time_step(steps["reference"], nnphd_params, batch, opt, ref_reps, blocks),
-             "plain_ms": time_step(steps["plain"], plain_params, batch, opt, reps, blocks),
-             "reps_per_block": {"ours": reps, "reference": ref_reps, "plain": reps}, "blocks": blocks}
+        r = {
+            "ours_ms": time_step(steps["ours"], nnphd_params, batch, opt, reps, blocks),
+            "reference_ms": time_step(steps["reference"], nnphd_params, batch, opt, ref_reps, blocks),
+            "plain_ms": time_step(steps["plain"], plain_params, batch, opt, reps, blocks),
+            "reps_per_block": {"ours": reps, "reference": ref_reps, "plain": reps},
+            "blocks": blocks,
+        }
         r.update(reference_over_ours=r["reference_ms"] / r["ours_ms"], ours_over_plain=r["ours_ms"] / r["plain_ms"])
-        r.update(goal_reference_met=r["reference_over_ours"] >= GOAL_REF, goal_plain_met=r["ours_over_plain"] <= GOAL_PLAIN)
+        r.update(
+            goal_reference_met=r["reference_over_ours"] >= GOAL_REF, goal_plain_met=r["ours_over_plain"] <= GOAL_PLAIN
+        )
         out[str(b)] = r
     return out
 
 
 def bench_sweeps() -> dict:
     out = {}
-    for label, system, mode in (("ho+ld warm", "ho+ld", "warm"), ("ho+ld vmap", "ho+ld", "vmap"), ("ho+mf warm", "ho+mf", "warm")):
+    for label, system, mode in (
+        ("ho+ld warm", "ho+ld", "warm"),
+        ("ho+ld vmap", "ho+ld", "vmap"),
+        ("ho+mf warm", "ho+mf", "warm"),
+    ):
         t0 = time.perf_counter()
         res = run_sweep(system, steps=2000, seed=0, mode=mode)
         total = time.perf_counter() - t0
@@ -158,15 +177,21 @@ def main() -> None:
     if args.reps < 1 or args.blocks < 1:
         ap.error("--reps and --blocks must be ≥ 1")
     info = machine_info()
-    print(f"machine: {info['cpu_model']}, nproc={info['nproc']}, jax {info['jax_version']} ({info['jax_backend']}), "
-          f"load {info['loadavg_1min']:.2f}; n={N}, float64, widths 200-200")
+    print(
+        f"machine: {info['cpu_model']}, nproc={info['nproc']}, jax {info['jax_version']} ({info['jax_backend']}), "
+        f"load {info['loadavg_1min']:.2f}; n={N}, float64, widths 200-200"
+    )
     steps = bench_steps(args.reps, args.blocks)
     yes = lambda ok: "yes" if ok else "NO"
-    print(f"\n{'B':>5} {'ours ms':>9} {'ref ms':>9} {'plain ms':>9} {'ref/ours (goal ≥3)':>20} {'ours/plain (goal ≤3)':>22}")
+    print(
+        f"\n{'B':>5} {'ours ms':>9} {'ref ms':>9} {'plain ms':>9} {'ref/ours (goal ≥3)':>20} {'ours/plain (goal ≤3)':>22}"
+    )
     for b, r in steps.items():
-        print(f"{b:>5} {r['ours_ms']:>9.3f} {r['reference_ms']:>9.3f} {r['plain_ms']:>9.3f} "
-              f"{r['reference_over_ours']:>11.2f} met={yes(r['goal_reference_met']):<3} "
-              f"{r['ours_over_plain']:>13.2f} met={yes(r['goal_plain_met'])}")
+        print(
+            f"{b:>5} {r['ours_ms']:>9.3f} {r['reference_ms']:>9.3f} {r['plain_ms']:>9.3f} "
+            f"{r['reference_over_ours']:>11.2f} met={yes(r['goal_reference_met']):<3} "
+            f"{r['ours_over_plain']:>13.2f} met={yes(r['goal_plain_met'])}"
+        )
     sweeps = None if args.quick else bench_sweeps()
     if sweeps:
         print(f"\n{'13-λ sweep, 2000 steps/λ':<26} {'total s':>8} {'sweep s':>8}  goal ≤{GOAL_SWEEP:g} s")
@@ -175,8 +200,17 @@ def main() -> None:
     print("\n(--quick: sweeps skipped)" if args.quick else "")
     goals = {"reference_over_ours_min": GOAL_REF, "ours_over_plain_max": GOAL_PLAIN, "sweep_s_max": GOAL_SWEEP}
     path = Path(__file__).resolve().parent / "results" / "speed.json"
-    write_json(path, {"machine": info, "args": vars(args), "goals": goals, "steps": steps, "sweeps": sweeps,
-                      "timestamp": time.strftime("%Y-%m-%dT%H:%M:%S%z")})
+    write_json(
+        path,
+        {
+            "machine": info,
+            "args": vars(args),
+            "goals": goals,
+            "steps": steps,
+            "sweeps": sweeps,
+            "timestamp": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        },
+    )
     print(f"wrote {path}")
 
 

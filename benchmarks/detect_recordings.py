@@ -9,6 +9,7 @@ Per case: the expected verdict, ours (status and confidence), the energy-decay r
 Lagrangian's energy trend against the truth (the same definition, ``true_decay_rate``, applied to the exact energy),
 the shooting fit's damping z, and the wall time of the whole ``detect_file`` call (derivatives, training, checks).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,8 +46,10 @@ def main() -> None:
         name, sec = item.split("=")
         recordings._PARAMS[name]["duration"] = float(sec)
     rows = []
-    print("| case | samples | truth | expected | ours (confidence) | energy-decay rate: ours / truth | shooting z "
-          "| law (or best candidate, not claimed) | s |")
+    print(
+        "| case | samples | truth | expected | ours (confidence) | energy-decay rate: ours / truth | shooting z "
+        "| law (or best candidate, not claimed) | s |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
     for seed in [int(s) for s in a.seeds.split(",")]:
         for name in a.names.split(","):
@@ -68,17 +71,40 @@ def main() -> None:
             ok = right(rec.expected, rep["status"])
             lw = rep.get("law") or {}
             best = lw.get("law") or lw.get("candidate_law")
-            law_s = "—" if best is None else (("" if lw.get("law") else "(") + "; ".join(
-                f"{k} = {v}" for k, v in best["formula"].items()) + f", ΔIC {best['delta_ic']:.0f}"
-                + ("" if lw.get("law") else ")"))
-            print(f"| {name}{'' if seed == 0 else f' (seed {seed})'} | {rec.n_samples} | "
-                  f"{'conservative' if rec.conservative else 'non-conservative'} | {rec.expected} | "
-                  f"{'' if ok else '**'}{rep['status']}{'' if ok else '**'} ({rep['confidence']:.2f}) | {rate_s} | {z} "
-                  f"| {law_s} | {wall:.0f} |", flush=True)
-            rows.append({"name": name, "seed": seed, "expected": rec.expected, "status": rep["status"],
-                         "confidence": rep["confidence"], "right": ok, "rate": rate, "rate_truth": truth,
-                         "shooting_z": sh.get("z"), "energy_z": tr.get("z"), "wall_s": wall, "law": law_s,
-                         "reasons": rep["reasons"]})
+            law_s = (
+                "—"
+                if best is None
+                else (
+                    ("" if lw.get("law") else "(")
+                    + "; ".join(f"{k} = {v}" for k, v in best["formula"].items())
+                    + f", ΔIC {best['delta_ic']:.0f}"
+                    + ("" if lw.get("law") else ")")
+                )
+            )
+            print(
+                f"| {name}{'' if seed == 0 else f' (seed {seed})'} | {rec.n_samples} | "
+                f"{'conservative' if rec.conservative else 'non-conservative'} | {rec.expected} | "
+                f"{'' if ok else '**'}{rep['status']}{'' if ok else '**'} ({rep['confidence']:.2f}) | {rate_s} | {z} "
+                f"| {law_s} | {wall:.0f} |",
+                flush=True,
+            )
+            rows.append(
+                {
+                    "name": name,
+                    "seed": seed,
+                    "expected": rec.expected,
+                    "status": rep["status"],
+                    "confidence": rep["confidence"],
+                    "right": ok,
+                    "rate": rate,
+                    "rate_truth": truth,
+                    "shooting_z": sh.get("z"),
+                    "energy_z": tr.get("z"),
+                    "wall_s": wall,
+                    "law": law_s,
+                    "reasons": rep["reasons"],
+                }
+            )
     print(f"\n{sum(r['right'] for r in rows)} of {len(rows)} verdicts right")
     if a.json:
         with open(a.json, "w") as fh:

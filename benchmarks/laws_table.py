@@ -9,6 +9,7 @@ controls: rms(law)/rms(q̈), where any law is wrong); "right" = within 20 % and,
 for a control, no law. Times: the whole ``detect_file`` call (derivatives, λ-sweep, checks, laws) and the baseline's
 derivatives + fit.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -46,6 +47,7 @@ def formula_fn(formula: dict, coords):
     def f(q, qd, t):
         args = [q[:, j] for j in range(q.shape[1])] + [qd[:, j] for j in range(q.shape[1])] + [t]
         return np.stack([np.broadcast_to(np.asarray(g(*args), float), t.shape) for g in fs], axis=1)
+
     return f
 
 
@@ -75,17 +77,36 @@ def main() -> None:
         berr = cases.score(c, b["predict"])
         bok = (berr <= TOL) if c.spec.forms else not b["terms"]
         if law:
-            txt = "; ".join(f"{k} = {v}" for k, v in law["formula"].items()) + " (" + ", ".join(
-                f"{p} = {v:.4g} ± {law['stderr'][p]:.2g}" for p, v in law["params"].items()) + ")"
+            txt = (
+                "; ".join(f"{k} = {v}" for k, v in law["formula"].items())
+                + " ("
+                + ", ".join(f"{p} = {v:.4g} ± {law['stderr'][p]:.2g}" for p, v in law["params"].items())
+                + ")"
+            )
         else:
             txt = "— (" + rep["status"] + ")"
         btxt = "; ".join(f"{k} = {v}" for k, v in b["formula"].items() if v != "0") or "—"
-        print(f"| {name} | {c.spec.description} | {txt} | {err:.3f} | {'yes' if ok else 'NO'} | {wall:.0f} | "
-              f"{btxt} | {berr:.3f} | {'yes' if bok else 'NO'} | {b['seconds']:.2f} |", flush=True)
-        rows.append({"case": name, "truth": c.spec.description, "status": rep["status"], "law": law,
-                     "error": err, "right": bool(ok), "seconds": wall, "baseline": btxt, "baseline_error": berr,
-                     "baseline_right": bool(bok), "baseline_seconds": b["seconds"],
-                     "law_reason": (rep.get("law") or {}).get("reason")})
+        print(
+            f"| {name} | {c.spec.description} | {txt} | {err:.3f} | {'yes' if ok else 'NO'} | {wall:.0f} | "
+            f"{btxt} | {berr:.3f} | {'yes' if bok else 'NO'} | {b['seconds']:.2f} |",
+            flush=True,
+        )
+        rows.append(
+            {
+                "case": name,
+                "truth": c.spec.description,
+                "status": rep["status"],
+                "law": law,
+                "error": err,
+                "right": bool(ok),
+                "seconds": wall,
+                "baseline": btxt,
+                "baseline_error": berr,
+                "baseline_right": bool(bok),
+                "baseline_seconds": b["seconds"],
+                "law_reason": (rep.get("law") or {}).get("reason"),
+            }
+        )
     n, nb = sum(r["right"] for r in rows), sum(r["baseline_right"] for r in rows)
     print(f"\nnnphd right: {n}/{len(rows)}; baseline right: {nb}/{len(rows)}")
     if a.json:

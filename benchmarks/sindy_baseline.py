@@ -13,6 +13,7 @@ BIC = m·log(RSS/m) + k·log(m) (m rows, k nonzero terms); a given ``threshold``
 
 Run the demo:  .venv/bin/python benchmarks/sindy_baseline.py
 """
+
 from __future__ import annotations
 
 import time
@@ -38,7 +39,7 @@ def _sg_derivatives(t, q, traj):
         dt = float(np.median(np.diff(t[seg])))
         d = [savgol_filter(q[seg], w, POLYORDER, deriv=k, delta=dt, axis=0) for k in (0, 1, 2)]
         h = w // 2
-        out.append([a[h:len(seg) - h] for a in d])
+        out.append([a[h : len(seg) - h] for a in d])
     return [np.concatenate(parts) for parts in zip(*out)]
 
 
@@ -48,8 +49,9 @@ def _stlsq(theta, y, threshold):
     return np.asarray(opt.coef_)[0]
 
 
-def sindy_law(t: np.ndarray, q: np.ndarray, traj: np.ndarray | None, names: list[str],
-              threshold: float | None = None) -> dict:
+def sindy_law(
+    t: np.ndarray, q: np.ndarray, traj: np.ndarray | None, names: list[str], threshold: float | None = None
+) -> dict:
     """Fit q̈ = Θ(q, q̇)·ξ with a cubic library and return its velocity-odd part (the law) -- see module docstring."""
     t0 = time.perf_counter()
     t, q = np.asarray(t, float), np.asarray(q, float).reshape(len(t), -1)
@@ -65,7 +67,7 @@ def sindy_law(t: np.ndarray, q: np.ndarray, traj: np.ndarray | None, names: list
     for k in range(n):
         ys = np.sqrt(np.mean(qdd[:, k] ** 2)) or 1.0
         best = None
-        for thr in ([threshold] if threshold is not None else THRESHOLDS):
+        for thr in [threshold] if threshold is not None else THRESHOLDS:
             xi = _stlsq(ths, qdd[:, k] / ys, thr)
             rss = float(np.sum((ths @ xi - qdd[:, k] / ys) ** 2))
             bic = m * np.log(max(rss, 1e-300) / m) + np.count_nonzero(xi) * np.log(m)
@@ -75,22 +77,32 @@ def sindy_law(t: np.ndarray, q: np.ndarray, traj: np.ndarray | None, names: list
     seconds = time.perf_counter() - t0
 
     syms = sp.symbols(list(names) + [f"{a}_dot" for a in names])
-    exprs = [sp.Mul(*[s**int(p) for s, p in zip(syms, row)]) for row in powers]
+    exprs = [sp.Mul(*[s ** int(p) for s, p in zip(syms, row)]) for row in powers]
     monos = [str(e) for e in exprs]
     odd = powers[:, n:].sum(axis=1) % 2 == 1
     law = coef * odd[None, :]
     terms = {(k, monos[j]) for k in range(n) for j in range(len(monos)) if law[k, j] != 0}
-    formula = {f"{names[k]}_ddot": str(sp.Add(*[sp.Float(law[k, j], 4) * exprs[j] for j in range(len(exprs))
-                                                if law[k, j] != 0])) for k in range(n)}
+    formula = {
+        f"{names[k]}_ddot": str(
+            sp.Add(*[sp.Float(law[k, j], 4) * exprs[j] for j in range(len(exprs)) if law[k, j] != 0])
+        )
+        for k in range(n)
+    }
 
     def predict(qq, qqd, tt=None):
         x = np.hstack([np.asarray(qq, float).reshape(-1, n), np.asarray(qqd, float).reshape(-1, n)])
         return np.prod(x[:, None, :] ** powers[None], axis=2) @ law.T
 
-    return {"terms": terms, "formula": formula, "predict": predict, "seconds": seconds,
-            "coefficients": {(k, monos[j]): float(coef[k, j]) for k in range(n) for j in range(len(monos))
-                             if coef[k, j] != 0},
-            "threshold": chosen}
+    return {
+        "terms": terms,
+        "formula": formula,
+        "predict": predict,
+        "seconds": seconds,
+        "coefficients": {
+            (k, monos[j]): float(coef[k, j]) for k in range(n) for j in range(len(monos)) if coef[k, j] != 0
+        },
+        "threshold": chosen,
+    }
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ paper's protocol), detect.verdict. "naive(held-out)" is the ratio of assess's ow
 
     .venv/bin/python benchmarks/trust_table.py [--steps 1000] [--width 64] [--seeds 2] [--single] [--cases a,b]
 """
+
 import argparse
 import json
 import os
@@ -40,7 +41,9 @@ ap.add_argument("--single", action="store_true", help="also one-trajectory varia
 ap.add_argument("--only-single", action="store_true")
 ap.add_argument("--cases", default=None)
 ap.add_argument("--json", default="/tmp/trust_table.json")
-ap.add_argument("--no-naive", action="store_true", help="skip the naive paper sweep (its code is not nnphd.user.assess)")
+ap.add_argument(
+    "--no-naive", action="store_true", help="skip the naive paper sweep (its code is not nnphd.user.assess)"
+)
 args = ap.parse_args()
 
 names = args.cases.split(",") if args.cases else list(CASES)
@@ -57,9 +60,11 @@ def naive_paper(d, seed):
     return verdict(pts, force_norm(d.qdd, 1.0))
 
 
-hdr = (f"{'case':20s} {'K':>2s} {'truth':>9s} {'fn/f':>6s} | {'naive':>5s} {'ratio':>6s} {'ho-ratio':>8s} | "
-       f"{'status':12s} {'call':5s} {'conf':>4s} {'stat':>5s} {'drift':>6s} {'t-gain':>6s} {'gap_tr':>6s} | "
-       f"{'time':>5s}")
+hdr = (
+    f"{'case':20s} {'K':>2s} {'truth':>9s} {'fn/f':>6s} | {'naive':>5s} {'ratio':>6s} {'ho-ratio':>8s} | "
+    f"{'status':12s} {'call':5s} {'conf':>4s} {'stat':>5s} {'drift':>6s} {'t-gain':>6s} {'gap_tr':>6s} | "
+    f"{'time':>5s}"
+)
 print(hdr)
 print("-" * len(hdr))
 out, reasons = [], []
@@ -68,7 +73,9 @@ for name, K, T in runs:
     d, traj = make_case(name, n_traj=K, seed=args.seed, T=T)
     frac = float(np.mean(np.abs(d.fn)) / np.mean(np.abs(d.qdd)))
     t0 = time.perf_counter()
-    nv = naive_paper(d, args.seed) if not args.no_naive else type("NV", (), {"new_physics": None, "ratio": float("nan")})
+    nv = (
+        naive_paper(d, args.seed) if not args.no_naive else type("NV", (), {"new_physics": None, "ratio": float("nan")})
+    )
     t_naive = time.perf_counter() - t0
     t0 = time.perf_counter()
     r = assess(d, traj, seed=args.seed, steps=args.steps, width=args.width, n_seeds=args.seeds)
@@ -77,19 +84,34 @@ for name, K, T in runs:
     ho = np.median([x for x in ch["naive"]["ratio"] if x is not None])
     truth = "cons" if c.conservative else "NON-cons"
     ok = (r["status"] != "detected") if c.conservative else (r["status"] == "detected")
-    row = (f"{name:20s} {K:2d} {truth:>9s} {frac:6.3f} | {('NEW' if nv.new_physics else ('no' if nv.new_physics is not None else '—')):>5s} {nv.ratio:6.2f} "
-           f"{ho:8.2f} | {r['status']:12s} {r['new_physics']!s:5s} {r['confidence']:4.2f} "
-           f"{(r['statistic']['value'] if r['statistic']['value'] is not None else float('nan')):5.2f} {np.median(ch['drift']['magnitude_median']):6.3f} "
-           f"{np.median(ch['time']['gain']):6.2f} {np.median(ch['gap']['gap_train']):6.2f} | "
-           f"{t_assess:4.0f}s {'ok' if ok else 'WRONG'}")
+    row = (
+        f"{name:20s} {K:2d} {truth:>9s} {frac:6.3f} | {('NEW' if nv.new_physics else ('no' if nv.new_physics is not None else '—')):>5s} {nv.ratio:6.2f} "
+        f"{ho:8.2f} | {r['status']:12s} {r['new_physics']!s:5s} {r['confidence']:4.2f} "
+        f"{(r['statistic']['value'] if r['statistic']['value'] is not None else float('nan')):5.2f} {np.median(ch['drift']['magnitude_median']):6.3f} "
+        f"{np.median(ch['time']['gain']):6.2f} {np.median(ch['gap']['gap_train']):6.2f} | "
+        f"{t_assess:4.0f}s {'ok' if ok else 'WRONG'}"
+    )
     print(row, flush=True)
     reasons.append((name, K, r["reasons"]))
-    out.append({"case": name, "n_traj": K, "conservative": c.conservative, "fn_fraction": frac,
-                "naive_paper": {"new_physics": nv.new_physics, "ratio": nv.ratio, "time_s": t_naive},
-                "naive_heldout_ratio": ho, "status": r["status"], "new_physics": r["new_physics"],
-                "confidence": r["confidence"], "statistic": r["statistic"]["value"], "reasons": r["reasons"],
-                "checks": {k: v for k, v in ch.items() if k != "per_seed"}, "table": r["table"], "time_s": t_assess,
-                "correct": ok})
+    out.append(
+        {
+            "case": name,
+            "n_traj": K,
+            "conservative": c.conservative,
+            "fn_fraction": frac,
+            "naive_paper": {"new_physics": nv.new_physics, "ratio": nv.ratio, "time_s": t_naive},
+            "naive_heldout_ratio": ho,
+            "status": r["status"],
+            "new_physics": r["new_physics"],
+            "confidence": r["confidence"],
+            "statistic": r["statistic"]["value"],
+            "reasons": r["reasons"],
+            "checks": {k: v for k, v in ch.items() if k != "per_seed"},
+            "table": r["table"],
+            "time_s": t_assess,
+            "correct": ok,
+        }
+    )
 print()
 for name, K, rs in reasons:
     print(f"{name} (K={K}):")
@@ -97,5 +119,8 @@ for name, K, rs in reasons:
         print("    " + x)
 with open(args.json, "w") as fh:
     json.dump(out, fh, indent=1, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
-print(f"\nconfig: steps={args.steps} width={args.width} n_seeds={args.seeds} seed={args.seed} ntraj={args.ntraj}; "
-      f"correct {sum(o['correct'] for o in out)}/{len(out)}", file=sys.stderr)
+print(
+    f"\nconfig: steps={args.steps} width={args.width} n_seeds={args.seeds} seed={args.seed} ntraj={args.ntraj}; "
+    f"correct {sum(o['correct'] for o in out)}/{len(out)}",
+    file=sys.stderr,
+)

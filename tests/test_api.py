@@ -1,5 +1,6 @@
 """The Python API (nnphd.Trajectories, nnphd.NNPhD, nnphd.load): the README's quickstart as is, save/load exact,
 no side effects of `import nnphd`, clear errors."""
+
 from __future__ import annotations
 
 import json
@@ -24,8 +25,15 @@ def _quickstart() -> str:
 
 
 def _fresh(code: str, cwd, env=None):
-    return subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True, text=True, timeout=600, check=False,
-                          env={**os.environ, **(env or {})})
+    return subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+        env={**os.environ, **(env or {})},
+    )
 
 
 def test_import_changes_nothing_in_the_session(tmp_path):
@@ -52,8 +60,11 @@ print(json.dumps([before, after, state(), jax.numpy.ones(1).dtype.name]))
 
 
 def test_configure_sets_float64_and_the_flag(tmp_path):
-    r = _fresh("import os, jax, nnphd; nnphd.configure(); print(jax.config.jax_enable_x64, os.environ['XLA_FLAGS'])",
-               tmp_path, env={"XLA_FLAGS": ""})
+    r = _fresh(
+        "import os, jax, nnphd; nnphd.configure(); print(jax.config.jax_enable_x64, os.environ['XLA_FLAGS'])",
+        tmp_path,
+        env={"XLA_FLAGS": ""},
+    )
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["True", nnphd.XLA_FLAG]
 
@@ -111,13 +122,20 @@ def test_readme_quickstart_runs_as_is_in_an_empty_folder(tmp_path):
     assert res["x64_after"] is False
 
 
-@pytest.mark.parametrize("args, kw, msg", [
-    ((np.arange(10.0), np.zeros((9, 1))), {}, "q must be (N,) or (N, n) with N = 10"),
-    ((np.arange(10.0), np.zeros((10, 2))), {"names": ["x"]}, "names must be 2 distinct names"),
-    ((np.arange(10.0), np.zeros(10)), {"angles": ["y"]}, "angle 'y' is not a coordinate"),
-    ((np.r_[0.0, 2.0, 1.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0], np.arange(10.0)), {}, "t is not strictly increasing"),
-    (([np.arange(10.0)], [np.zeros(10), np.zeros(10)]), {}, "q must be a list of 1 arrays"),
-])
+@pytest.mark.parametrize(
+    "args, kw, msg",
+    [
+        ((np.arange(10.0), np.zeros((9, 1))), {}, "q must be (N,) or (N, n) with N = 10"),
+        ((np.arange(10.0), np.zeros((10, 2))), {"names": ["x"]}, "names must be 2 distinct names"),
+        ((np.arange(10.0), np.zeros(10)), {"angles": ["y"]}, "angle 'y' is not a coordinate"),
+        (
+            (np.r_[0.0, 2.0, 1.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0], np.arange(10.0)),
+            {},
+            "t is not strictly increasing",
+        ),
+        (([np.arange(10.0)], [np.zeros(10), np.zeros(10)]), {}, "q must be a list of 1 arrays"),
+    ],
+)
 def test_bad_arrays_give_one_line_errors(args, kw, msg):
     with pytest.raises(ValueError) as e:
         nnphd.Trajectories(*args, **kw)
@@ -138,13 +156,21 @@ def test_the_four_ways_in_give_the_same_data(tmp_path):
     t1, t2 = np.arange(0.0, 5.0, 0.1), np.arange(0.0, 3.0, 0.1)
     q1, q2 = np.column_stack([np.cos(t1), np.sin(t1)]), np.column_stack([np.cos(t2), 2 * np.sin(t2)])
     lists = nnphd.Trajectories([t1, t2], [q1, q2], names=["x", "th"], angles=["th"])
-    ids = nnphd.Trajectories(np.r_[t1, t2], np.r_[q1, q2], traj=np.r_[np.zeros(50), np.ones(30)], names=["x", "th"],
-                             angles=["th"])
-    cols = {"t": np.r_[t1, t2], "traj": np.r_[np.zeros(50), np.ones(30)], "x": np.r_[q1[:, 0], q2[:, 0]],
-            "th": np.r_[q1[:, 1], q2[:, 1]]}
+    ids = nnphd.Trajectories(
+        np.r_[t1, t2], np.r_[q1, q2], traj=np.r_[np.zeros(50), np.ones(30)], names=["x", "th"], angles=["th"]
+    )
+    cols = {
+        "t": np.r_[t1, t2],
+        "traj": np.r_[np.zeros(50), np.ones(30)],
+        "x": np.r_[q1[:, 0], q2[:, 0]],
+        "th": np.r_[q1[:, 1], q2[:, 1]],
+    }
     table = nnphd.Trajectories.from_dataframe(cols, angles=["th"])
     path = tmp_path / "d.csv"
-    path.write_text("t,traj,x,th\n" + "".join(f"{float(a)!r},{int(b)},{float(c)!r},{float(d)!r}\n" for a, b, c, d in zip(*cols.values())))
+    path.write_text(
+        "t,traj,x,th\n"
+        + "".join(f"{float(a)!r},{int(b)},{float(c)!r},{float(d)!r}\n" for a, b, c, d in zip(*cols.values()))
+    )
     csv = nnphd.Trajectories.from_csv(path, angles=["th"])
     for d in (lists, ids, table, csv):
         assert d.names == ("x", "th") and d.angles == ("th",) and d.n_trajectories == 2 and d.n_samples == 80

@@ -1,4 +1,5 @@
 """CLI: listing, a small sweep end to end, and every bad input → one line on stderr, exit 2, nothing written."""
+
 import json
 import os
 import subprocess
@@ -48,8 +49,14 @@ BAD = [
     (["sweep", "--system", "ho+ld", "--p", "two"], "p must be a number ≥ 1 or 'mse'"),
     (["sweep", "--system", "ho+ld", "--steps", "1.5"], "Invalid value for '--steps': Input should be a valid integer"),
     (["sweep", "--system", "ho+ld", "--steps", "abc"], "Invalid value for '--steps': Input should be a valid integer"),
-    (["sweep", "--system", "ho+ld", "--steps", "0"], "Invalid value for '--steps': Input should be greater than or equal to 4"),
-    (["sweep", "--system", "ho+ld", "--seed", "-1"], "Invalid value for '--seed': Input should be greater than or equal to 0"),
+    (
+        ["sweep", "--system", "ho+ld", "--steps", "0"],
+        "Invalid value for '--steps': Input should be greater than or equal to 4",
+    ),
+    (
+        ["sweep", "--system", "ho+ld", "--seed", "-1"],
+        "Invalid value for '--seed': Input should be greater than or equal to 0",
+    ),
     (["sweep", "--system", "ho+ld", "--mode", "fast"], "'fast' is not one of 'warm', 'vmap', 'scratch'"),
     (["sweep", "--system", "ho+ld", "--param", "zeta=1"], "unknown parameter(s) 'zeta'"),
     (["sweep", "--system", "ho+ld", "--param", "gamma"], "--param must look like name=value"),
@@ -79,15 +86,32 @@ def test_unwritable_out(tmp_path, capsys):
 
 def test_console_script_no_traceback(tmp_path):
     exe = os.path.join(os.path.dirname(sys.executable), "nnphd")
-    r = subprocess.run([exe, "sweep", "--system", "ho+xx", "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    r = subprocess.run(
+        [exe, "sweep", "--system", "ho+xx", "--out", str(tmp_path / "o")], capture_output=True, text=True
+    )
     assert r.returncode == 2
     assert "Traceback" not in r.stderr and r.stderr.strip().startswith("error: unknown system")
 
 
 def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     out = tmp_path / "d"
-    rc = main(["discover", "--system", "double-pendulum", "--steps", "100", "--sweep-steps", "20", "--sr-time", "1",
-               "--n-steps", "300", "--out", str(out)])
+    rc = main(
+        [
+            "discover",
+            "--system",
+            "double-pendulum",
+            "--steps",
+            "100",
+            "--sweep-steps",
+            "20",
+            "--sr-time",
+            "1",
+            "--n-steps",
+            "300",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     res = json.loads((out / "double-pendulum" / "results.json").read_text())
     assert [r["quantity"] for r in res["table2"]] == ["Gamma_11", "Gamma_12", "Gamma_21", "Gamma_22"]

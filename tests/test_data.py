@@ -1,4 +1,5 @@
 """Data generation: RK4 accuracy, labelling, samplers, argument validation."""
+
 import math
 
 import jax.numpy as jnp
@@ -65,7 +66,9 @@ def test_rk4_bad_arguments():
 
 def test_label_matches_system():
     s = SYSTEMS["ho+pf"]
-    q = np.array([[0.5], [-1.0], [2.0]]); qd = np.array([[1.0], [0.0], [-3.0]]); t = np.array([0.0, 1.0, -2.0])
+    q = np.array([[0.5], [-1.0], [2.0]])
+    qd = np.array([[1.0], [0.0], [-3.0]])
+    t = np.array([0.0, 1.0, -2.0])
     d = label(s, q, qd, t)
     np.testing.assert_allclose(d.fc, -q, rtol=1e-15)
     np.testing.assert_allclose(d.fn[:, 0], 0.5 * np.sin(t), rtol=1e-15)
@@ -111,7 +114,8 @@ def test_gaussian_dataset_shapes_seeds_statistics():
     np.testing.assert_allclose(d.qdd, -d.q + np.stack([d.qd[:, 1], -d.qd[:, 0]], axis=1), rtol=1e-14, atol=1e-15)
     np.testing.assert_array_equal(d.fn, 0.0)
     d2 = gaussian_dataset(s, 4000, seed=0)
-    np.testing.assert_array_equal(d.q, d2.q); np.testing.assert_array_equal(d.t, d2.t)
+    np.testing.assert_array_equal(d.q, d2.q)
+    np.testing.assert_array_equal(d.t, d2.t)
     d3 = gaussian_dataset(s, 4000, seed=1)
     assert not np.allclose(d.q, d3.q)
 
@@ -120,7 +124,8 @@ def test_dataset_subset_and_validation():
     d = gaussian_dataset("ho+cd", 10, seed=3)
     sub = d.subset(np.array([1, 3, 5]))
     assert len(sub) == 3 and sub.q.shape == (3, 1)
-    np.testing.assert_array_equal(sub.qdd, d.qdd[[1, 3, 5]]); np.testing.assert_array_equal(sub.fn, d.fn[[1, 3, 5]])
+    np.testing.assert_array_equal(sub.qdd, d.qdd[[1, 3, 5]])
+    np.testing.assert_array_equal(sub.fn, d.fn[[1, 3, 5]])
     np.testing.assert_allclose(d.fn[:, 0], -0.5 * np.sign(d.qd[:, 0]), rtol=0)
     assert len(d.subset(slice(0, 4))) == 4 and len(d.subset(d.qd[:, 0] > 0)) == int(np.sum(d.qd[:, 0] > 0))
     bare = Dataset(q=np.zeros((2, 1)), qd=np.zeros((2, 1)), t=np.zeros(2), qdd=np.zeros((2, 1)))
@@ -171,7 +176,8 @@ def test_train_test():
     assert len(tr) == 200 and len(te) == 100
     assert not np.isin(tr.q, te.q).any()  # independent draws
     tr2, te2 = train_test(SYSTEMS["ho+pf"], seed=0, n_train=200, n_test=100)
-    np.testing.assert_array_equal(tr.q, tr2.q); np.testing.assert_array_equal(te.t, te2.t)
+    np.testing.assert_array_equal(tr.q, tr2.q)
+    np.testing.assert_array_equal(te.t, te2.t)
     tr3, _ = train_test("ho+pf", seed=1, n_train=200, n_test=100)
     assert not np.allclose(tr.q, tr3.q)
     traj, none = train_test("gw", seed=0)

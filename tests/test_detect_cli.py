@@ -1,4 +1,5 @@
 """nnphd detect: every bad input is a one-line error naming the problem, exit code 2, and nothing written."""
+
 import os
 
 import numpy as np
@@ -26,23 +27,27 @@ BAD = {
     "empty": (lambda p: _write(p, ""), "the file is empty"),
     "header_only": (lambda p: _csv(p, "t,x", []), "no data rows"),
     "missing_t": (lambda p: _csv(p, "time,x", [(i, i * i) for i in range(20)]), "no 't' column"),
-    "non_numeric": (lambda p: _csv(p, "t,x", [(i, "abc" if i == 3 else i * i) for i in range(20)]),
-                    "column 'x' row 4 (line 5): 'abc' is not a number"),
-    "unknown_column": (lambda p: _csv(p, "t,x,y_ddot", [(i, i * i, 0) for i in range(20)]),
-                       "column 'y_ddot' has no coordinate column 'y'"),
+    "non_numeric": (
+        lambda p: _csv(p, "t,x", [(i, "abc" if i == 3 else i * i) for i in range(20)]),
+        "column 'x' row 4 (line 5): 'abc' is not a number",
+    ),
+    "unknown_column": (
+        lambda p: _csv(p, "t,x,y_ddot", [(i, i * i, 0) for i in range(20)]),
+        "column 'y_ddot' has no coordinate column 'y'",
+    ),
     "nan": (lambda p: _csv(p, "t,x", [(i, "nan" if i == 5 else i * i) for i in range(20)]), "is not finite"),
     "inf": (lambda p: _csv(p, "t,x", [(i, "inf" if i == 5 else i * i) for i in range(20)]), "is not finite"),
-    "non_monotonic": (lambda p: _csv(p, "t,x", [(5 - i if i == 6 else i, i * i) for i in range(20)]),
-                      "t is not strictly increasing"),
+    "non_monotonic": (
+        lambda p: _csv(p, "t,x", [(5 - i if i == 6 else i, i * i) for i in range(20)]),
+        "t is not strictly increasing",
+    ),
     "duplicate_t": (lambda p: _csv(p, "t,x", [(i - 1 if i == 6 else i, i * i) for i in range(20)]), "duplicate time"),
     "too_few": (lambda p: _csv(p, "t,x", [(i, i * i) for i in range(4)]), "has 4 samples; at least 7"),
     "single": (lambda p: _csv(p, "t,x", [(0, 1)]), "single sample"),
     "constant": (lambda p: _csv(p, "t,x,y", [(i, 1, 2) for i in range(20)]), "all coordinates are constant"),
-    "unreadable": (lambda p: _write(p.with_suffix(".npz"), b"not a zip file"),
-                   "cannot read as .npz"),
+    "unreadable": (lambda p: _write(p.with_suffix(".npz"), b"not a zip file"), "cannot read as .npz"),
     "missing_file": (lambda p: p.with_name("nope.csv"), "file not found"),
-    "wrong_type": (lambda p: _write(p.with_suffix(".txt"), "t,x\n0,1\n"),
-                   "unsupported file type"),
+    "wrong_type": (lambda p: _write(p.with_suffix(".txt"), "t,x\n0,1\n"), "unsupported file type"),
 }
 
 
@@ -61,13 +66,15 @@ def test_bad_file_one_line_exit_2(case, tmp_path, capsys):
 
 def test_bad_angle_and_options(tmp_path, capsys):
     path = _csv(tmp_path / "d.csv", "t,x,v", _good_rows())
-    for argv, msg in ((["--angles", "theta"], "angle 'theta' is not a coordinate"),
-                      (["--steps", "x"], "Invalid value for '--steps'"),
-                      (["--repeats", "0"], "--repeats"),
-                      (["--angles", "x,"], "--angles must be comma-separated"),
-                      (["--width", "1"], "Invalid value for '--width': Input should be greater than or equal to 2"),
-                      (["--lambdas", "0.1,0.5"], "values both below and above 1"),
-                      (["--trim", "maybe"], "'maybe' is not one of 'auto', 'yes', 'no'")):
+    for argv, msg in (
+        (["--angles", "theta"], "angle 'theta' is not a coordinate"),
+        (["--steps", "x"], "Invalid value for '--steps'"),
+        (["--repeats", "0"], "--repeats"),
+        (["--angles", "x,"], "--angles must be comma-separated"),
+        (["--width", "1"], "Invalid value for '--width': Input should be greater than or equal to 2"),
+        (["--lambdas", "0.1,0.5"], "values both below and above 1"),
+        (["--trim", "maybe"], "'maybe' is not one of 'auto', 'yes', 'no'"),
+    ):
         rc = main(["detect", str(path), "--out", str(tmp_path / "o"), *argv])
         err = capsys.readouterr().err
         assert rc == 2 and msg in err and len(err.strip().splitlines()) == 1, err

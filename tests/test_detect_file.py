@@ -1,5 +1,6 @@
 """nnphd detect on positions only: HO+LD (friction) and HO+MF (magnetic, conservative), several trajectories with
 0.1% noise — the verdicts must be right, the report complete, the formula in the file's own names."""
+
 import json
 
 import numpy as np
@@ -30,8 +31,22 @@ def _write_positions(path, system, n_traj=6, dt=0.05, n_steps=600, noise=1e-3, s
 def test_positions_only_verdicts(system, expected, tmp_path, capsys):
     path = _write_positions(tmp_path / f"{system}.csv", system)
     out = tmp_path / "out"
-    rc = main(["detect", str(path), "--out", str(out), "--steps", "300", "--repeats", "1", "--sr-time", "0",
-               "--law-fit", "pointwise"])
+    rc = main(
+        [
+            "detect",
+            str(path),
+            "--out",
+            str(out),
+            "--steps",
+            "300",
+            "--repeats",
+            "1",
+            "--sr-time",
+            "0",
+            "--law-fit",
+            "pointwise",
+        ]
+    )
     assert rc == 0
     rep = json.loads((out / "report.json").read_text())
     assert rep["status"] == expected

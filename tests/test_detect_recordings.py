@@ -3,6 +3,7 @@ trajectory per case, positions only, through the whole ``nnphd detect`` pipeline
 at a small configuration. The damped cases must be detected with the energy-decay rate within 10 % of the truth
 (same definition: slope of log(E − E_min), E the exact energy), the conservative ones must not be, and data without
 usable dynamics must give "inconclusive". The full-size table is benchmarks/detect_recordings.py (docs/RESULTS.md)."""
+
 import sys
 from pathlib import Path
 
@@ -12,8 +13,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from nnphd.user.detect import detect_file  # noqa: E402
 from tests.fixtures.recordings import make  # noqa: E402
 
-SMALL = dict(steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1,
-             law_level="pointwise")  # the trajectory-level law ranking is tested in tests/test_laws.py
+SMALL = dict(
+    steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1, law_level="pointwise"
+)  # the trajectory-level law ranking is tested in tests/test_laws.py
 
 
 def _detect(name, tmp_path, out=None, **kw):
@@ -74,8 +76,15 @@ def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
 def test_noisy_derivatives_are_warned_about():
     from nnphd.user.detect import _warnings
 
-    info = {"per_coordinate": {"x": {"qdd": {"relative_error": 0.7}}, "y": {"qdd": {"relative_error": 0.05}},
-                               "z": {"qdd": {"relative_error": None}}}, "trim": True, "n_samples": 10}
+    info = {
+        "per_coordinate": {
+            "x": {"qdd": {"relative_error": 0.7}},
+            "y": {"qdd": {"relative_error": 0.05}},
+            "z": {"qdd": {"relative_error": None}},
+        },
+        "trim": True,
+        "n_samples": 10,
+    }
     w = _warnings(info, ["x", "y", "z"])
     assert len(w) == 1 and "'x'" in w[0] and "70%" in w[0]
     assert len(_warnings(info | {"trim": False}, ["y"])) == 1

@@ -1,4 +1,5 @@
 """Real data (paper §III.A, Neptune): Uranus' motion from JPL DE405, its residual and Le Verrier's perturber fit."""
+
 import numpy as np
 import pytest
 
@@ -54,7 +55,8 @@ def test_residual_is_neptunes_pull(residual):
     assert np.median(mis) < 1e-3 and mis.max() < 5e-3
     # The residual points at Neptune.
     cos = np.sum(residual.a_res * residual.a_neptune, axis=1) / (
-        np.linalg.norm(residual.a_res, axis=1) * np.linalg.norm(residual.a_neptune, axis=1))
+        np.linalg.norm(residual.a_res, axis=1) * np.linalg.norm(residual.a_neptune, axis=1)
+    )
     assert cos.min() > 0.999
     # New physics is faint: 8e-6 … 1.9e-4 of the Sun's pull.
     size = residual.relative_size

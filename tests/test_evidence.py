@@ -1,5 +1,6 @@
 """nnphd.engine.evidence on analytic truths: the per-period energy trend and the multiple-shooting damping probe, with an
 exact conservative model (no networks), plus the verdict rules built on them (nnphd.user.checks)."""
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -48,8 +49,14 @@ def _pendulum(gamma, seed=0, noise=0.0025):
     T = 15 * 2 * np.pi / W0
     t = np.sort(np.arange(0, T, 1 / 6) + rng.normal(0, 0.02 / 6, len(np.arange(0, T, 1 / 6))))
     t = t - t[0]
-    sol = solve_ivp(lambda _, y: [y[1], -W0**2 * np.sin(y[0]) - gamma * y[1]], (t[0], t[-1]), [0.5, 0.0],
-                    t_eval=t, rtol=1e-10, atol=1e-12)
+    sol = solve_ivp(
+        lambda _, y: [y[1], -(W0**2) * np.sin(y[0]) - gamma * y[1]],
+        (t[0], t[-1]),
+        [0.5, 0.0],
+        t_eval=t,
+        rtol=1e-10,
+        atol=1e-12,
+    )
     q = sol.y[0][:, None] + rng.normal(0, noise, (t.size, 1))
     qd = sol.y[1][:, None] + rng.normal(0, 2 * noise, (t.size, 1))
     return t, q, qd
@@ -107,8 +114,14 @@ def test_trajectory_evidence_rules():
 
 
 def _checks(rho=0.0, sig=False):
-    drift = {"bootstrap_fraction": 0.0, "rho_median": rho, "magnitude_median": 0.0, "significant": sig,
-             "valid": True, "slow_ratio_median": 0.0}
+    drift = {
+        "bootstrap_fraction": 0.0,
+        "rho_median": rho,
+        "magnitude_median": 0.0,
+        "significant": sig,
+        "valid": True,
+        "slow_ratio_median": 0.0,
+    }
     tchk = {"significant": False, "valid": False, "testable": "one trajectory", "gain": 1.0}
     gap = {"large": False, "gap_train": 1.0}
     cap = {"still_falling": False, "relative_drop": 0.0}
@@ -116,8 +129,7 @@ def _checks(rho=0.0, sig=False):
 
 
 def test_verdict_refuses_when_derivatives_are_too_noisy_and_the_record_is_silent():
-    weak = {"significant": False, "valid": True, "bootstrap_fraction": 0.0, "rate_bound": 0.01,
-            "effect": "energy flat"}
+    weak = {"significant": False, "valid": True, "bootstrap_fraction": 0.0, "rate_bound": 0.01, "effect": "energy flat"}
     bad_qdd = {"usable": True, "pointwise_ok": False, "reason": "q̈ error 80%"}
     status, reason, _ = _seed_status(*_checks(rho=0.9, sig=True), weak, bad_qdd, 1)
     assert status == "inconclusive" and "derivatives too noisy for a pointwise test" in reason

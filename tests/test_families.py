@@ -1,4 +1,5 @@
 """The candidate laws (nnphd.explain.families): user laws from SymPy strings, the built-in families' symmetry."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,10 +8,18 @@ import pytest
 from nnphd.explain.families import families, parse_law
 
 
-@pytest.mark.parametrize("text, msg", [
-    ("", "empty"), ("-c*z_dot", "not the velocity"), ("-x_dot", "no free parameter"), ("x_dot*(", "cannot read"),
-    ("-g*x_dot", "name the component"), ("w: -g*w_dot", "not a coordinate"), ("-x_dot**c", "linear in at least"),
-])
+@pytest.mark.parametrize(
+    "text, msg",
+    [
+        ("", "empty"),
+        ("-c*z_dot", "not the velocity"),
+        ("-x_dot", "no free parameter"),
+        ("x_dot*(", "cannot read"),
+        ("-g*x_dot", "name the component"),
+        ("w: -g*w_dot", "not a coordinate"),
+        ("-x_dot**c", "linear in at least"),
+    ],
+)
 def test_bad_user_law_is_one_line_error(text, msg):
     coords = ["x", "y"] if msg in ("name the component", "not a coordinate") else ["x"]
     with pytest.raises(ValueError, match=msg) as e:
@@ -39,8 +48,12 @@ def test_family_from_spec_rebuilds_every_kind():
     q, v, t = rng.normal(size=(20, 2)), rng.normal(size=(20, 2)), rng.uniform(0, 5, 20)
     support = np.zeros((2, len(_odd_monomials(2))), bool)
     support[0, 0] = support[1, 3] = True
-    fams = [*families(2, ["x", "y"], np.array([0.5, 2.0])), sparse_family(2, ["x", "y"], support),
-            perturber_family(["x", "y"]), parse_law("x: -c*x_dot*abs(x_dot)**p; y: -c*y_dot", ["x", "y"])]
+    fams = [
+        *families(2, ["x", "y"], np.array([0.5, 2.0])),
+        sparse_family(2, ["x", "y"], support),
+        perturber_family(["x", "y"]),
+        parse_law("x: -c*x_dot*abs(x_dot)**p; y: -c*y_dot", ["x", "y"]),
+    ]
     for f in fams:
         g = family_from_spec(f.spec, ["x", "y"])
         assert g.key == f.key and g.coef_names == f.coef_names and g.nl_names == f.nl_names

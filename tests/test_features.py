@@ -1,4 +1,5 @@
 """Constrained-form Lagrangians: exact at the true coefficients; friction rediscovered end to end (Table II row 1)."""
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -31,8 +32,9 @@ def test_kepler_features_at_true_coefficients_give_f_c(name):
     q, qd = _points()
     expected = np.stack([np.asarray(s.f_c(a, b)) for a, b in zip(q, qd)])
     assert s.feature_set == "kepler"
-    np.testing.assert_allclose(FEATURE_SETS[s.feature_set].accel(jnp.array([0.5, 0.5, gm]), q, qd), expected,
-                               atol=1e-10)
+    np.testing.assert_allclose(
+        FEATURE_SETS[s.feature_set].accel(jnp.array([0.5, 0.5, gm]), q, qd), expected, atol=1e-10
+    )
 
 
 def test_every_named_feature_set_exists():

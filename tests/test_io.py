@@ -1,4 +1,5 @@
 """io/: the one cache (settings-keyed JSON, NPZ checkpoints, never pickle) and the one progress interface."""
+
 import json
 
 import jax

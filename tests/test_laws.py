@@ -1,4 +1,5 @@
 """The law of the non-conservative force (nnphd.explain.laws): joint fits, ranking, uncertainties, user laws."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -20,8 +21,16 @@ def test_linear_friction_exact_joint_fit():
     """Exact data: the joint fit recovers the anisotropic damping exactly, the form is the diagonal one, and the
     conservative part absorbs the coupled spring (no x, y terms in the law)."""
     c, qdd = _exact("anisotropic-damping")
-    tab = rank_laws(c.q_true, c.qd_true, qdd, c.t, c.traj, names=["x", "y"], n_boot=50,
-                    include=("linear", "linear-diag", "linear-full", "quadratic", "rayleigh", "sparse"))
+    tab = rank_laws(
+        c.q_true,
+        c.qd_true,
+        qdd,
+        c.t,
+        c.traj,
+        names=["x", "y"],
+        n_boot=50,
+        include=("linear", "linear-diag", "linear-full", "quadratic", "rayleigh", "sparse"),
+    )
     assert tab.law is not None and tab.law.key == "linear-diag"
     assert tab.law.params["gamma_x"] == pytest.approx(0.04, rel=1e-4)
     assert tab.law.params["gamma_y"] == pytest.approx(0.01, rel=1e-4)
@@ -66,8 +75,16 @@ def test_user_law_linear_and_nonlinear_parameters():
     rng = np.random.default_rng(1)
     q, qd = rng.uniform(-2, 2, (400, 1)), rng.uniform(-2, 2, (400, 1))
     qdd = -q - 0.03 * qd * np.abs(qd) ** 1.5
-    tab = rank_laws(q, qd, qdd, np.arange(400) * 0.1, names=["x"], user_laws=["-c*x_dot*abs(x_dot)**p"],
-                    include=("linear",), n_boot=20)
+    tab = rank_laws(
+        q,
+        qd,
+        qdd,
+        np.arange(400) * 0.1,
+        names=["x"],
+        user_laws=["-c*x_dot*abs(x_dot)**p"],
+        include=("linear",),
+        n_boot=20,
+    )
     user = next(r for r in tab.rows if r.key == "user")
     assert user.params["c"] == pytest.approx(0.03, rel=1e-5) and user.params["p"] == pytest.approx(1.5, rel=1e-5)
 
@@ -127,11 +144,14 @@ def test_a_strong_candidate_law_turns_none_into_inconclusive():
     assert _reconcile(detected, law)[0] == "detected"
 
 
-@pytest.mark.parametrize("name, truth", [
-    ("double-pendulum", {"Gamma_11": 0.02, "Gamma_12": 0.0, "Gamma_21": 0.0, "Gamma_22": 0.02}),
-    ("neptune", {"GM": 0.005, "R": 3.0, "omega": 3.0**-1.5}),
-    ("gw", {"k": None, "m": 4.0}),
-])
+@pytest.mark.parametrize(
+    "name, truth",
+    [
+        ("double-pendulum", {"Gamma_11": 0.02, "Gamma_12": 0.0, "Gamma_21": 0.0, "Gamma_22": 0.02}),
+        ("neptune", {"GM": 0.005, "R": 3.0, "omega": 3.0**-1.5}),
+        ("gw", {"k": None, "m": 4.0}),
+    ],
+)
 def test_table2_families_through_the_joint_fit(name, truth):
     """Table II's laws by the same machinery as detect: the feature Lagrangian's force at coefficients 2 % off (and
     off in different directions), re-fitted jointly with every candidate via its derivatives by the coefficients,

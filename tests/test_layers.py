@@ -1,4 +1,5 @@
 """The package tree shows the architecture: every import goes to the same or a lower layer, and there are no cycles."""
+
 from __future__ import annotations
 
 import ast
@@ -6,8 +7,18 @@ from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "nnphd"
 # lower number = lower layer; a module may import its own layer and the layers below
-LAYERS = {"_extras": 0, "io": 0, "engine": 1, "explain": 2, "user": 3, "paper": 4, "astro": 4, "api": 5, "cli": 6,
-          "__init__": 6}
+LAYERS = {
+    "_extras": 0,
+    "io": 0,
+    "engine": 1,
+    "explain": 2,
+    "user": 3,
+    "paper": 4,
+    "astro": 4,
+    "api": 5,
+    "cli": 6,
+    "__init__": 6,
+}
 
 
 def _modules() -> dict[str, Path]:
@@ -57,7 +68,7 @@ def test_import_graph_has_no_cycles():
         state[m] = 1
         for n in graph[m]:
             if state.get(n) == 1:
-                cycle.extend(stack[stack.index(n):] + [n])
+                cycle.extend(stack[stack.index(n) :] + [n])
                 return True
             if n not in state and visit(n, stack + [n]):
                 return True

@@ -1,4 +1,5 @@
 """LNN / UAN against analytic truths: known Lagrangians, the jax.hessian reference, energy conservation."""
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -97,9 +98,7 @@ def test_exact_magnetic_lagrangian_in_the_network():
     # L = ½|q̇|² + (B/2)(q1 q̇2 − q2 q̇1) − ½k|q|², with xy = ½[σ(x+y) − σ(x−y)] for σ(a)=a²/2 → q̈ = −kq + B(q̇2, −q̇1)
     k, b = 1.3, 0.7
     # z = (q1, q2, q̇1, q̇2); units: q1+q̇2, q1−q̇2, q2+q̇1, q2−q̇1, q1, q2
-    w1 = np.array(
-        [[1, 1, 0, 0, 1, 0], [0, 0, 1, 1, 0, 1], [0, 0, 1, -1, 0, 0], [1, -1, 0, 0, 0, 0]], float
-    )
+    w1 = np.array([[1, 1, 0, 0, 1, 0], [0, 0, 1, 1, 0, 1], [0, 0, 1, -1, 0, 0], [1, -1, 0, 0, 0, 0]], float)
     w_out = [b / 4, -b / 4, -b / 4, b / 4, -k, -k]
     cfg = ModelConfig(n=2, lnn_widths=(6,), lnn_activation="quadratic")
     lnn = _exact_quadratic_lnn(w1, w_out, 2)
@@ -107,7 +106,9 @@ def test_exact_magnetic_lagrangian_in_the_network():
     expected = -k * q + b * jnp.stack([qd[:, 1], -qd[:, 0]], axis=1)
     np.testing.assert_allclose(lnn_accel(lnn, q, qd, cfg), expected, atol=1e-10)
     # and it conserves H = ½|q̇|² + ½k|q|²
-    np.testing.assert_allclose(lnn_energy(lnn, q, qd, cfg), 0.5 * jnp.sum(qd**2, 1) + 0.5 * k * jnp.sum(q**2, 1), atol=1e-12)
+    np.testing.assert_allclose(
+        lnn_energy(lnn, q, qd, cfg), 0.5 * jnp.sum(qd**2, 1) + 0.5 * k * jnp.sum(q**2, 1), atol=1e-12
+    )
 
 
 # ---- energy of a learned Lagrangian ------------------------------------------------------------------------------
@@ -165,8 +166,9 @@ def test_float32_model_runs_and_matches_float64():
     p32 = jax.tree_util.tree_map(lambda a: a.astype(jnp.float32), p64)
     q, qd, t = _batch(2)
     fc64, fn64 = jax.jit(lambda *a: nnphd_forces(*a, cfg64))(p64, q, qd, t)
-    fc32, fn32 = jax.jit(lambda *a: nnphd_forces(*a, cfg32))(p32, q.astype(jnp.float32), qd.astype(jnp.float32),
-                                                            t.astype(jnp.float32))
+    fc32, fn32 = jax.jit(lambda *a: nnphd_forces(*a, cfg32))(
+        p32, q.astype(jnp.float32), qd.astype(jnp.float32), t.astype(jnp.float32)
+    )
     assert fc32.dtype == jnp.float32
     np.testing.assert_allclose(fc32, fc64, atol=1e-4)
     np.testing.assert_allclose(fn32, fn64, atol=1e-4)
@@ -205,14 +207,19 @@ def test_input_standardisation_is_folded_into_the_first_layer():
     params = init_nnphd(jax.random.PRNGKey(2), cfg)
     q, qd, t = jnp.asarray(q), jnp.asarray(qd), jnp.asarray(t)
     # the hand-written pass still equals jax.hessian of the same (standardised) Lagrangian
-    np.testing.assert_allclose(jax.jit(lambda p: lnn_accel(p, q, qd, cfg))(params["lnn"]),
-                               jax.jit(lambda p: lnn_accel_reference(p, q, qd, cfg))(params["lnn"]), atol=1e-10)
+    np.testing.assert_allclose(
+        jax.jit(lambda p: lnn_accel(p, q, qd, cfg))(params["lnn"]),
+        jax.jit(lambda p: lnn_accel_reference(p, q, qd, cfg))(params["lnn"]),
+        atol=1e-10,
+    )
     # and the networks see (x − μ)/σ: same outputs as an unstandardised config on transformed inputs
     mu, sd = np.asarray(cfg.input_shift), np.asarray(cfg.input_scale)
     raw = cfg.replace(input_shift=None, input_scale=None)
     zs = (np.concatenate([q, qd, t[:, None]], 1) - mu) / sd
     np.testing.assert_allclose(
-        uan_force(params["uan"], q, qd, t, cfg), uan_force(params["uan"], zs[:, :2], zs[:, 2:4], zs[:, 4], raw), atol=1e-12
+        uan_force(params["uan"], q, qd, t, cfg),
+        uan_force(params["uan"], zs[:, :2], zs[:, 2:4], zs[:, 4], raw),
+        atol=1e-12,
     )
     lag_std = lnn_value(params["lnn"], q, qd, cfg) - 0.5 * jnp.sum(qd**2, 1)
     lag_raw = lnn_value(params["lnn"], zs[:, :2], zs[:, 2:4], raw) - 0.5 * jnp.sum(zs[:, 2:4] ** 2, 1)
@@ -241,8 +248,9 @@ def test_free_mlp_with_angles_and_standardisation(time):
     got = free_force(layers, jnp.asarray(q), jnp.asarray(qd), None if tin is None else jnp.asarray(tin), cfg)
     want = free_force(layers, jnp.asarray(q_s), jnp.asarray(qd_s), None if t_s is None else jnp.asarray(t_s), raw)
     np.testing.assert_allclose(got, want, atol=1e-12)
-    x = np.concatenate([q_s[:, :1], np.sin(q[:, 1:]), np.cos(q[:, 1:]), qd_s] + ([] if t_s is None else
-                                                                                 [np.reshape(t_s, (40, -1))]), 1)
+    x = np.concatenate(
+        [q_s[:, :1], np.sin(q[:, 1:]), np.cos(q[:, 1:]), qd_s] + ([] if t_s is None else [np.reshape(t_s, (40, -1))]), 1
+    )
     h = x
     for layer in layers[:-1]:
         h = np.where(h @ layer["w"] + layer["b"] > 0, 1.0, 0.2) * (h @ layer["w"] + layer["b"])

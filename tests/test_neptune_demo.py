@@ -1,4 +1,5 @@
 """``nnphd demo neptune``: NNPhD finds and locates Neptune in Uranus' real DE405 orbit (reduced configuration)."""
+
 import json
 
 import numpy as np

@@ -1,4 +1,5 @@
 """Parametric explanation fits (paper §III.A.3, Table II): recover known parameters from synthetic f_n."""
+
 import numpy as np
 import pytest
 

@@ -1,4 +1,5 @@
 """Periodic (angle) coordinates in the LNN: ModelConfig.periodic, embed_periodic and the hand-written pass."""
+
 from functools import partial
 
 import jax
@@ -109,8 +110,12 @@ def test_periodic_pass_n3_with_standardisation_and_parameter_gradients(periodic)
     rng = np.random.default_rng(9)
     cfg = cfg.standardized(q + rng.normal(size=q.shape), qd * 3 + 1, rng.normal(size=q.shape[0]))
     lnn = init_lnn(jax.random.PRNGKey(2), cfg)
-    np.testing.assert_allclose(jax.jit(lambda p: lnn_accel(p, q, qd, cfg))(lnn),
-                               jax.jit(lambda p: lnn_accel_reference(p, q, qd, cfg))(lnn), atol=1e-10, rtol=0)
+    np.testing.assert_allclose(
+        jax.jit(lambda p: lnn_accel(p, q, qd, cfg))(lnn),
+        jax.jit(lambda p: lnn_accel_reference(p, q, qd, cfg))(lnn),
+        atol=1e-10,
+        rtol=0,
+    )
     derivs = jax.jit(lambda p: (lnn_derivatives(p, q, qd, cfg), _autodiff_derivatives(p, q, qd, cfg)))(lnn)
     for a, b in zip(*derivs):
         np.testing.assert_allclose(a, b, atol=1e-10, rtol=0)

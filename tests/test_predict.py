@@ -1,4 +1,5 @@
 """Prediction experiment (paper Fig. 4): rollout alignment, physics of the baselines, determinism, CLI."""
+
 import json
 
 import jax

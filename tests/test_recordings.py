@@ -4,6 +4,7 @@ Measured while writing this (seed 0): pendulum-damped r = 0.010946 (γ = 0.011; 
 log-mid amplitude is 0.010929), cart r = 0.0140000, carts-coupled r = 0.0140010, double-pendulum r = 0.0472 with an
 energy drop of 65 %; the free double pendulum conserves energy to 7e-10 (relative to E − E_min) on the dense solution.
 """
+
 import math
 import sys
 import time
@@ -37,8 +38,19 @@ def recs():
 
 
 def test_names_order():
-    assert NAMES == ("pendulum-damped", "pendulum", "cart", "carts-coupled", "carts-coupled-free", "double-pendulum",
-                     "double-pendulum-free", "disjoint-clock", "white-noise", "undersampled", "undersampled-2d")
+    assert NAMES == (
+        "pendulum-damped",
+        "pendulum",
+        "cart",
+        "carts-coupled",
+        "carts-coupled-free",
+        "double-pendulum",
+        "double-pendulum-free",
+        "disjoint-clock",
+        "white-noise",
+        "undersampled",
+        "undersampled-2d",
+    )
     with pytest.raises(ValueError):
         make("no-such-case")
 
@@ -143,10 +155,16 @@ def test_double_pendulum_closed_form():
     th1, th2, w1, w2 = rng.uniform(-4, 4, (4, 50))
     a1, a2 = double_pendulum_accel(th1, th2, w1, w2, 0.0, m1, m2, l1, l2, g)
     den = 2 * m1 + m2 - m2 * np.cos(2 * th1 - 2 * th2)
-    ref1 = (-g * (2 * m1 + m2) * np.sin(th1) - m2 * g * np.sin(th1 - 2 * th2)
-            - 2 * np.sin(th1 - th2) * m2 * (w2**2 * l2 + w1**2 * l1 * np.cos(th1 - th2))) / (l1 * den)
-    ref2 = (2 * np.sin(th1 - th2) * (w1**2 * l1 * (m1 + m2) + g * (m1 + m2) * np.cos(th1)
-                                     + w2**2 * l2 * m2 * np.cos(th1 - th2))) / (l2 * den)
+    ref1 = (
+        -g * (2 * m1 + m2) * np.sin(th1)
+        - m2 * g * np.sin(th1 - 2 * th2)
+        - 2 * np.sin(th1 - th2) * m2 * (w2**2 * l2 + w1**2 * l1 * np.cos(th1 - th2))
+    ) / (l1 * den)
+    ref2 = (
+        2
+        * np.sin(th1 - th2)
+        * (w1**2 * l1 * (m1 + m2) + g * (m1 + m2) * np.cos(th1) + w2**2 * l2 * m2 * np.cos(th1 - th2))
+    ) / (l2 * den)
     np.testing.assert_allclose(a1, ref1, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(a2, ref2, rtol=1e-12, atol=1e-12)
 

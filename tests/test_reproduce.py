@@ -1,4 +1,5 @@
 """nnphd reproduce: every experiment section in the report, every referenced figure present, the cache resumes."""
+
 import base64
 import json
 import re
@@ -10,11 +11,24 @@ from nnphd.paper.reproduce import EXPERIMENTS, FIGURES, plan, reproduce
 
 # the same code paths as the full run, at toy sizes
 TINY = {
-    "discover": {"systems": ["double-pendulum"], "steps": 30, "sweep_steps": 8, "sr_time": 0.0,
-                 "sweep_lambdas": [0.5, 2.0], "n_steps": 100},
+    "discover": {
+        "systems": ["double-pendulum"],
+        "steps": 30,
+        "sweep_steps": 8,
+        "sr_time": 0.0,
+        "sweep_lambdas": [0.5, 2.0],
+        "n_steps": 100,
+    },
     "predict": {"steps": 8, "widths": [16, 16], "n_traj": 400},
-    "lambda-p": {"steps": 8, "systems": ["ho+ld"], "ps": [1], "lambdas": [0.5, 2.0],
-                 "force_lambdas": [0.5, 2.0], "n_train": 200, "n_test": 200},
+    "lambda-p": {
+        "steps": 8,
+        "systems": ["ho+ld"],
+        "ps": [1],
+        "lambdas": [0.5, 2.0],
+        "force_lambdas": [0.5, 2.0],
+        "n_train": 200,
+        "n_test": 200,
+    },
     "data-quality": {"steps": 8, "alphas": [0.25, 1.0], "betas": [0.5, 1.0], "n_train": 200, "n_test": 200},
 }
 
@@ -23,7 +37,9 @@ TINY = {
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("rep")
     msgs = []
-    summary = reproduce(out=out, quick=True, seed=0, overrides=TINY, progress=lambda done, total, m: msgs.append((done, total, m)))
+    summary = reproduce(
+        out=out, quick=True, seed=0, overrides=TINY, progress=lambda done, total, m: msgs.append((done, total, m))
+    )
     return out, summary, msgs
 
 
@@ -65,8 +81,13 @@ def test_summary_claims_and_settings(run):
     assert not any(r["cached"] for r in summary["runs"].values())
     assert any("discover double-pendulum" in m for *_, m in msgs)
     assert {t for _, t, _ in msgs} == {4} and {d for d, _, _ in msgs} <= {0, 1, 2, 3}  # units of the whole run
-    for rel in ("discover/double-pendulum/results.json", "discover/table2.json", "predict/results.json",
-                "lambda-p/results.json", "data-quality/results.json"):
+    for rel in (
+        "discover/double-pendulum/results.json",
+        "discover/table2.json",
+        "predict/results.json",
+        "lambda-p/results.json",
+        "data-quality/results.json",
+    ):
         assert (out / rel).is_file()
 
 

@@ -1,4 +1,5 @@
 """Blind explanation by sparse regression on synthetic residuals with known laws (1% noise)."""
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -21,8 +22,13 @@ def _coef(expr: str, term: str) -> float:
 
 def test_friction_found():
     fn = _noisy(np.stack([-0.02 * VX, -0.02 * VY], 1))
-    r = sparse_formula({"theta1": X, "theta2": Y, "theta1_dot": VX, "theta2_dot": VY, "t": T}, fn, ["a1", "a2"],
-                       velocities=["theta1_dot", "theta2_dot"], time="t")
+    r = sparse_formula(
+        {"theta1": X, "theta2": Y, "theta1_dot": VX, "theta2_dot": VY, "t": T},
+        fn,
+        ["a1", "a2"],
+        velocities=["theta1_dot", "theta2_dot"],
+        time="t",
+    )
     assert r.readable and r.n_terms == 2
     assert _coef(r.expressions[0], "theta1_dot") == pytest.approx(-0.02, rel=0.05)
     assert _coef(r.expressions[1], "theta2_dot") == pytest.approx(-0.02, rel=0.05)
@@ -31,7 +37,9 @@ def test_friction_found():
 def test_gravitational_radiation_law_found():
     v2 = VX**2 + VY**2
     fn = _noisy(np.stack([-0.00165 * v2**4 * VX, -0.00165 * v2**4 * VY], 1))
-    r = sparse_formula({"x": X, "y": Y, "vx": VX, "vy": VY, "t": T}, fn, ["ax", "ay"], velocities=["vx", "vy"], time="t")
+    r = sparse_formula(
+        {"x": X, "y": Y, "vx": VX, "vy": VY, "t": T}, fn, ["ax", "ay"], velocities=["vx", "vy"], time="t"
+    )
     assert r.readable and r.n_terms == 2
     assert _coef(r.expressions[0], "vx*(vx**2 + vy**2)**4") == pytest.approx(-0.00165, rel=0.02)
     assert _coef(r.expressions[1], "vy*(vx**2 + vy**2)**4") == pytest.approx(-0.00165, rel=0.02)

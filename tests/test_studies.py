@@ -1,4 +1,5 @@
 """λ/p study (Fig. 5) and data-quality study (Fig. 6) at reduced settings: numbers that can fail, cache, CLI."""
+
 import json
 import math
 
@@ -97,8 +98,24 @@ def test_lambda_p_cached_rerun_and_cli(lp, capsys):
     assert again["curves"] == res["curves"] and again["claims"] == res["claims"]
     assert [v["ratio"] for v in again["verdicts"]] == [v["ratio"] for v in res["verdicts"]]
     (out / "results.json").unlink()
-    rc = main(["study", "lambda-p", "--steps", "200", "--seed", "0", "--lambdas", "0.1,0.5,2,10,50",
-               "--ps", "1,mse", "--systems", "ho+ld,ho+mf", "--out", str(out)])
+    rc = main(
+        [
+            "study",
+            "lambda-p",
+            "--steps",
+            "200",
+            "--seed",
+            "0",
+            "--lambdas",
+            "0.1,0.5,2,10,50",
+            "--ps",
+            "1,mse",
+            "--systems",
+            "ho+ld,ho+mf",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     text = capsys.readouterr().out
     assert "loaded 4 of 4 sweeps from the cache" in text and "verdicts" in text and ("met" in text)
@@ -142,8 +159,22 @@ def test_data_quality_cached_rerun(dq):
 def test_data_quality_cli_same_seed_same_numbers(dq, tmp_path, capsys):
     _, res = dq
     out = tmp_path / "cli"
-    rc = main(["study", "data-quality", "--steps", "300", "--seed", "1", "--alphas", "0.25,1", "--betas", "0.5,1",
-               "--out", str(out)])
+    rc = main(
+        [
+            "study",
+            "data-quality",
+            "--steps",
+            "300",
+            "--seed",
+            "1",
+            "--alphas",
+            "0.25,1",
+            "--betas",
+            "0.5,1",
+            "--out",
+            str(out),
+        ]
+    )
     assert rc == 0
     text = capsys.readouterr().out
     assert "pie coverage" in text and "imbalance" in text and "wrote" in text

@@ -1,4 +1,5 @@
 """Blind explanation by genetic symbolic regression (pyoperon) on synthetic residuals with known laws (1% noise)."""
+
 import numpy as np
 import pytest
 import sympy as sp

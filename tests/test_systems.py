@@ -1,4 +1,5 @@
 """Systems catalogue: forces against independently written formulas, Lagrangians, energies, conservation laws."""
+
 import math
 from dataclasses import replace
 
@@ -16,7 +17,9 @@ NAMES = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "neptun
 
 def _points(n, seed, count=5, scale=1.0):
     rng = np.random.default_rng(seed)
-    return [(scale * rng.standard_normal(n), rng.standard_normal(n), float(rng.standard_normal())) for _ in range(count)]
+    return [
+        (scale * rng.standard_normal(n), rng.standard_normal(n), float(rng.standard_normal())) for _ in range(count)
+    ]
 
 
 def _kepler_points(seed, count=5):
@@ -54,10 +57,15 @@ def expected(name, p, q, qd, t):
         th1, th2 = q
         w1, w2 = qd
         D = th2 - th1
-        num1 = (m2 * l1 * w1**2 * math.sin(D) * math.cos(D) + m2 * g * math.sin(th2) * math.cos(D)
-                + m2 * l2 * w2**2 * math.sin(D) - (m1 + m2) * g * math.sin(th1))
-        num2 = (-m2 * l2 * w2**2 * math.sin(D) * math.cos(D)
-                + (m1 + m2) * (g * math.sin(th1) * math.cos(D) - l1 * w1**2 * math.sin(D) - g * math.sin(th2)))
+        num1 = (
+            m2 * l1 * w1**2 * math.sin(D) * math.cos(D)
+            + m2 * g * math.sin(th2) * math.cos(D)
+            + m2 * l2 * w2**2 * math.sin(D)
+            - (m1 + m2) * g * math.sin(th1)
+        )
+        num2 = -m2 * l2 * w2**2 * math.sin(D) * math.cos(D) + (m1 + m2) * (
+            g * math.sin(th1) * math.cos(D) - l1 * w1**2 * math.sin(D) - g * math.sin(th2)
+        )
         a1 = num1 / ((m1 + m2) * l1 - m2 * l1 * math.cos(D) ** 2)
         a2 = num2 / ((m1 + m2) * l2 - m2 * l2 * math.cos(D) ** 2)
         return np.array([a1, a2]), -p["gamma"] * qd
@@ -67,8 +75,10 @@ def expected(name, p, q, qd, t):
         xn = p["rn"] * math.cos(p["omega_n"] * t + p["phase_n"])
         yn = p["rn"] * math.sin(p["omega_n"] * t + p["phase_n"])
         d3 = ((x - xn) ** 2 + (y - yn) ** 2) ** 1.5
-        return (np.array([-p["GM"] * x / r3, -p["GM"] * y / r3]),
-                np.array([p["GMn"] * (xn - x) / d3, p["GMn"] * (yn - y) / d3]))
+        return (
+            np.array([-p["GM"] * x / r3, -p["GM"] * y / r3]),
+            np.array([p["GMn"] * (xn - x) / d3, p["GMn"] * (yn - y) / d3]),
+        )
     if name == "gw":
         G, M1, M2, c = p["G"], p["M1"], p["M2"], p["c"]
         x, y = q
@@ -111,7 +121,10 @@ def test_catalogue_names_and_metadata():
     assert SYSTEMS["double-pendulum"].coords == ("theta1", "theta2")
     # paper's simulation settings: N_step 300/1000/300, dt 0.1/0.1/0.05
     assert [(SYSTEMS[n].n_steps, SYSTEMS[n].dt) for n in ("double-pendulum", "neptune", "gw")] == [
-        (300, 0.1), (1000, 0.1), (300, 0.05)]
+        (300, 0.1),
+        (1000, 0.1),
+        (300, 0.05),
+    ]
     assert SYSTEMS["neptune"].x0 == pytest.approx((2.0, 0.0, 0.0, 1 / math.sqrt(2)))
     assert SYSTEMS["gw"].x0 == (0.0, 2.0, -1.0, 0.0)
     assert SYSTEMS["double-pendulum"].params["gamma"] == 0.02
@@ -122,7 +135,11 @@ def test_get_system_and_overrides():
     s = get_system("ho+ld", gamma=0.1)
     assert s.params["gamma"] == 0.1 and s.params["k"] == 1.0
     assert SYSTEMS["ho+ld"].params["gamma"] == 0.5  # the catalogue entry is untouched
-    assert s != SYSTEMS["ho+ld"] and s == get_system("ho+ld", gamma=0.1) and hash(s) == hash(get_system("ho+ld", gamma=0.1))
+    assert (
+        s != SYSTEMS["ho+ld"]
+        and s == get_system("ho+ld", gamma=0.1)
+        and hash(s) == hash(get_system("ho+ld", gamma=0.1))
+    )
     np.testing.assert_allclose(s.f_n(np.array([0.3]), np.array([2.0]), 0.0), [-0.2], rtol=0, atol=1e-15)
     with pytest.raises(ValueError, match="unknown system 'nope'; expected one of: ho\\+mf"):
         get_system("nope")
@@ -152,7 +169,9 @@ def test_forces_match_formulas(name, use_overrides):
 def test_jit_vmap(name):
     s = get_system(name)
     pts = points_for(s, seed=2, count=4)
-    q = jnp.stack([a for a, _, _ in pts]); qd = jnp.stack([b for _, b, _ in pts]); t = jnp.array([c for *_, c in pts])
+    q = jnp.stack([a for a, _, _ in pts])
+    qd = jnp.stack([b for _, b, _ in pts])
+    t = jnp.array([c for *_, c in pts])
     f = jax.jit(jax.vmap(s.f))(q, qd, t)
     L = jax.jit(jax.vmap(s.lagrangian))(q, qd)
     E = jax.jit(jax.vmap(s.energy))(q, qd)
@@ -166,7 +185,8 @@ def test_jit_vmap(name):
 def test_euler_lagrange_of_lagrangian_gives_fc(name, use_overrides):
     s = get_system(name, **OVERRIDES[name]) if use_overrides else get_system(name)
     pts = points_for(s, seed=3)
-    q = jnp.stack([a for a, _, _ in pts]); qd = jnp.stack([b for _, b, _ in pts])
+    q = jnp.stack([a for a, _, _ in pts])
+    qd = jnp.stack([b for _, b, _ in pts])
     acc = jax.jit(jax.vmap(lambda a, b: el_acceleration(s.lagrangian, a, b)))(q, qd)
     np.testing.assert_allclose(acc, jax.vmap(s.f_c)(q, qd), rtol=1e-10, atol=1e-10)
 
@@ -175,7 +195,8 @@ def test_euler_lagrange_of_lagrangian_gives_fc(name, use_overrides):
 def test_energy_is_legendre_transform(name):
     s = get_system(name, **OVERRIDES[name])
     pts = points_for(s, seed=4)
-    q = jnp.stack([a for a, _, _ in pts]); qd = jnp.stack([b for _, b, _ in pts])
+    q = jnp.stack([a for a, _, _ in pts])
+    qd = jnp.stack([b for _, b, _ in pts])
     legendre = lambda a, b: b @ jax.grad(s.lagrangian, argnums=1)(a, b) - s.lagrangian(a, b)  # noqa: E731
     np.testing.assert_allclose(jax.vmap(s.energy)(q, qd), jax.jit(jax.vmap(legendre))(q, qd), rtol=1e-12, atol=1e-12)
 
@@ -183,7 +204,9 @@ def test_energy_is_legendre_transform(name):
 def test_closed_form_energies():
     q2, v2 = np.array([0.3, -1.2]), np.array([0.7, 0.4])
     assert float(SYSTEMS["ho+mf"].energy(q2, v2)) == pytest.approx(0.5 * (0.49 + 0.16) + 0.5 * (0.09 + 1.44), rel=1e-14)
-    assert float(SYSTEMS["ho+cg"].energy(np.array([0.3]), np.array([0.7]))) == pytest.approx(0.5 * 0.49 + 0.5 * 0.09 + 0.3)
+    assert float(SYSTEMS["ho+cg"].energy(np.array([0.3]), np.array([0.7]))) == pytest.approx(
+        0.5 * 0.49 + 0.5 * 0.09 + 0.3
+    )
     # double pendulum hanging at rest: E = -(m1+m2) g l1 - m2 g l2 = -3 at the defaults
     assert float(SYSTEMS["double-pendulum"].energy(np.zeros(2), np.zeros(2))) == pytest.approx(-3.0, abs=1e-15)
     # circular Kepler orbits: E = -GM / (2r)
@@ -280,8 +303,9 @@ def test_gw_coefficient():
     assert gw_k(SYSTEMS["gw"].params) == pytest.approx(0.0016460905349794, rel=1e-12)
     assert gw_k(SYSTEMS["gw"].params) == pytest.approx(64 / 38880, rel=1e-14)
     # f_n = -k |v|^8 v: at |v| = 1 along -x it is +k along x
-    np.testing.assert_allclose(SYSTEMS["gw"].f_n(np.array([0.0, 2.0]), np.array([-1.0, 0.0]), 0.0),
-                               [64 / 38880, 0.0], rtol=1e-14)
+    np.testing.assert_allclose(
+        SYSTEMS["gw"].f_n(np.array([0.0, 2.0]), np.array([-1.0, 0.0]), 0.0), [64 / 38880, 0.0], rtol=1e-14
+    )
 
 
 def test_gw_inspiral_follows_adiabatic_decay():
@@ -314,11 +338,16 @@ def test_table2_metadata():
     assert SYSTEMS["double-pendulum"].angles == (True, True)
     assert SYSTEMS["neptune"].angles == SYSTEMS["gw"].angles == (False, False)
     assert {n: (SYSTEMS[n].law_family, SYSTEMS[n].feature_set, SYSTEMS[n].discover_n_steps) for n in TABLE2} == {
-        "double-pendulum": ("linear-full", "double-pendulum", 600), "neptune": ("perturber", "kepler", 1000),
-        "gw": ("power", "kepler", 1000)}
+        "double-pendulum": ("linear-full", "double-pendulum", 600),
+        "neptune": ("perturber", "kepler", 1000),
+        "gw": ("power", "kepler", 1000),
+    }
     assert dict(SYSTEMS["double-pendulum"].law_params) == {
-        "Gamma_theta1theta1": "Gamma_11", "Gamma_theta1theta2": "Gamma_12", "Gamma_theta2theta1": "Gamma_21",
-        "Gamma_theta2theta2": "Gamma_22"}
+        "Gamma_theta1theta1": "Gamma_11",
+        "Gamma_theta1theta2": "Gamma_12",
+        "Gamma_theta2theta1": "Gamma_21",
+        "Gamma_theta2theta2": "Gamma_22",
+    }
     for n in TABLE2:
         s = SYSTEMS[n]
         assert list(s.truth) == list(s.goals) and set(s.truth) == set(s.law_params.values())
@@ -350,9 +379,17 @@ def test_truth_follows_from_the_parameters():
 
 
 @pytest.mark.parametrize("name", TABLE2)
-@pytest.mark.parametrize("overrides", [{}, {"double-pendulum": {"gamma": 0.07}, "neptune": {"GMn": 0.02, "rn": 3.5,
-                                                                                            "omega_n": 0.3},
-                                            "gw": {"M1": 2.0, "c": 2.5}}])
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {},
+        {
+            "double-pendulum": {"gamma": 0.07},
+            "neptune": {"GMn": 0.02, "rn": 3.5, "omega_n": 0.3},
+            "gw": {"M1": 2.0, "c": 2.5},
+        },
+    ],
+)
 def test_truth_is_the_law_of_f_n(name, overrides):
     """The hypothesis family's formula at the true parameters is the system's f_n."""
     s = get_system(name, **overrides.get(name, {}))
@@ -371,10 +408,15 @@ def test_truth_is_the_law_of_f_n(name, overrides):
 
 def test_goal_labels():
     assert {n: {k: g.label for k, g in SYSTEMS[n].goals.items()} for n in TABLE2} == {
-        "double-pendulum": {"Gamma_11": "± 0.0005", "Gamma_12": "|·| ≤ 0.0005", "Gamma_21": "|·| ≤ 0.0005",
-                            "Gamma_22": "± 0.0005"},
+        "double-pendulum": {
+            "Gamma_11": "± 0.0005",
+            "Gamma_12": "|·| ≤ 0.0005",
+            "Gamma_21": "|·| ≤ 0.0005",
+            "Gamma_22": "± 0.0005",
+        },
         "neptune": {"GM": "± 2%", "R": "± 0.3%", "omega": "± 0.5%"},
-        "gw": {"k": "± 2%", "m": "± 0.03"}}
+        "gw": {"k": "± 2%", "m": "± 0.03"},
+    }
     with pytest.raises(ValueError, match="kind"):
         Goal("within", 0.1)
     with pytest.raises(ValueError, match="positive"):

@@ -1,4 +1,5 @@
 """Loss, trainer, λ-sweep and verdict: numbers, reproducibility, resume, and the phase transition (reduced steps)."""
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -186,8 +187,11 @@ def test_lambda_sweep_modes():
     assert list(scratch) == [0.1, 0.5, 2.0]
     for lam in lams:
         direct, _ = train(p0, arrays, jnp.asarray(lam), key)
-        for a, b, c in zip(jax.tree_util.tree_leaves(scratch[lam]), jax.tree_util.tree_leaves(vm[lam]),
-                           jax.tree_util.tree_leaves(direct)):
+        for a, b, c in zip(
+            jax.tree_util.tree_leaves(scratch[lam]),
+            jax.tree_util.tree_leaves(vm[lam]),
+            jax.tree_util.tree_leaves(direct),
+        ):
             np.testing.assert_allclose(a, b, atol=1e-10)
             np.testing.assert_array_equal(a, c)
     seen = []

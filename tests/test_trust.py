@@ -1,6 +1,7 @@
 """nnphd.user.assess with its checks (nnphd.user.checks, nnphd.user.scaling): each check on synthetic inputs with
 known answers, then the whole assessment on two constructed systems (tests/fixtures/cases.py: an under-fitting-prone
 conservative one and a weakly dissipative one) at a small, fast configuration."""
+
 import numpy as np
 import pytest
 
@@ -144,7 +145,9 @@ def _ho_residuals(kind, K=6, T=30.0, n=301, seed=0):
     qs, vs, ts = [], [], []
     for _ in range(K):
         a, ph = rng.uniform(0.5, 2), rng.uniform(0, 2 * np.pi)
-        qs.append(a * np.cos(t + ph)); vs.append(-a * np.sin(t + ph)); ts.append(t)
+        qs.append(a * np.cos(t + ph))
+        vs.append(-a * np.sin(t + ph))
+        ts.append(t)
     q, v, tt = np.concatenate(qs)[:, None], np.concatenate(vs)[:, None], np.concatenate(ts)
     r = 0.1 * np.cos(1.3 * tt)[:, None] if kind == "drive" else 0.1 * q**3
     return q, v, tt, r, [np.arange(n) + n * k for k in range(K)]

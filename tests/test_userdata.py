@@ -21,6 +21,7 @@ Real sampling (the second half of this file): a pendulum at a nominal 6 Hz with 
 same with a noisy clock instead, and a spring cart filmed at 30 fps in whole pixels; the numbers measured are in each
 test's docstring and comments, against the quintic smoothing spline that such data took before.
 """
+
 import json
 
 import numpy as np
@@ -44,8 +45,15 @@ def pendulum(theta0=2.0, omega0=0.0, dt=0.05, T=20.0, t=None):
     """Accurate samples of θ̈ = −sin θ − 0.1 θ̇: (t, θ, θ̇, θ̈)."""
     if t is None:
         t = dt * np.arange(int(round(T / dt)) + 1)
-    sol = solve_ivp(lambda _, x: [x[1], -np.sin(x[0]) - 0.1 * x[1]], (t[0], t[-1]), [theta0, omega0], t_eval=t,
-                    method="DOP853", rtol=1e-10, atol=1e-12)
+    sol = solve_ivp(
+        lambda _, x: [x[1], -np.sin(x[0]) - 0.1 * x[1]],
+        (t[0], t[-1]),
+        [theta0, omega0],
+        t_eval=t,
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+    )
     th, om = sol.y
     return t, th, om, -np.sin(th) - 0.1 * om
 
@@ -157,7 +165,7 @@ def test_multiple_trajectories_do_not_mix(tmp_path):
     qdd = {1: ds.qdd[:n, 0], 0: ds.qdd[n:, 0]}
     truth = {1: al_b, 0: al_a}
     for tid in (0, 1):
-        edges = np.r_[0:3, n - 3:n]
+        edges = np.r_[0:3, n - 3 : n]
         np.testing.assert_allclose(qdd[tid][edges], truth[tid][edges], atol=1e-3)  # mixing would give ~1e4
         assert rel_err(qdd[tid], truth[tid]) < 1e-4  # measured 1.7e-5 (101 samples, edges weigh more)
     np.testing.assert_allclose(ds.qd[n:, 0], estimate_derivatives(t, th_a).qd[:, 0], rtol=0, atol=0)
@@ -192,8 +200,11 @@ def test_given_derivatives_are_used_verbatim(tmp_path):
     x, x_dot, x_ddot = np.sin(t), rng.standard_normal(40), rng.standard_normal(40)
     y, y_dot = np.cos(t), -np.sin(t)
     z, c = t**2, np.full(40, 7.0)
-    path = write_csv(tmp_path / "given.csv", ["t", "x", "x_dot", "x_ddot", "y", "y_dot", "z", "c"],
-                     [t, x, x_dot, x_ddot, y, y_dot, z, c])
+    path = write_csv(
+        tmp_path / "given.csv",
+        ["t", "x", "x_dot", "x_ddot", "y", "y_dot", "z", "c"],
+        [t, x, x_dot, x_ddot, y, y_dot, z, c],
+    )
     ud = load_trajectories(path)
     assert ud.coords == ("x", "y", "z", "c")
     assert ud.given_qd == (True, True, False, False) and ud.given_qdd == (True, False, False, False)
@@ -217,8 +228,9 @@ def test_npz_matches_csv_and_info_is_json(tmp_path):
     noisy = th + 1e-3 * th.std() * np.random.default_rng(4).standard_normal(t.size)
     traj = np.r_[np.zeros(100), np.ones(t.size - 100)]
     cols = {"t": np.r_[t[:100], t[100:]], "traj": traj, "theta": noisy, "x": 0.5 * noisy + t}
-    csv_ds, csv_info = to_dataset(load_trajectories(write_csv(tmp_path / "a.csv", list(cols), list(cols.values())),
-                                                    angles=("theta",)), trim=True)
+    csv_ds, csv_info = to_dataset(
+        load_trajectories(write_csv(tmp_path / "a.csv", list(cols), list(cols.values())), angles=("theta",)), trim=True
+    )
     np.savez(tmp_path / "a.npz", **cols)
     npz_ds, npz_info = to_dataset(load_trajectories(tmp_path / "a.npz", angles=("theta",)), trim=True)
     for f in ("q", "qd", "qdd", "t"):
@@ -253,15 +265,27 @@ BAD_CSV = [  # (file content, angles, substrings of the message)
     (_csv("t,x", "0,1", "1, "), (), ["column 'x' row 2 (line 3)", "is empty"]),
     (_csv("t,x", "0,1", "1,nan", *TEN[2:]), (), ["column 'x' row 2 (line 3)", "nan", "not finite"]),
     (_csv("t,x", "0,1", "1,-inf"), (), ["column 'x' row 2 (line 3)", "inf", "not finite"]),
-    (_csv("t,x", *TEN[:4], "2.5,1", *TEN[4:]), (), ["not strictly increasing", "row 5 (line 6)",
-                                                  "decreasing time 2.5 after 3.0"]),
+    (
+        _csv("t,x", *TEN[:4], "2.5,1", *TEN[4:]),
+        (),
+        ["not strictly increasing", "row 5 (line 6)", "decreasing time 2.5 after 3.0"],
+    ),
     (_csv("t,x", *TEN[:4], "3,1", *TEN[4:]), (), ["not strictly increasing", "row 5 (line 6)", "duplicate time 3.0"]),
-    (_csv("traj,t,x", *[f"0,{r}" for r in TEN], "1.5,11,1"), (),
-     ["column 'traj' row 11 (line 12)", "1.5 is not an integer"]),
-    (_csv("traj,t,x", *[f"0,{r}" for r in TEN], *[f"3,{r}" for r in TEN[:4]]), (),
-     ["trajectory 3 has 4 samples", f"at least {MIN_SAMPLES}"]),
-    (_csv("traj,t,x", *[f"0,{r}" for r in TEN], "2,0,5"), (),
-     ["trajectory 2 has a single sample", "row 11 (line 12)", f"at least {MIN_SAMPLES}"]),
+    (
+        _csv("traj,t,x", *[f"0,{r}" for r in TEN], "1.5,11,1"),
+        (),
+        ["column 'traj' row 11 (line 12)", "1.5 is not an integer"],
+    ),
+    (
+        _csv("traj,t,x", *[f"0,{r}" for r in TEN], *[f"3,{r}" for r in TEN[:4]]),
+        (),
+        ["trajectory 3 has 4 samples", f"at least {MIN_SAMPLES}"],
+    ),
+    (
+        _csv("traj,t,x", *[f"0,{r}" for r in TEN], "2,0,5"),
+        (),
+        ["trajectory 2 has a single sample", "row 11 (line 12)", f"at least {MIN_SAMPLES}"],
+    ),
     (_csv("t,x", "0,1"), (), ["single sample", f"at least {MIN_SAMPLES}"]),
     (_csv("t,x,y", *[f"{i},1,-2" for i in range(10)]), (), ["all coordinates are constant", "x, y"]),
     (_csv("t,traj", *[f"{i},0" for i in range(10)]), (), ["no coordinate column"]),
@@ -338,8 +362,15 @@ def lab_pendulum(seed=0, clock_noise=False):
     k = np.delete(np.arange(86 * 6 + 1), np.r_[80:82, 200:203, 330:332, 450:453])
     jitter = rng.normal(0.0, 0.02 / 6, k.size)
     t_true = k / 6.0 if clock_noise else np.sort(k / 6.0 + np.r_[0.0, jitter[1:]])
-    sol = solve_ivp(lambda _, x: [x[1], -1.21 * np.sin(x[0]) - 0.011 * x[1]], (0.0, t_true[-1]), [0.5, 0.0],
-                    t_eval=t_true, method="DOP853", rtol=1e-10, atol=1e-12)
+    sol = solve_ivp(
+        lambda _, x: [x[1], -1.21 * np.sin(x[0]) - 0.011 * x[1]],
+        (0.0, t_true[-1]),
+        [0.5, 0.0],
+        t_eval=t_true,
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+    )
     th, om = sol.y
     t_rec = np.round(t_true + jitter if clock_noise else t_true, 3)
     return t_rec, th + 0.0025 * rng.standard_normal(th.size), th, om, -1.21 * np.sin(th) - 0.011 * om
@@ -350,8 +381,15 @@ def spring_cart():
     to whole pixels, t rounded to ms.  Returns (t recorded, x in pixels, x, ẋ, ẍ at the true times k/30)."""
     w, g = 2 * np.pi / 1.6, 0.014
     t_true = np.arange(30 * 30 + 1) / 30.0
-    sol = solve_ivp(lambda _, s: [s[1], -w**2 * s[0] - 2 * g * w * s[1]], (0.0, t_true[-1]), [1.0, 0.0],
-                    t_eval=t_true, method="DOP853", rtol=1e-10, atol=1e-12)
+    sol = solve_ivp(
+        lambda _, s: [s[1], -(w**2) * s[0] - 2 * g * w * s[1]],
+        (0.0, t_true[-1]),
+        [1.0, 0.0],
+        t_eval=t_true,
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+    )
     u, v = sol.y
     x = 320 + 120 * u
     return np.round(t_true, 3), np.round(x), x, 120 * v, 120 * (-(w**2) * u - 2 * g * w * v)
@@ -362,8 +400,12 @@ def row_stats(est_qdd, err_rows, true):
     e = est_qdd - true
     rms = float(np.sqrt(np.mean(e**2)))
     z = np.abs(e) / err_rows
-    return rms / float(np.sqrt(np.mean(true**2))), float(np.abs(e).max()) / rms, float(z.max()), \
-        float(np.sqrt(np.mean(z**2)))
+    return (
+        rms / float(np.sqrt(np.mean(true**2))),
+        float(np.abs(e).max()) / rms,
+        float(z.max()),
+        float(np.sqrt(np.mean(z**2))),
+    )
 
 
 def test_lab_pendulum_jittered_sampling_with_gaps():
@@ -518,8 +560,7 @@ def test_to_dataset_reports_per_row_errors(tmp_path):
     _, x_px, *_ = spring_cart()
     n = t.size
     x = x_px[:n]
-    path = write_csv(tmp_path / "lab.csv", ["t", "theta", "x", "x_dot"], [t, y, x, np.gradient(x, t)],
-                     fmt="%.6f")
+    path = write_csv(tmp_path / "lab.csv", ["t", "theta", "x", "x_dot"], [t, y, x, np.gradient(x, t)], fmt="%.6f")
     ud = load_trajectories(path, angles=["theta"])
     ds, info = to_dataset(ud)
     rows = info.pop("_rows")
@@ -548,9 +589,19 @@ def test_suggest_angles(tmp_path):
     t = 0.05 * np.arange(400)
     spin = 2.0 * t + 0.3 * np.sin(t)  # turns over: 80 rad
     wrapped = np.mod(spin + np.pi, 2 * np.pi) - np.pi
-    cols = {"t": t, "theta1": 0.4 * np.sin(t), "th_2": 0.3 * np.cos(t), "armAngle": 0.1 * t, "Phi": 0.2 * t,
-            "q1": wrapped, "q2": spin, "x": 320 + 120 * np.cos(t), "px": np.round(320 + 120 * np.cos(t)),
-            "s": 0.5 * np.sin(3 * t), "thermo": 20 + 0.1 * t}
+    cols = {
+        "t": t,
+        "theta1": 0.4 * np.sin(t),
+        "th_2": 0.3 * np.cos(t),
+        "armAngle": 0.1 * t,
+        "Phi": 0.2 * t,
+        "q1": wrapped,
+        "q2": spin,
+        "x": 320 + 120 * np.cos(t),
+        "px": np.round(320 + 120 * np.cos(t)),
+        "s": 0.5 * np.sin(3 * t),
+        "thermo": 20 + 0.1 * t,
+    }
     ud = load_trajectories(write_csv(tmp_path / "a.csv", list(cols), list(cols.values())), angles=["th_2"])
     hints = dict(suggest_angles(ud))
     assert set(hints) == {"theta1", "armAngle", "Phi", "q1", "q2"}  # th_2 is declared; x, px, s, thermo are not angles
@@ -572,6 +623,6 @@ def test_ten_thousand_rows_are_fast():
     est = estimate_derivatives(t, y)
     elapsed = time.perf_counter() - t0
     assert est.method == "local" and 100 < est.window_qdd[0] < 600  # measured 295 (order 6)
-    e_qdd = rel_err(est.qdd[:, 0], -(2 * np.pi / 3) ** 2 * np.sin(2 * np.pi * t / 3))
+    e_qdd = rel_err(est.qdd[:, 0], -((2 * np.pi / 3) ** 2) * np.sin(2 * np.pi * t / 3))
     assert e_qdd < 0.03 and 0.5 < (est.qdd_err[0] / est.qdd_rms[0]) / e_qdd < 2  # measured 1.4 %, 0.83
     assert elapsed < 5.0  # measured 0.7–0.9 s on 2 busy cores

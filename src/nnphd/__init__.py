@@ -11,6 +11,7 @@ Importing nnphd changes nothing in your session (JAX's float64 switch, XLA_FLAGS
 API computes in float64 inside its own calls. :func:`configure` sets the process-wide settings the command line and
 the tests use.
 """
+
 from __future__ import annotations
 
 import os
@@ -30,8 +31,11 @@ def configure(x64: bool = True, fast_cpu: bool = True) -> None:
     matrix products through YNNPACK, 1.8–2.5× slower for these models (benchmarks/bench_speed.py); it only takes
     effect if JAX has not started its backend yet, and NNPHD_KEEP_XLA_FLAGS=1 vetoes it.
     """
-    if fast_cpu and not os.environ.get("NNPHD_KEEP_XLA_FLAGS") and "ynn_fusion_type" not in os.environ.get(
-            "XLA_FLAGS", ""):
+    if (
+        fast_cpu
+        and not os.environ.get("NNPHD_KEEP_XLA_FLAGS")
+        and "ynn_fusion_type" not in os.environ.get("XLA_FLAGS", "")
+    ):
         os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + XLA_FLAG).strip()
     if x64:
         import jax

@@ -1,4 +1,5 @@
 """Optional dependencies: a one-line error naming the extra to install when a feature needs a missing one."""
+
 from __future__ import annotations
 
 import importlib
@@ -17,5 +18,7 @@ def require(module: str, feature: str):
     except ImportError as e:
         top = module.split(".")[0]
         extra = EXTRAS.get(top, "all")
-        raise MissingExtra(f"{feature} needs {top}, which is not installed ({e.__class__.__name__}: {e}); install it "
-                           f"with: pip install 'nnphd[{extra}]'") from None
+        raise MissingExtra(
+            f"{feature} needs {top}, which is not installed ({e.__class__.__name__}: {e}); install it "
+            f"with: pip install 'nnphd[{extra}]'"
+        ) from None

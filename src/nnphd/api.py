@@ -12,6 +12,7 @@ The fitted model is the LNN's conservative acceleration f_c (in the data's units
 when no law is claimed — the verdict is not "detected" or no candidate beats zero). Everything runs in float64
 inside the calls, without changing the caller's JAX settings (see :func:`nnphd.configure`).
 """
+
 from __future__ import annotations
 
 import json
@@ -43,8 +44,9 @@ class Trajectories:
     layout as ``q`` (else estimated from the positions). Invalid input raises :class:`nnphd.user.recording.DataError`
     (a ValueError) with a one-line message."""
 
-    def __init__(self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (),
-                 qd=None, qdd=None):
+    def __init__(
+        self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (), qd=None, qdd=None
+    ):
         from nnphd.user.recording import DataError, _Rows, _validate
 
         if isinstance(t, (list, tuple)) and len(t) and np.ndim(t[0]) == 1:
@@ -53,8 +55,9 @@ class Trajectories:
             if not isinstance(q, (list, tuple)) or len(q) != len(t):
                 raise DataError(f"q must be a list of {len(t)} arrays, one per array of t")
             ids = np.concatenate([np.full(len(np.asarray(x)), i) for i, x in enumerate(t)])
-            cat = (lambda a: None if a is None else np.concatenate([np.asarray(x, float).reshape(len(np.asarray(
-                x)), -1) for x in a]))
+            cat = lambda a: (
+                None if a is None else np.concatenate([np.asarray(x, float).reshape(len(np.asarray(x)), -1) for x in a])
+            )
             t, q, qd, qdd, traj = np.concatenate([np.asarray(x, float) for x in t]), cat(q), cat(qd), cat(qdd), ids
         t = np.asarray(t, float)
         if t.ndim != 1:
@@ -139,8 +142,10 @@ class Trajectories:
         return self._ud.n_samples
 
     def __repr__(self) -> str:
-        return (f"Trajectories({self.n_trajectories} trajectories, {self.n_samples} samples, coordinates "
-                f"{', '.join(self.names)}{'; angles ' + ', '.join(self.angles) if self.angles else ''})")
+        return (
+            f"Trajectories({self.n_trajectories} trajectories, {self.n_samples} samples, coordinates "
+            f"{', '.join(self.names)}{'; angles ' + ', '.join(self.angles) if self.angles else ''})"
+        )
 
 
 @dataclass(frozen=True)
@@ -188,8 +193,18 @@ class NNPhD:
     (:class:`Law` or None), ``report_`` (the JSON-ready report dict), ``names_``, ``angles_``.
     """
 
-    def __init__(self, *, seed: int = 0, steps: int = 1000, n_seeds: int = 2, laws: Sequence[str] = (),
-                 law_fit: str = "auto", sr_time: float = 0.0, trim: bool | str = "auto", **assess_kw: Any):
+    def __init__(
+        self,
+        *,
+        seed: int = 0,
+        steps: int = 1000,
+        n_seeds: int = 2,
+        laws: Sequence[str] = (),
+        law_fit: str = "auto",
+        sr_time: float = 0.0,
+        trim: bool | str = "auto",
+        **assess_kw: Any,
+    ):
         self.seed, self.steps, self.n_seeds, self.laws = int(seed), int(steps), int(n_seeds), tuple(laws)
         self.law_fit, self.sr_time, self.trim, self.assess_kw = law_fit, float(sr_time), trim, dict(assess_kw)
         self._model: dict | None = None
@@ -204,22 +219,52 @@ class NNPhD:
         if not isinstance(data, Trajectories):
             raise TypeError(f"fit expects nnphd.Trajectories, got {type(data).__name__}")
         with _x64():
-            report, model = detect_data(data._ud, None, seed=self.seed, steps=self.steps, sr_time=self.sr_time,
-                                        n_seeds=self.n_seeds, progress=progress, trim=self.trim, laws=self.laws,
-                                        law_level=self.law_fit, **self.assess_kw)
+            report, model = detect_data(
+                data._ud,
+                None,
+                seed=self.seed,
+                steps=self.steps,
+                sr_time=self.sr_time,
+                n_seeds=self.n_seeds,
+                progress=progress,
+                trim=self.trim,
+                laws=self.laws,
+                law_level=self.law_fit,
+                **self.assess_kw,
+            )
         self.report_ = report
         self._model = model
         self._set_results(report, model["law"])
         return self
 
     def _set_results(self, report: dict, law_fit) -> None:
-        self.verdict_ = Verdict(report["status"], bool(report["new_physics"]), float(report["confidence"]),
-                                tuple(report["reasons"]), (report.get("statistic") or {}).get("value"))
-        self.status_, self.confidence_, self.new_physics_ = (self.verdict_.status, self.verdict_.confidence,
-                                                             self.verdict_.new_physics)
+        self.verdict_ = Verdict(
+            report["status"],
+            bool(report["new_physics"]),
+            float(report["confidence"]),
+            tuple(report["reasons"]),
+            (report.get("statistic") or {}).get("value"),
+        )
+        self.status_, self.confidence_, self.new_physics_ = (
+            self.verdict_.status,
+            self.verdict_.confidence,
+            self.verdict_.new_physics,
+        )
         w = (report.get("law") or {}).get("law")
-        self.law_ = None if not w else Law(w["law"], w["title"], w["formula"], w["latex"], w["params"], w["stderr"],
-                                           w["method"], tuple(report["law"].get("candidates", ())))
+        self.law_ = (
+            None
+            if not w
+            else Law(
+                w["law"],
+                w["title"],
+                w["formula"],
+                w["latex"],
+                w["params"],
+                w["stderr"],
+                w["method"],
+                tuple(report["law"].get("candidates", ())),
+            )
+        )
         self._law = law_fit
         self._fc_jit = None  # compiled f_c of the model now held (a refit replaces it)
         m = self._model
@@ -229,8 +274,9 @@ class NNPhD:
         if self._model is None:
             raise RuntimeError("this NNPhD is not fitted yet: call .fit(data) or nnphd.load(path) first")
         if self._model["conservative"] is None:
-            raise RuntimeError("no model was trained: the data cannot decide (" + "; ".join(self.verdict_.reasons)
-                               + ")")
+            raise RuntimeError(
+                "no model was trained: the data cannot decide (" + "; ".join(self.verdict_.reasons) + ")"
+            )
 
     # ------------------------------------------------------------------------------------------- the model
     def _fc_fn(self):
@@ -340,13 +386,31 @@ class NNPhD:
             if self._law.family.spec is None:
                 raise ValueError(f"the law family {self._law.key!r} cannot be saved (no spec)")
             law = {"spec": self._law.family.spec, "beta": self._law.beta.tolist(), "theta": self._law.theta.tolist()}
-        meta = {"format": "nnphd-model", "version": 1, "names": list(self.names_),
-                "angles": [c in self.angles_ for c in self.names_], "cfg": asdict(cons["cfg"]),
-                "scaling": {"mu_q": np.asarray(sc.mu_q).tolist(), "s_q": np.asarray(sc.s_q).tolist(),
-                            "t0": float(sc.t0), "s_t": float(sc.s_t)},
-                "law": law, "report": self.report_, "n_leaves": len(leaves),
-                "settings": {"seed": self.seed, "steps": self.steps, "n_seeds": self.n_seeds, "laws": list(self.laws),
-                             "law_fit": self.law_fit, "sr_time": self.sr_time, "trim": self.trim}}
+        meta = {
+            "format": "nnphd-model",
+            "version": 1,
+            "names": list(self.names_),
+            "angles": [c in self.angles_ for c in self.names_],
+            "cfg": asdict(cons["cfg"]),
+            "scaling": {
+                "mu_q": np.asarray(sc.mu_q).tolist(),
+                "s_q": np.asarray(sc.s_q).tolist(),
+                "t0": float(sc.t0),
+                "s_t": float(sc.s_t),
+            },
+            "law": law,
+            "report": self.report_,
+            "n_leaves": len(leaves),
+            "settings": {
+                "seed": self.seed,
+                "steps": self.steps,
+                "n_seeds": self.n_seeds,
+                "laws": list(self.laws),
+                "law_fit": self.law_fit,
+                "sr_time": self.sr_time,
+                "trim": self.trim,
+            },
+        }
         from nnphd.io.results import _json_default
 
         arrays = {f"lnn_{i}": np.asarray(x) for i, x in enumerate(leaves)}
@@ -394,16 +458,42 @@ def load(path) -> NNPhD:
     s = meta["scaling"]
     sc = Scaling(np.asarray(s["mu_q"]), np.asarray(s["s_q"]), float(s["t0"]), float(s["s_t"]))
     st = meta["settings"]
-    model = NNPhD(seed=st["seed"], steps=st["steps"], n_seeds=st["n_seeds"], laws=st["laws"], law_fit=st["law_fit"],
-                  sr_time=st["sr_time"], trim=st["trim"])
+    model = NNPhD(
+        seed=st["seed"],
+        steps=st["steps"],
+        n_seeds=st["n_seeds"],
+        laws=st["laws"],
+        law_fit=st["law_fit"],
+        sr_time=st["sr_time"],
+        trim=st["trim"],
+    )
     law = None
     if meta["law"] is not None:
         fam = family_from_spec(meta["law"]["spec"], meta["names"])
         beta, theta = np.asarray(meta["law"]["beta"], float), np.asarray(meta["law"]["theta"], float)
-        law = LawFit(fam.key, fam.title, fam.k, {}, {}, {}, {}, float("nan"), 1.0, 0.0, 0.0, 0.0, fam.terms,
-                     family=fam, theta=theta, beta=beta)
-    model._model = {"conservative": {"lnn": lnn, "cfg": cfg, "scaling": sc}, "coords": meta["names"],
-                    "angles": meta["angles"]}
+        law = LawFit(
+            fam.key,
+            fam.title,
+            fam.k,
+            {},
+            {},
+            {},
+            {},
+            float("nan"),
+            1.0,
+            0.0,
+            0.0,
+            0.0,
+            fam.terms,
+            family=fam,
+            theta=theta,
+            beta=beta,
+        )
+    model._model = {
+        "conservative": {"lnn": lnn, "cfg": cfg, "scaling": sc},
+        "coords": meta["names"],
+        "angles": meta["angles"],
+    }
     model.report_ = meta["report"]
     model._set_results(meta["report"], law)
     return model

@@ -2,6 +2,7 @@
 
 Bad input gives a one-line ``error: ...`` on stderr and exit code 2, with nothing written.
 """
+
 from __future__ import annotations
 
 import math
@@ -14,9 +15,13 @@ from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
-                  context_settings={"help_option_names": ["-h", "--help"]},
-                  help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.")
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+    help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.",
+)
 console = Console()
 
 
@@ -29,9 +34,13 @@ def _version(value: bool) -> None:
 
 
 @app.callback()
-def _root(version: bool = typer.Option(False, "--version", "-V", is_eager=True, callback=_version,
-                                       help="print the version and exit")) -> None:
+def _root(
+    version: bool = typer.Option(
+        False, "--version", "-V", is_eager=True, callback=_version, help="print the version and exit"
+    ),
+) -> None:
     """nnphd — Neural New-Physics Detector: find the non-conservative part of a force field."""
+
 
 # typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
 _ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
@@ -40,8 +49,14 @@ _ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "C
 @contextmanager
 def _progress(title: str):
     """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)``."""
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=console, transient=False) as prog:
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=False,
+    ) as prog:
         task = prog.add_task(title, total=None)
         yield lambda done, total, message: prog.update(task, completed=done, total=total, description=message)
 
@@ -101,8 +116,10 @@ def systems():
     for s in SYSTEMS.values():
         params = ", ".join(f"{k}={v:.6g}" for k, v in s.params.items())
         kind = "conservative" if s.conservative else "non-conservative"
-        console.print(f"[bold]{s.name}[/]  n={s.n}, {kind}, data: {s.data} (dt={s.dt:g}, {s.n_steps} steps from "
-                      f"{tuple(round(x, 6) for x in s.x0)})")
+        console.print(
+            f"[bold]{s.name}[/]  n={s.n}, {kind}, data: {s.data} (dt={s.dt:g}, {s.n_steps} steps from "
+            f"{tuple(round(x, 6) for x in s.x0)})"
+        )
         console.print(f"    {params}")
         console.print(f"    {s.description}", highlight=False)
 
@@ -110,16 +127,27 @@ def systems():
 @app.command()
 def sweep(
     system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)"),
-    p: str = typer.Option("1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"),
+    p: str = typer.Option(
+        "1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"
+    ),
     steps: int = typer.Option(2000, "--steps", min=4, help="training steps per λ (split over the 4 learning rates)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
-    mode: SweepMode = typer.Option(SweepMode.warm, "--mode", help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run) or scratch (the same, one λ after the other)"),
-    param: list[str] = typer.Option([], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"),
+    mode: SweepMode = typer.Option(
+        SweepMode.warm,
+        "--mode",
+        help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run) or scratch (the same, one λ after the other)",
+    ),
+    param: list[str] = typer.Option(
+        [], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"
+    ),
     out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png"),
     resume: bool = typer.Option(True, "--resume/--no-resume", help="continue an interrupted sweep in --out"),
-    standardize: bool = typer.Option(True, "--standardize/--no-standardize",
-                                     help="networks see (q, q̇, t) standardised by the training data's mean and std"),
+    standardize: bool = typer.Option(
+        True,
+        "--standardize/--no-standardize",
+        help="networks see (q, q̇, t) standardised by the training data's mean and std",
+    ),
 ):
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
     from nnphd.engine.systems import get_system
@@ -148,9 +176,18 @@ def sweep(
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
     with _progress("λ-sweep (first λ includes compilation)") as bar:
-        res = run_sweep(sysm, p=pp, steps=steps, seed=seed, lambdas=lams, mode=mode.value, out=out, resume=resume,
-                        standardize=standardize,
-                        progress=bar)
+        res = run_sweep(
+            sysm,
+            p=pp,
+            steps=steps,
+            seed=seed,
+            lambdas=lams,
+            mode=mode.value,
+            out=out,
+            resume=resume,
+            standardize=standardize,
+            progress=bar,
+        )
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
     has_m = res["table"][0]["m_c"] is not None
     for col in ("λ", "L_e", "L_b") + (("m_c", "m_n") if has_m else ()):
@@ -164,8 +201,10 @@ def sweep(
     v = res["verdict"]
     tag = "[bold red]NEW PHYSICS[/]" if v["new_physics"] else "[bold green]no new physics[/]"
     console.print(f"verdict: {tag} — {v['reason']}")
-    console.print(f"statistic: L_e ratio across λ=1 = {v['ratio']:.3g} (threshold {v['min_ratio']:g}); "
-                  f"|f_n| ≈ {v['fn_size_from_jump']:.3g} (jump) / {v['fn_size_from_uan']:.3g} (UAN)")
+    console.print(
+        f"statistic: L_e ratio across λ=1 = {v['ratio']:.3g} (threshold {v['min_ratio']:g}); "
+        f"|f_n| ≈ {v['fn_size_from_jump']:.3g} (jump) / {v['fn_size_from_uan']:.3g} (UAN)"
+    )
     if res["resumed_lambdas"]:
         console.print(f"resumed {len(res['resumed_lambdas'])} finished λ from a checkpoint")
     console.print(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)")
@@ -180,8 +219,12 @@ def discover(
     lam: float = typer.Option(0.2, "--lam", help="λ of the constrained training, in (0, 1) (paper: 0.2)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
     standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
-    n_steps: int = typer.Option(0, "--n-steps", min=0, help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"),
-    sr_time: int = typer.Option(20, "--sr-time", min=0, help="seconds of genetic symbolic regression per force component (0: skip)"),
+    n_steps: int = typer.Option(
+        0, "--n-steps", min=0, help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"
+    ),
+    sr_time: int = typer.Option(
+        20, "--sr-time", min=0, help="seconds of genetic symbolic regression per force component (0: skip)"
+    ),
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
@@ -209,9 +252,17 @@ def discover(
     results = []
     for name in systems_:
         with _progress(f"{name}: starting") as bar:
-            res = run_discover(name, steps=steps, sweep_steps=sweep_steps, lam=lam_v, seed=seed, standardize=standardize,
-                               progress=bar, n_steps=n_steps or None,
-                               sr_time=sr_time)
+            res = run_discover(
+                name,
+                steps=steps,
+                sweep_steps=sweep_steps,
+                lam=lam_v,
+                seed=seed,
+                standardize=standardize,
+                progress=bar,
+                n_steps=n_steps or None,
+                sr_time=sr_time,
+            )
         write_discovery(res, Path(out) / name)
         results.append(res)
         v = res["verdict"]
@@ -219,21 +270,35 @@ def discover(
         console.print(f"[bold]{name}[/]: {tag} (L_e ratio across λ=1: {v['ratio']:.3g}) — {res['wall_time_s']:.0f} s")
         console.print(f"  constrained Lagrangian: {res['constrained_lagrangian']['formula']}", highlight=False)
         lw = res["law"]["law"]
-        console.print(f"  law (joint fit, winner of {len(res['law']['candidates'])} candidates): "
-                      + ("; ".join(f"{k} = {e}" for k, e in lw["formula"].items()) if lw else "none"), highlight=False)
+        console.print(
+            f"  law (joint fit, winner of {len(res['law']['candidates'])} candidates): "
+            + ("; ".join(f"{k} = {e}" for k, e in lw["formula"].items()) if lw else "none"),
+            highlight=False,
+        )
         console.print(f"  post-hoc parametric fit of the UAN's f_n: {res['parametric']['formula']}", highlight=False)
         for method, b in res["blind"].items():
-            console.print(f"  blind ({method}): "
-                          f"{'; '.join(f'{k} = {e}' for k, e in b['formula'].items()) if b['readable'] else '—'}"
-                          f"  ({b['note']})", highlight=False)
+            console.print(
+                f"  blind ({method}): "
+                f"{'; '.join(f'{k} = {e}' for k, e in b['formula'].items()) if b['readable'] else '—'}"
+                f"  ({b['note']})",
+                highlight=False,
+            )
     t = Table(title="Table II — ground truth, paper, ours")
     for col in ("system", "quantity", "truth", "paper", "ours (joint)", "± stderr", "goal", "met", "post hoc"):
         t.add_column(col, justify="right")
     for res in results:
         for r in res["table2"]:
-            t.add_row(res["system"].replace("double-pendulum", "pendulum"), r["quantity"], f"{r['truth']:.4g}",
-                      f"{r['paper']:.4g}", f"{r['ours']:.6g}",
-                      f"{r['stderr']:.2g}", r["goal"], "yes" if r["goal_met"] else "[red]no[/]", f"{r['posthoc']:.4g}")
+            t.add_row(
+                res["system"].replace("double-pendulum", "pendulum"),
+                r["quantity"],
+                f"{r['truth']:.4g}",
+                f"{r['paper']:.4g}",
+                f"{r['ours']:.6g}",
+                f"{r['stderr']:.2g}",
+                r["goal"],
+                "yes" if r["goal_met"] else "[red]no[/]",
+                f"{r['posthoc']:.4g}",
+            )
     console.print(t)
     if all_:
         write_table2(results, out)
@@ -250,10 +315,15 @@ def _print_claims(claims) -> None:
 
 @app.command()
 def predict(
-    steps: int = typer.Option(2000, "--steps", min=4, help="training steps of each model (split over the 4 learning rates)"),
+    steps: int = typer.Option(
+        2000, "--steps", min=4, help="training steps of each model (split over the 4 learning rates)"
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed (initialisation and minibatches)"),
-    uan_time: bool = typer.Option(False, "--uan-time/--no-uan-time",
-                                  help="UAN sees (q, q̇, t) as in the paper (default: (q, q̇), see nnphd.paper.predict)"),
+    uan_time: bool = typer.Option(
+        False,
+        "--uan-time/--no-uan-time",
+        help="UAN sees (q, q̇, t) as in the paper (default: (q, q̇), see nnphd.paper.predict)",
+    ),
     out: str = typer.Option("out/predict", "--out", help="output directory for results.json and the figures"),
 ):
     """Extrapolate the damped double pendulum with NNPhD, an LNN and a black box (paper Fig. 4)."""
@@ -270,25 +340,41 @@ def predict(
         res = run_prediction(seed=seed, steps=steps, out=out, uan_time=uan_time, progress=bar)
     tkey = f"t_error_exceeds_{THETA_TOL:g}"
     t = Table(title=f"prediction from t = 30 (train t ≤ 30), {steps} training steps, seed {seed}")
-    for col in ("model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t",
-                "train |Δq̈|"):
+    for col in (
+        "model",
+        "θ1 RMSE [30,40]",
+        "θ1 RMSE [30,200]",
+        "E RMSE [30,200]",
+        f"|Δθ1| > {THETA_TOL:g} at t",
+        "train |Δq̈|",
+    ):
         t.add_column(col, justify="right")
     for kind in MODELS:
         m = res["metrics"][kind]
-        t.add_row(LABELS[kind], f"{m['theta1_rmse_30_40']:.4g}", f"{m['theta1_rmse_30_200']:.4g}",
-                  f"{m['energy_rmse_30_200']:.4g}", "never" if m[tkey] is None else f"{m[tkey]:.1f}",
-                  f"{m['train_force_error']:.3g}")
+        t.add_row(
+            LABELS[kind],
+            f"{m['theta1_rmse_30_40']:.4g}",
+            f"{m['theta1_rmse_30_200']:.4g}",
+            f"{m['energy_rmse_30_200']:.4g}",
+            "never" if m[tkey] is None else f"{m[tkey]:.1f}",
+            f"{m['train_force_error']:.3g}",
+        )
     console.print(t)
     b = res["energy_balance"]
-    console.print(f"energy balance (NNPhD rollout): dH/dt vs q̇ᵀ(∂²L/∂q̇²)f_n: rel. rms difference "
-                  f"{b['dHdt_vs_power_rel_rms']:.3g}, correlation {b['dHdt_vs_power_corr']:.4f}; learned vs true "
-                  f"dissipation: correlation {b['learned_vs_true_power_corr']:.3f}", highlight=False)
+    console.print(
+        f"energy balance (NNPhD rollout): dH/dt vs q̇ᵀ(∂²L/∂q̇²)f_n: rel. rms difference "
+        f"{b['dHdt_vs_power_rel_rms']:.3g}, correlation {b['dHdt_vs_power_corr']:.4f}; learned vs true "
+        f"dissipation: correlation {b['learned_vs_true_power_corr']:.3f}",
+        highlight=False,
+    )
     _print_claims(res["claims"])
     console.print(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res['wall_time_s']:.1f} s)")
 
 
 # ---- nnphd study: the paper's λ/p study (Fig. 5) and data-quality study (Fig. 6) ----------------------------------
-study_app = typer.Typer(no_args_is_help=True, help="Paper studies: λ and loss dependence (Fig. 5), data quality (Fig. 6).")
+study_app = typer.Typer(
+    no_args_is_help=True, help="Paper studies: λ and loss dependence (Fig. 5), data quality (Fig. 6)."
+)
 app.add_typer(study_app, name="study")
 
 
@@ -321,7 +407,9 @@ def study_lambda_p(
     systems_: str | None = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
     ps: str | None = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
-    out: str = typer.Option("out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"),
+    out: str = typer.Option(
+        "out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"
+    ),
 ):
     """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
     from nnphd.engine.train import parse_p
@@ -347,17 +435,22 @@ def study_lambda_p(
     from nnphd.paper.lambda_p import lambda_p_study
 
     with _progress("λ/p study (each sweep compiles first)") as bar:
-        res = lambda_p_study(steps=steps, seed=seed, lambdas=lams, ps=pvals, systems=syss, out=out,
-                             progress=bar)
+        res = lambda_p_study(steps=steps, seed=seed, lambdas=lams, ps=pvals, systems=syss, out=out, progress=bar)
     t = Table(title=f"verdicts — {steps} steps per λ, seed {seed}, L_e on the test set")
     for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
         t.add_column(col, justify="right")
     for v in res["verdicts"]:
         verd = "new" if v["new_physics"] else "none"
-        t.add_row(v["system"], "MSE" if v["p"] == "mse" else f"p={v['p']}", f"{v['L_below']:.3g}", f"{v['L_above']:.3g}",
-                  f"{v['ratio']:.3g}", verd if v["correct"] else f"[red]{verd} ✗[/]",
-                  ("—" if v["sharpness"] is None else f"{v['sharpness']:.2f}") + f" {v['transition']}",
-                  "—" if v["rise_fraction"] is None else f"{v['rise_fraction']:.2f}")
+        t.add_row(
+            v["system"],
+            "MSE" if v["p"] == "mse" else f"p={v['p']}",
+            f"{v['L_below']:.3g}",
+            f"{v['L_above']:.3g}",
+            f"{v['ratio']:.3g}",
+            verd if v["correct"] else f"[red]{verd} ✗[/]",
+            ("—" if v["sharpness"] is None else f"{v['sharpness']:.2f}") + f" {v['transition']}",
+            "—" if v["rise_fraction"] is None else f"{v['rise_fraction']:.2f}",
+        )
     console.print(t)
     al = res["alignment"]
     if al is not None:
@@ -366,7 +459,10 @@ def study_lambda_p(
         for l in res["settings"]["ps"]:
             t.add_column("MSE" if l == "mse" else f"p={l}", justify="right")
         for i, lam in enumerate(res["settings"]["lambdas"]):
-            t.add_row(f"{lam:g}", *[f"{al['by_p'][l][i]['m_c']:.3f} / {al['by_p'][l][i]['m_n']:.3f}" for l in res["settings"]["ps"]])
+            t.add_row(
+                f"{lam:g}",
+                *[f"{al['by_p'][l][i]['m_c']:.3f} / {al['by_p'][l][i]['m_n']:.3f}" for l in res["settings"]["ps"]],
+            )
         console.print(t)
     _print_claims(res["claims"])
     if res["cached"]:
@@ -377,10 +473,16 @@ def study_lambda_p(
 
 @study_app.command("data-quality")
 def study_data_quality(
-    steps: int = typer.Option(2000, "--steps", min=4, help="training steps per data set (split over the 4 learning rates)"),
+    steps: int = typer.Option(
+        2000, "--steps", min=4, help="training steps per data set (split over the 4 learning rates)"
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
-    alphas: str | None = typer.Option(None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"),
-    betas: str | None = typer.Option(None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"),
+    alphas: str | None = typer.Option(
+        None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"
+    ),
+    betas: str | None = typer.Option(
+        None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"
+    ),
     out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
@@ -397,21 +499,28 @@ def study_data_quality(
     from nnphd.paper.data_quality import data_quality_study
 
     with _progress("data-quality study: starting") as bar:
-        res = data_quality_study(steps=steps, seed=seed, alphas=al, betas=be, out=out,
-                                 progress=bar)
+        res = data_quality_study(steps=steps, seed=seed, alphas=al, betas=be, out=out, progress=bar)
     s = res["settings"]
     t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {steps} steps)")
     for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
         t.add_column(col, justify="right")
     for r in res["alpha"]["table"]:
-        t.add_row(f"{r['alpha']:g}", f"{r['L_e']:.4g}", f"{r['L_e_train']:.4g}", f"{r['L_e_full']:.4g}", f"{r['L_b']:.3g}")
+        t.add_row(
+            f"{r['alpha']:g}", f"{r['L_e']:.4g}", f"{r['L_e_train']:.4g}", f"{r['L_e_full']:.4g}", f"{r['L_b']:.3g}"
+        )
     console.print(t)
     t = Table(title=f"HO+LD, λ={s['lam_beta']:g}: misalignment vs imbalance β")
     for col in ("β", "m_c (test, same β)", "m_n (test, same β)", "m_c (balanced)", "m_n (balanced)", "L_e"):
         t.add_column(col, justify="right")
     for r in res["beta"]["table"]:
-        t.add_row(f"{r['beta']:g}", f"{r['m_c']:.4f}", f"{r['m_n']:.4f}", f"{r['m_c_full']:.4f}", f"{r['m_n_full']:.4f}",
-                  f"{r['L_e']:.3g}")
+        t.add_row(
+            f"{r['beta']:g}",
+            f"{r['m_c']:.4f}",
+            f"{r['m_n']:.4f}",
+            f"{r['m_c_full']:.4f}",
+            f"{r['m_n_full']:.4f}",
+            f"{r['L_e']:.3g}",
+        )
     console.print(t)
     _print_claims(res["claims"])
     if res["cached"]:
@@ -421,9 +530,13 @@ def study_data_quality(
 
 @app.command()
 def reproduce(
-    quick: bool = typer.Option(False, "--quick", help="fewer training steps, same code (a smoke-scale run, ≤ 10 min on 2 cores)"),
+    quick: bool = typer.Option(
+        False, "--quick", help="fewer training steps, same code (a smoke-scale run, ≤ 10 min on 2 cores)"
+    ),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed of every experiment"),
-    out: str | None = typer.Option(None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"),
+    out: str | None = typer.Option(
+        None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"
+    ),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
     from nnphd.io.results import ensure_writable_dir
@@ -445,36 +558,60 @@ def reproduce(
         t.add_column(col, justify="left")
     for exp in EXPERIMENTS:
         cs = [c for c in s["claims"] if c["experiment"] == exp]
-        t.add_row(TITLES[exp], f"{sum(c['met'] for c in cs)} of {len(cs)}",
-                  "\n".join(f"{c['claim']} — ours: {c['ours']}" for c in cs if not c["met"]) or "—")
+        t.add_row(
+            TITLES[exp],
+            f"{sum(c['met'] for c in cs)} of {len(cs)}",
+            "\n".join(f"{c['claim']} — ours: {c['ours']}" for c in cs if not c["met"]) or "—",
+        )
     console.print(t)
     cached = [k for k, r in s["runs"].items() if r["cached"]]
     if cached:
         console.print(f"loaded from the cache: {', '.join(cached)}")
-    console.print(f"claims met: {s['claims_met']} of {s['claims_total']}; wall time {s['wall_time_s']:.0f} s "
-                  f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s)")
+    console.print(
+        f"claims met: {s['claims_met']} of {s['claims_total']}; wall time {s['wall_time_s']:.0f} s "
+        f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s)"
+    )
     console.print(f"wrote {out}/report.html and {out}/summary.json")
 
 
 @app.command()
 def detect(
-    file: str = typer.Argument(..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"),
+    file: str = typer.Argument(
+        ..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"
+    ),
     out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
     angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
     seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
     steps: int = typer.Option(1000, "--steps", min=4, help="training steps per λ (and per extra round of the checks)"),
-    repeats: int = typer.Option(2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"),
-    sr_time: int = typer.Option(10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"),
-    law: list[str] | None = typer.Option(None, "--law", help="a candidate law of your own, as a formula in the "
-                                            "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
-                                            "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)"),
-    law_level: LawLevel = typer.Option(LawLevel.auto, "--law-fit", help="how the candidate laws are ranked "
-                                       "(trajectory: multiple shooting on the positions)"),
-    lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ of the sweep (default "
-                                       "0.05,0.1,0.2,0.5,2,5,10; values below and above 1)"),
+    repeats: int = typer.Option(
+        2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"
+    ),
+    sr_time: int = typer.Option(
+        10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"
+    ),
+    law: list[str] | None = typer.Option(
+        None,
+        "--law",
+        help="a candidate law of your own, as a formula in the "
+        "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
+        "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)",
+    ),
+    law_level: LawLevel = typer.Option(
+        LawLevel.auto,
+        "--law-fit",
+        help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
+    ),
+    lambdas: str | None = typer.Option(
+        None,
+        "--lambdas",
+        help="comma-separated λ of the sweep (default 0.05,0.1,0.2,0.5,2,5,10; values below and above 1)",
+    ),
     width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
-    trim: Trim = typer.Option(Trim.auto, "--trim", help="drop the ends of each trajectory, where the one-sided "
-                              "derivative estimates are ~20x worse"),
+    trim: Trim = typer.Option(
+        Trim.auto,
+        "--trim",
+        help="drop the ends of each trajectory, where the one-sided derivative estimates are ~20x worse",
+    ),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
     from nnphd.io.results import ensure_writable_dir
@@ -500,32 +637,52 @@ def detect(
     from nnphd.user.detect import detect_file
 
     with _progress("detect: starting") as status:
-        rep = detect_file(file, out=out, angles=ang, seed=seed, steps=steps, n_seeds=repeats, sr_time=sr_time,
-                          progress=status, laws=tuple(law or ()), law_level=law_level.value, trim=trim_v,
-                          **extra)
+        rep = detect_file(
+            file,
+            out=out,
+            angles=ang,
+            seed=seed,
+            steps=steps,
+            n_seeds=repeats,
+            sr_time=sr_time,
+            progress=status,
+            laws=tuple(law or ()),
+            law_level=law_level.value,
+            trim=trim_v,
+            **extra,
+        )
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
-    console.print(f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
-                  f"(confidence {rep['confidence']:.2g})", highlight=False)
+    console.print(
+        f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
+        f"(confidence {rep['confidence']:.2g})",
+        highlight=False,
+    )
     if rep.get("effect"):
         console.print(f"  effect: {rep['effect']}", highlight=False)
     for w in rep.get("warnings") or []:
         console.print(f"  [yellow]warning:[/] {w}", highlight=False)
     for c, why in rep.get("angle_suggestions") or []:
-        console.print(f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one",
-                      highlight=False)
+        console.print(
+            f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one", highlight=False
+        )
     for r in rep["reasons"]:
         console.print(f"  • {r}", highlight=False)
     f = rep["formula"]
     lw = rep.get("law") or {}
     if lw.get("law"):
         w = lw["law"]
-        console.print(f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items()),
-                      highlight=False)
-        console.print("       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items()),
-                      highlight=False)
+        console.print(
+            f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items()), highlight=False
+        )
+        console.print(
+            "       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items()),
+            highlight=False,
+        )
     elif f is not None:
-        console.print("  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items())
-                      + f"  [{f['method']}]", highlight=False)
+        console.print(
+            "  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()) + f"  [{f['method']}]",
+            highlight=False,
+        )
     if lw.get("reason") and not lw.get("law"):
         console.print(f"  law: none — {lw['reason']}", highlight=False)
     elif rep["blind"] and f is None:
@@ -548,8 +705,10 @@ def demo_neptune(
 
     try:
         if not available():
-            raise InputError("the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
-                             "(python3 dev.py setup installs them)")
+            raise InputError(
+                "the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
+                "(python3 dev.py setup installs them)"
+            )
         ensure_writable_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None

@@ -24,6 +24,7 @@ Frames: ``"ecliptic"`` (default; the mean ecliptic and equinox of J2000, obtaine
 by the IAU 1976 obliquity 84381.448″) or ``"icrf"`` (DE405's own equatorial axes). Origin: the solar-system
 barycentre. Years are Julian years of TDB: year 2000.0 is J2000 = JD 2451545.0.
 """
+
 from __future__ import annotations
 
 import functools
@@ -71,8 +72,18 @@ UNIT_LENGTH_AU = 19.2
 BODIES = ("sun", "mercury", "venus", "earthmoon", "mars", "jupiter", "saturn", "uranus", "neptune", "pluto")
 #: The "known physics" of 1846: the Sun and the planets out to Saturn.
 KNOWN_BODIES = ("sun", "mercury", "venus", "earthmoon", "mars", "jupiter", "saturn")
-_GM_KEY = {"sun": "GMS", "mercury": "GM1", "venus": "GM2", "earthmoon": "GMB", "mars": "GM4", "jupiter": "GM5",
-           "saturn": "GM6", "uranus": "GM7", "neptune": "GM8", "pluto": "GM9"}
+_GM_KEY = {
+    "sun": "GMS",
+    "mercury": "GM1",
+    "venus": "GM2",
+    "earthmoon": "GMB",
+    "mars": "GM4",
+    "jupiter": "GM5",
+    "saturn": "GM6",
+    "uranus": "GM7",
+    "neptune": "GM8",
+    "pluto": "GM9",
+}
 _FRAMES = ("ecliptic", "icrf")
 
 
@@ -89,7 +100,8 @@ def load_ephemeris():
         from jplephem.ephem import Ephemeris
     except ImportError as e:
         raise EphemerisUnavailable(
-            f"the JPL ephemeris is not installed ({e}); install it with: pip install 'nnphd[astro]'") from None
+            f"the JPL ephemeris is not installed ({e}); install it with: pip install 'nnphd[astro]'"
+        ) from None
     return Ephemeris(de405)
 
 
@@ -244,8 +256,19 @@ def uranus_residual(jd=None, known=KNOWN_BODIES, frame: str = "ecliptic") -> Ura
     if a_sun is None:
         a_sun = pull(gm("sun"), state("sun", jd, frame)[0], r)
     r_nep = state("neptune", jd, frame)[0]
-    return UranusResidual(jd=jd, r=r, v=v, a=a, a_known=a_known, a_sun=a_sun, a_res=a - a_known,
-                          a_neptune=pull(gm("neptune"), r_nep, r), r_neptune=r_nep, frame=frame, known=known)
+    return UranusResidual(
+        jd=jd,
+        r=r,
+        v=v,
+        a=a,
+        a_known=a_known,
+        a_sun=a_sun,
+        a_res=a - a_known,
+        a_neptune=pull(gm("neptune"), r_nep, r),
+        r_neptune=r_nep,
+        frame=frame,
+        known=known,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------- truth
@@ -279,13 +302,17 @@ def neptune_truth(jd=None, epoch_jd: float = J2000_JD, frame: str = "ecliptic") 
     h = np.mean(np.cross(r, v), axis=0)
     h = h / np.linalg.norm(h)
     return NeptuneTruth(
-        gm=gm("neptune"), gm_ratio=gm("neptune") / gm("sun"), radius_au=float(np.mean(np.linalg.norm(r, axis=1))),
+        gm=gm("neptune"),
+        gm_ratio=gm("neptune") / gm("sun"),
+        radius_au=float(np.mean(np.linalg.norm(r, axis=1))),
         period_yr=float(2 * np.pi / abs(rate) / DAYS_PER_YEAR),
         longitude_deg=float(np.rad2deg(np.arctan2(r0[1], r0[0])) % 360.0),
         mean_longitude_deg=float(np.rad2deg(lon0) % 360.0),
         inclination_deg=float(np.rad2deg(np.arccos(np.clip(h[2], -1.0, 1.0)))),
         node_deg=float(np.rad2deg(np.arctan2(h[0], -h[1])) % 360.0),
-        epoch_jd=float(epoch_jd), frame=frame)
+        epoch_jd=float(epoch_jd),
+        frame=frame,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------- fit
@@ -341,8 +368,13 @@ def _orbit3(x, t) -> np.ndarray:
     return R * np.column_stack([cn * cu - sn * su * ci, sn * cu + cn * su * ci, su * si])
 
 
-def fit_neptune(res: UranusResidual, ndim: int = 2, epoch_jd: float = J2000_JD,
-                length_unit_au: float = UNIT_LENGTH_AU, r_grid_au=None) -> PerturberFit:
+def fit_neptune(
+    res: UranusResidual,
+    ndim: int = 2,
+    epoch_jd: float = J2000_JD,
+    length_unit_au: float = UNIT_LENGTH_AU,
+    r_grid_au=None,
+) -> PerturberFit:
     """Fit f = GM (r_p(t) − r)/|r_p(t) − r|³, r_p on a circular orbit about the barycentre, to ``res.a_res``.
 
     ``ndim=2``: the ecliptic (x, y) components of Uranus' position and of the residual, fitted with
@@ -373,16 +405,25 @@ def fit_neptune(res: UranusResidual, ndim: int = 2, epoch_jd: float = J2000_JD,
     r0 = _orbit3(x, np.array([0.0]))[0]
     gm_phys = float(gm_fit * L**3 / T**2)
     return PerturberFit(
-        gm=gm_phys, gm_ratio=gm_phys / gm("sun"), radius_au=float(R * L),
+        gm=gm_phys,
+        gm_ratio=gm_phys / gm("sun"),
+        radius_au=float(R * L),
         period_yr=float(2 * np.pi / abs(w) * T / DAYS_PER_YEAR),
         longitude_deg=float(np.rad2deg(np.arctan2(r0[1], r0[0])) % 360.0),
         inclination_deg=float(np.rad2deg(inc)) if ndim == 3 else None,
         node_deg=float(np.rad2deg(node) % 360.0) if ndim == 3 else None,
-        rel_rms=float(rel), ndim=ndim, epoch_jd=float(epoch_jd), length_unit_au=L, time_unit_days=T, params=params)
+        rel_rms=float(rel),
+        ndim=ndim,
+        epoch_jd=float(epoch_jd),
+        length_unit_au=L,
+        time_unit_days=T,
+        params=params,
+    )
 
 
 def _refine3(q, t, fn, x2):
     """3-D inclined circular-orbit fit started from the 2-D one (same longitude at t = 0 for every start node)."""
+
     def resid(x):
         d = _orbit3(x, t) - q
         return (fn - x[0] * d / np.linalg.norm(d, axis=1, keepdims=True) ** 3).ravel()
@@ -405,13 +446,17 @@ def _refine3(q, t, fn, x2):
 
 def compare(fit: PerturberFit, truth: NeptuneTruth) -> dict[str, float]:
     """Relative errors of GM, radius, period and the longitude error (deg, fit − actual, and fit − mean longitude)."""
+
     def dlon(a, b):
         return float((a - b + 180.0) % 360.0 - 180.0)
 
-    out = {"gm_rel": fit.gm / truth.gm - 1.0, "radius_rel": fit.radius_au / truth.radius_au - 1.0,
-           "period_rel": fit.period_yr / truth.period_yr - 1.0,
-           "longitude_deg": dlon(fit.longitude_deg, truth.longitude_deg),
-           "mean_longitude_deg": dlon(fit.longitude_deg, truth.mean_longitude_deg)}
+    out = {
+        "gm_rel": fit.gm / truth.gm - 1.0,
+        "radius_rel": fit.radius_au / truth.radius_au - 1.0,
+        "period_rel": fit.period_yr / truth.period_yr - 1.0,
+        "longitude_deg": dlon(fit.longitude_deg, truth.longitude_deg),
+        "mean_longitude_deg": dlon(fit.longitude_deg, truth.mean_longitude_deg),
+    }
     if fit.inclination_deg is not None:
         out["inclination_deg"] = fit.inclination_deg - truth.inclination_deg
         out["node_deg"] = dlon(fit.node_deg, truth.node_deg)
@@ -449,9 +494,15 @@ class UranusData:
         return Dataset(q=self.q, qd=self.qd, t=self.t, qdd=self.qdd, fc=self.a_kepler, fn=self.a_res)
 
 
-def uranus_dataset(start_year: float | None = None, stop_year: float | None = None, step_days: float = 20.0,
-                   ndim: int = 2, known=KNOWN_BODIES, kepler: bool = True,
-                   length_unit_au: float = UNIT_LENGTH_AU) -> UranusData:
+def uranus_dataset(
+    start_year: float | None = None,
+    stop_year: float | None = None,
+    step_days: float = 20.0,
+    ndim: int = 2,
+    known=KNOWN_BODIES,
+    kepler: bool = True,
+    length_unit_au: float = UNIT_LENGTH_AU,
+) -> UranusData:
     """Uranus' real motion with the known perturbations replaced by an exact Kepler field (see :class:`UranusData`).
 
     q = barycentric position / L (ecliptic; ``ndim=2`` keeps x, y), q̇ = velocity / (L/T), t = (JD − J2000)/T,
@@ -476,9 +527,19 @@ def uranus_dataset(start_year: float | None = None, stop_year: float | None = No
     a_kep = -q / np.linalg.norm(q, axis=1, keepdims=True) ** 3
     if not kepler:
         a_kep = np.zeros_like(a_kep)
-    return UranusData(q=q, qd=qd, t=(jd - J2000_JD) / T, qdd=a_kep + a_res, a_kepler=a_kep, a_res=a_res,
-                      a_neptune=res.a_neptune[:, :ndim] * acc, a_true=res.a[:, :ndim] * acc, jd=jd,
-                      length_unit_au=L, time_unit_days=T)
+    return UranusData(
+        q=q,
+        qd=qd,
+        t=(jd - J2000_JD) / T,
+        qdd=a_kep + a_res,
+        a_kepler=a_kep,
+        a_res=a_res,
+        a_neptune=res.a_neptune[:, :ndim] * acc,
+        a_true=res.a[:, :ndim] * acc,
+        jd=jd,
+        length_unit_au=L,
+        time_unit_days=T,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------- checks
@@ -502,6 +563,8 @@ def _check_jd(jd: np.ndarray, lo: float, hi: float) -> None:
     if not np.all(np.isfinite(jd)):
         raise ValueError("epochs must be finite")
     if np.any(jd < lo) or np.any(jd > hi):
-        raise ValueError(f"epochs must lie in the ephemeris coverage JD {lo} … {hi} "
-                         f"(years {jd_to_year(lo):.2f} … {jd_to_year(hi):.2f}), got {jd_to_year(jd.min()):.2f} … "
-                         f"{jd_to_year(jd.max()):.2f}")
+        raise ValueError(
+            f"epochs must lie in the ephemeris coverage JD {lo} … {hi} "
+            f"(years {jd_to_year(lo):.2f} … {jd_to_year(hi):.2f}), got {jd_to_year(jd.min()):.2f} … "
+            f"{jd_to_year(jd.max()):.2f}"
+        )

@@ -35,6 +35,7 @@ narrow range of distances (0.95–1.05 L), so it looks almost like a change of t
 hands 1/3 of the signal to the Kepler term (the perturber fit on that remainder is 4 % off in radius); the L1 split
 that NNPhD's loss selects keeps f_n ~90 % faithful (the peaks near conjunction dominate), enough for the goals.
 """
+
 from __future__ import annotations
 
 import time
@@ -96,9 +97,15 @@ def direct_feature_fit(data, fl: FeatureLagrangian) -> tuple[np.ndarray, np.ndar
 
     fc = jax.jit(lambda c: fl.accel(c, q, qd))
     jac = jax.jit(jax.jacfwd(lambda c: fl.accel(c, q, qd)))
-    sol = least_squares(lambda x: np.asarray(fc(full(x)) - qdd).ravel(), np.ones(n_c - 1),
-                        jac=lambda x: np.delete(np.asarray(jac(full(x))).reshape(-1, n_c), ref, axis=1),
-                        xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
+    sol = least_squares(
+        lambda x: np.asarray(fc(full(x)) - qdd).ravel(),
+        np.ones(n_c - 1),
+        jac=lambda x: np.delete(np.asarray(jac(full(x))).reshape(-1, n_c), ref, axis=1),
+        xtol=1e-15,
+        ftol=1e-15,
+        gtol=1e-15,
+        max_nfev=200,
+    )
     c = np.asarray(full(sol.x))
     return c, np.asarray(qdd - fc(jnp.asarray(c)))
 
@@ -119,8 +126,10 @@ def _goal_rows(err: dict) -> dict:
 
 def _reason(v) -> str:
     if v.new_physics:
-        return (f"L_e jumps {v.ratio:.0f}x across λ=1 ({v.L_below:.3g} → {v.L_above:.3g}); the part no Lagrangian "
-                f"explains is {v.relative_size:.2g} of the force (floor {v.min_relative_size:g})")
+        return (
+            f"L_e jumps {v.ratio:.0f}x across λ=1 ({v.L_below:.3g} → {v.L_above:.3g}); the part no Lagrangian "
+            f"explains is {v.relative_size:.2g} of the force (floor {v.min_relative_size:g})"
+        )
     return v.reason
 
 
@@ -177,17 +186,33 @@ def run_neptune_demo(
 
     # 2. NNPhD over the λ-grid (every λ from the same initialisation and minibatches)
     say(f"neptune: NNPhD at {len(lams)} λ ({steps} steps each)")
-    cm = constrained_model(data, fl, steps=steps, seed=seed, p=1.0, cfg=cfg, c_init=c_ls, coef_scale=coef_scale,
-                           uan_scale=scale)
-    trained = lambda_sweep(cm.trainer(), cm.params0, cm.arrays, lams, cm.key, "scratch",
-                           progress=lambda d, tot, msg: say(f"neptune: NNPhD, done {msg} ({d}/{tot})"))
+    cm = constrained_model(
+        data, fl, steps=steps, seed=seed, p=1.0, cfg=cfg, c_init=c_ls, coef_scale=coef_scale, uan_scale=scale
+    )
+    trained = lambda_sweep(
+        cm.trainer(),
+        cm.params0,
+        cm.arrays,
+        lams,
+        cm.key,
+        "scratch",
+        progress=lambda d, tot, msg: say(f"neptune: NNPhD, done {msg} ({d}/{tot})"),
+    )
     fits, points, table = {}, [], []
     for lam in lams:
         cf = fits[lam] = cm.fit(trained[lam])
         points.append(SweepPoint(lam, cf.L_e, cf.L_b, cf.L_e, cf.L_b))
         gx, gy, _ = _kepler_gm(cf.coefs)
-        table.append({"lam": lam, "L_e": cf.L_e, "L_b": cf.L_b, "coefficients": cf.coefs.tolist(),
-                      "gm_sun_x_minus_1": gx - 1.0, "gm_sun_y_minus_1": gy - 1.0})
+        table.append(
+            {
+                "lam": lam,
+                "L_e": cf.L_e,
+                "L_b": cf.L_b,
+                "coefficients": cf.coefs.tolist(),
+                "gm_sun_x_minus_1": gx - 1.0,
+                "gm_sun_y_minus_1": gy - 1.0,
+            }
+        )
 
     # 3. verdict
     v = verdict(points, fnorm, MIN_RATIO, DEMO_MIN_RELATIVE_SIZE)
@@ -203,12 +228,27 @@ def run_neptune_demo(
     w = abs(p["omega"])
     period_yr = 2 * np.pi / w * T / E.DAYS_PER_YEAR
     fit = E.PerturberFit(
-        gm=gm_phys, gm_ratio=gm_phys / E.gm("sun"), radius_au=p["R"] * L, period_yr=period_yr,
-        longitude_deg=float(np.rad2deg(p["phi"]) % 360.0), inclination_deg=None, node_deg=None,
-        rel_rms=pf.rel_rms, ndim=2, epoch_jd=E.J2000_JD, length_unit_au=L, time_unit_days=T, params=p)
-    stderr = {"gm_au3_per_day2": se["GM"] * L**3 / T**2, "gm_ratio": se["GM"] * L**3 / T**2 / E.gm("sun"),
-              "radius_au": se["R"] * L, "period_yr": period_yr * se["omega"] / w,
-              "longitude_deg": float(np.rad2deg(se["phi"]))}
+        gm=gm_phys,
+        gm_ratio=gm_phys / E.gm("sun"),
+        radius_au=p["R"] * L,
+        period_yr=period_yr,
+        longitude_deg=float(np.rad2deg(p["phi"]) % 360.0),
+        inclination_deg=None,
+        node_deg=None,
+        rel_rms=pf.rel_rms,
+        ndim=2,
+        epoch_jd=E.J2000_JD,
+        length_unit_au=L,
+        time_unit_days=T,
+        params=p,
+    )
+    stderr = {
+        "gm_au3_per_day2": se["GM"] * L**3 / T**2,
+        "gm_ratio": se["GM"] * L**3 / T**2 / E.gm("sun"),
+        "radius_au": se["R"] * L,
+        "period_yr": period_yr * se["omega"] / w,
+        "longitude_deg": float(np.rad2deg(se["phi"])),
+    }
 
     # 5. score against the ephemeris (truth used only from here on)
     say("neptune: scoring against the ephemeris")
@@ -218,10 +258,15 @@ def run_neptune_demo(
     res_eph = E.uranus_residual(ud.jd)
     if reference:
         ref = E.fit_neptune(res_eph, ndim=2)
-        direct = {"gm_ratio": ref.gm_ratio, "radius_au": ref.radius_au, "period_yr": ref.period_yr,
-                  "longitude_j2000_deg": ref.longitude_deg, "errors": E.compare(ref, truth),
-                  "what": "nnphd.astro.ephemeris.fit_neptune on the ephemeris residual itself (ground-truth pipeline, "
-                          "not NNPhD)"}
+        direct = {
+            "gm_ratio": ref.gm_ratio,
+            "radius_au": ref.radius_au,
+            "period_yr": ref.period_yr,
+            "longitude_j2000_deg": ref.longitude_deg,
+            "errors": E.compare(ref, truth),
+            "what": "nnphd.astro.ephemeris.fit_neptune on the ephemeris residual itself (ground-truth pipeline, "
+            "not NNPhD)",
+        }
     else:
         direct = None
     a_res = ud.a_res
@@ -231,33 +276,59 @@ def run_neptune_demo(
     result = {
         "demo": "neptune",
         "description": "Neptune located by NNPhD from Uranus' real orbit (JPL DE405, 2-D ecliptic projection); "
-                       "constrained Kepler Lagrangian + UAN, p = 1; perturber fitted to the learned f_n",
-        "verdict": {**v.to_dict(), "statistic": v.ratio, "statistic_name": "ratio = L_e(λ>1) / L_e(λ<1) (medians)",
-                    "reason": _reason(v)},
-        "verdict_default_thresholds": {"new_physics": v_default.new_physics, "ratio": v_default.ratio,
-                                       "relative_size": v_default.relative_size,
-                                       "min_relative_size": v_default.min_relative_size,
-                                       "reason": v_default.reason},
+        "constrained Kepler Lagrangian + UAN, p = 1; perturber fitted to the learned f_n",
+        "verdict": {
+            **v.to_dict(),
+            "statistic": v.ratio,
+            "statistic_name": "ratio = L_e(λ>1) / L_e(λ<1) (medians)",
+            "reason": _reason(v),
+        },
+        "verdict_default_thresholds": {
+            "new_physics": v_default.new_physics,
+            "ratio": v_default.ratio,
+            "relative_size": v_default.relative_size,
+            "min_relative_size": v_default.min_relative_size,
+            "reason": v_default.reason,
+        },
         "sweep_table": table,
         "learned_lagrangian": {
-            "terms": list(fl.names), "lambda": explain_lambda, "coefficients": cf.coefs.tolist(),
-            "normalized": fl.normalized(cf.coefs).tolist(), "formula": fl.formula(cf.coefs, digits=9),
-            "gm_sun_x": gx, "gm_sun_y": gy, "gm_sun": g_sun, "L_e": cf.L_e, "L_b": cf.L_b,
+            "terms": list(fl.names),
+            "lambda": explain_lambda,
+            "coefficients": cf.coefs.tolist(),
+            "normalized": fl.normalized(cf.coefs).tolist(),
+            "formula": fl.formula(cf.coefs, digits=9),
+            "gm_sun_x": gx,
+            "gm_sun_y": gy,
+            "gm_sun": g_sun,
+            "L_e": cf.L_e,
+            "L_b": cf.L_b,
             "least_squares_start": c_ls.tolist(),
         },
         "learned_fn": {"rms": _rms(cf.fn), "remainder_scale": scale, "units": "GM_sun/L², L = 19.2 AU"},
         "fit": {
-            "formula": pf.formula, "rel_rms": pf.rel_rms,
-            "gm_au3_per_day2": fit.gm, "gm_ratio": fit.gm_ratio, "radius_au": fit.radius_au,
-            "period_yr": fit.period_yr, "longitude_j2000_deg": fit.longitude_deg,
-            "stderr": stderr, "stderr_note": "from the Jacobian, residuals taken as independent (they are not: "
-                                             "the real uncertainty is larger)",
-            "longitude_1846_09_23_deg": galle_fit, "params_model_units": p,
+            "formula": pf.formula,
+            "rel_rms": pf.rel_rms,
+            "gm_au3_per_day2": fit.gm,
+            "gm_ratio": fit.gm_ratio,
+            "radius_au": fit.radius_au,
+            "period_yr": fit.period_yr,
+            "longitude_j2000_deg": fit.longitude_deg,
+            "stderr": stderr,
+            "stderr_note": "from the Jacobian, residuals taken as independent (they are not: "
+            "the real uncertainty is larger)",
+            "longitude_1846_09_23_deg": galle_fit,
+            "params_model_units": p,
         },
-        "truth": {"gm_au3_per_day2": truth.gm, "gm_ratio": truth.gm_ratio, "radius_au": truth.radius_au,
-                  "period_yr": truth.period_yr, "longitude_j2000_deg": truth.longitude_deg,
-                  "mean_longitude_j2000_deg": truth.mean_longitude_deg, "longitude_1846_09_23_deg": galle_true,
-                  "source": "nnphd.astro.ephemeris.neptune_truth (DE405)"},
+        "truth": {
+            "gm_au3_per_day2": truth.gm,
+            "gm_ratio": truth.gm_ratio,
+            "radius_au": truth.radius_au,
+            "period_yr": truth.period_yr,
+            "longitude_j2000_deg": truth.longitude_deg,
+            "mean_longitude_j2000_deg": truth.mean_longitude_deg,
+            "longitude_1846_09_23_deg": galle_true,
+            "source": "nnphd.astro.ephemeris.neptune_truth (DE405)",
+        },
         "errors": err,
         "goals": goals,
         "all_goals_met": bool(all(g["met"] for g in goals.values())),
@@ -266,16 +337,29 @@ def run_neptune_demo(
             "fn_vs_a_res_correlation": float(np.corrcoef(cf.fn.ravel(), a_res.ravel())[0, 1]),
             "fn_vs_a_res_rel_rms": _rms(cf.fn - a_res) / _rms(a_res),
             "least_squares_remainder_vs_a_res_rel_rms": _rms(rem_ls - a_res) / _rms(a_res),
-            "a_res_rms": _rms(a_res), "a_res_over_kepler_rms": _rms(a_res) / _rms(ud.a_kepler),
+            "a_res_rms": _rms(a_res),
+            "a_res_over_kepler_rms": _rms(a_res) / _rms(ud.a_kepler),
             "direct_fit_of_a_res": direct,
         },
         "settings": {
-            "seed": seed, "steps_per_lambda": steps, "lambdas": lams, "explain_lambda": explain_lambda,
-            "p": 1.0, "learning_rates": list(PAPER_LRS), "batch_size": 32, "dtype": cfg.dtype,
-            "uan_widths": list(cfg.uan_widths), "step_days": float(step_days), "n_samples": int(len(ud.t)),
+            "seed": seed,
+            "steps_per_lambda": steps,
+            "lambdas": lams,
+            "explain_lambda": explain_lambda,
+            "p": 1.0,
+            "learning_rates": list(PAPER_LRS),
+            "batch_size": 32,
+            "dtype": cfg.dtype,
+            "uan_widths": list(cfg.uan_widths),
+            "step_days": float(step_days),
+            "n_samples": int(len(ud.t)),
             "years": [float(E.jd_to_year(ud.jd[0])), float(E.jd_to_year(ud.jd[-1]))],
-            "length_unit_au": L, "time_unit_days": T, "uan_scale": scale, "coef_scale": coef_scale.tolist(),
-            "c_init": c_ls.tolist(), "verdict_min_ratio": MIN_RATIO,
+            "length_unit_au": L,
+            "time_unit_days": T,
+            "uan_scale": scale,
+            "coef_scale": coef_scale.tolist(),
+            "c_init": c_ls.tolist(),
+            "verdict_min_ratio": MIN_RATIO,
             "verdict_min_relative_size": DEMO_MIN_RELATIVE_SIZE,
             "library_min_relative_size": MIN_RELATIVE_SIZE,
         },
@@ -294,8 +378,9 @@ class _FigureData:
         self.ud, self.fn, self.fit, self.res_eph = ud, fn, fit, res_eph
 
 
-def write_neptune_demo(result: dict, out: str | Path, figdata: _FigureData | None = None,
-                       t0: float | None = None) -> None:
+def write_neptune_demo(
+    result: dict, out: str | Path, figdata: _FigureData | None = None, t0: float | None = None
+) -> None:
     """Write ``neptune_demo.png`` (when the figure data are given) and ``results.json`` to ``out``, atomically.
 
     With ``t0`` (a ``time.perf_counter()`` value) ``result["wall_time_s"]`` is set just before the JSON is written.
@@ -363,8 +448,11 @@ def _figure(result: dict, fd: _FigureData):
     ax.set_xlabel("x (AU, ecliptic J2000)")
     ax.set_ylabel("y (AU)")
     g = result["errors"]
-    ax.set_title(f"GM {100 * g['gm_rel']:+.1f}%, R {100 * g['radius_rel']:+.2f}%, "
-                 f"P {100 * g['period_rel']:+.2f}%, λ_J2000 {g['longitude_deg']:+.2f}°", fontsize=10)
+    ax.set_title(
+        f"GM {100 * g['gm_rel']:+.1f}%, R {100 * g['radius_rel']:+.2f}%, "
+        f"P {100 * g['period_rel']:+.2f}%, λ_J2000 {g['longitude_deg']:+.2f}°",
+        fontsize=10,
+    )
     ax.legend(fontsize=6, loc="center")
     fig.tight_layout()
     return fig
@@ -380,6 +468,7 @@ def _field(q, t, p):
 # ---------------------------------------------------------------------------------------------------- console
 def print_summary(res: dict, console) -> None:
     """A few lines for the terminal (``console``: a rich Console, or anything with ``print``)."""
+
     def say(msg):
         try:
             console.print(msg, highlight=False)
@@ -394,19 +483,51 @@ def print_summary(res: dict, console) -> None:
     f, t, e, g = res["fit"], res["truth"], res["errors"], res["goals"]
     se = f["stderr"]
     rows = [
-        ("GM/GM_sun", f"{f['gm_ratio']:.4e} ± {se['gm_ratio']:.1e}", f"{t['gm_ratio']:.4e}",
-         f"{100 * e['gm_rel']:+.2f}%", "gm_rel", 100, "%"),
-        ("radius AU", f"{f['radius_au']:.3f} ± {se['radius_au']:.3f}", f"{t['radius_au']:.3f}",
-         f"{100 * e['radius_rel']:+.3f}%", "radius_rel", 100, "%"),
-        ("period yr", f"{f['period_yr']:.2f} ± {se['period_yr']:.2f}", f"{t['period_yr']:.2f}",
-         f"{100 * e['period_rel']:+.3f}%", "period_rel", 100, "%"),
-        ("lon J2000", f"{f['longitude_j2000_deg']:.2f}° ± {se['longitude_deg']:.2f}",
-         f"{t['longitude_j2000_deg']:.2f}°", f"{e['longitude_deg']:+.2f}°", "longitude_deg", 1, "°"),
+        (
+            "GM/GM_sun",
+            f"{f['gm_ratio']:.4e} ± {se['gm_ratio']:.1e}",
+            f"{t['gm_ratio']:.4e}",
+            f"{100 * e['gm_rel']:+.2f}%",
+            "gm_rel",
+            100,
+            "%",
+        ),
+        (
+            "radius AU",
+            f"{f['radius_au']:.3f} ± {se['radius_au']:.3f}",
+            f"{t['radius_au']:.3f}",
+            f"{100 * e['radius_rel']:+.3f}%",
+            "radius_rel",
+            100,
+            "%",
+        ),
+        (
+            "period yr",
+            f"{f['period_yr']:.2f} ± {se['period_yr']:.2f}",
+            f"{t['period_yr']:.2f}",
+            f"{100 * e['period_rel']:+.3f}%",
+            "period_rel",
+            100,
+            "%",
+        ),
+        (
+            "lon J2000",
+            f"{f['longitude_j2000_deg']:.2f}° ± {se['longitude_deg']:.2f}",
+            f"{t['longitude_j2000_deg']:.2f}°",
+            f"{e['longitude_deg']:+.2f}°",
+            "longitude_deg",
+            1,
+            "°",
+        ),
     ]
     say(f"  {'':10s} {'NNPhD':22s} {'DE405':11s} {'error':8s} goal")
     for name, ours, truth, err, key, mult, unit in rows:
         goal = g[key]
-        say(f"  {name:10s} {ours:22s} {truth:11s} {err:8s} ±{mult * goal['goal']:g}{unit} "
-            f"{'met' if goal['met'] else 'NOT met'}")
-    say(f"Neptune on 1846-09-23: fitted longitude {f['longitude_1846_09_23_deg']:.2f}°, true "
-        f"{t['longitude_1846_09_23_deg']:.2f}°")
+        say(
+            f"  {name:10s} {ours:22s} {truth:11s} {err:8s} ±{mult * goal['goal']:g}{unit} "
+            f"{'met' if goal['met'] else 'NOT met'}"
+        )
+    say(
+        f"Neptune on 1846-09-23: fitted longitude {f['longitude_1846_09_23_deg']:.2f}°, true "
+        f"{t['longitude_1846_09_23_deg']:.2f}°"
+    )

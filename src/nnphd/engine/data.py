@@ -3,6 +3,7 @@
 Every data set is labelled with the true acceleration q̈ = f(q, q̇, t) and, since the systems are known, with the
 true split f_c (conservative) and f_n (non-conservative).
 """
+
 from __future__ import annotations
 
 import functools
@@ -63,8 +64,9 @@ class Dataset:
     def subset(self, idx) -> Dataset:
         """Rows ``idx`` (anything numpy accepts as an index: slice, integer array, boolean mask)."""
         pick = lambda a: None if a is None else a[idx]  # noqa: E731
-        return Dataset(q=pick(self.q), qd=pick(self.qd), t=pick(self.t), qdd=pick(self.qdd),
-                       fc=pick(self.fc), fn=pick(self.fn))
+        return Dataset(
+            q=pick(self.q), qd=pick(self.qd), t=pick(self.t), qdd=pick(self.qdd), fc=pick(self.fc), fn=pick(self.fn)
+        )
 
 
 # ---- integration --------------------------------------------------------------------------------------------------
@@ -132,7 +134,9 @@ def label(system: System | str, q, qd, t) -> Dataset:
     qd = np.asarray(qd, dtype=np.float64).reshape(-1, system.n)
     t = np.asarray(t, dtype=np.float64).reshape(-1)
     if not (q.shape[0] == qd.shape[0] == t.shape[0]):
-        raise ValueError(f"q, qd and t must have the same number of rows, got {q.shape[0]}, {qd.shape[0]}, {t.shape[0]}")
+        raise ValueError(
+            f"q, qd and t must have the same number of rows, got {q.shape[0]}, {qd.shape[0]}, {t.shape[0]}"
+        )
     f, fc, fn = _labeller(system)(q, qd, t)
     return Dataset(q=q, qd=qd, t=t, qdd=np.asarray(f), fc=np.asarray(fc), fn=np.asarray(fn))
 
@@ -144,8 +148,9 @@ def trajectory_dataset(system: System | str, x0=None, dt: float | None = None, n
     x0 = system.x0 if x0 is None else x0
     if len(np.ravel(x0)) != 2 * system.n:
         raise ValueError(f"x0 must have length 2n = {2 * system.n}, got {len(np.ravel(x0))}")
-    t, q, qd = rk4_trajectory(system.f, x0, system.dt if dt is None else dt,
-                              system.n_steps if n_steps is None else n_steps)
+    t, q, qd = rk4_trajectory(
+        system.f, x0, system.dt if dt is None else dt, system.n_steps if n_steps is None else n_steps
+    )
     return label(system, q, qd, t)
 
 

@@ -32,6 +32,7 @@ coordinate (floored at 1e-3 of its spread, for noise-free data).
 
 Both statistics are computed in the standardised units of :mod:`nnphd.user.assess` and reported in the file's units.
 """
+
 from __future__ import annotations
 
 import math
@@ -123,7 +124,7 @@ def _trend_regression(ys, ts):
     num = den = 0.0
     i = 0
     for yy in ys:
-        r = res[i:i + len(yy)]
+        r = res[i : i + len(yy)]
         i += len(yy)
         num += float(np.sum(r[1:] * r[:-1]))
         den += float(np.sum(r * r))
@@ -148,9 +149,20 @@ def _block_trend(V, floor: float, t, blocks, period: float, n_boot: int, seed: i
         raw_t.append(tt.tolist())
         raw_v.append(m.tolist())
     n_blocks = int(sum(len(y) for y in ys))
-    out = {"rate": float("nan"), "se": float("inf"), "z": 0.0, "rate_per_period": float("nan"),
-           "n_blocks": n_blocks, "period": float(period), "valid": False, "rho1": 0.0,
-           "block_t": raw_t[:8], "block_dE": raw_v[:8], "bootstrap_z": [], "all_blocks_positive": ok}
+    out = {
+        "rate": float("nan"),
+        "se": float("inf"),
+        "z": 0.0,
+        "rate_per_period": float("nan"),
+        "n_blocks": n_blocks,
+        "period": float(period),
+        "valid": False,
+        "rho1": 0.0,
+        "block_t": raw_t[:8],
+        "block_dE": raw_v[:8],
+        "bootstrap_z": [],
+        "all_blocks_positive": ok,
+    }
     if n_blocks < MIN_BLOCKS:
         out["reason"] = f"{n_blocks} whole periods (at least {MIN_BLOCKS} are needed)"
         return out
@@ -171,15 +183,22 @@ def _block_trend(V, floor: float, t, blocks, period: float, n_boot: int, seed: i
         sb, seb, _, _, _ = _trend_regression(yb, tb)
         if np.isfinite(sb) and seb > 0 and np.isfinite(seb):
             zb.append(-sb / se)  # spread of the estimate in units of the original se
-    out.update(rate=float(rate), se=float(se), z=float(z), rate_per_period=float(rate * period), valid=bool(ok),
-               rho1=float(rho1), dof=int(dof), bootstrap_z=[float(v) for v in zb])
+    out.update(
+        rate=float(rate),
+        se=float(se),
+        z=float(z),
+        rate_per_period=float(rate * period),
+        valid=bool(ok),
+        rho1=float(rho1),
+        dof=int(dof),
+        bootstrap_z=[float(v) for v in zb],
+    )
     if not ok:
         out["reason"] = "the mean is at or below the floor in some period"
     return out
 
 
-def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, seed: int = 0,
-                 kinetic=None) -> dict:
+def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, seed: int = 0, kinetic=None) -> dict:
     """Relative energy-decay rate r of per-period means of E over whole trajectories, with its significance.
 
     E (N,) the learned energy at the rows; E_floor its minimum at rest; t (N,) times; segs: row indices per
@@ -205,16 +224,22 @@ def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, s
         return out
     kin = _block_trend(np.asarray(kinetic, float), 0.0, t, blocks, period, n_boot, seed + 1)
     out.update(kinetic_rate=kin["rate"], kinetic_se=kin["se"], kinetic_z=kin["z"])
-    if kin["valid"] and out["valid"] and abs(kin["z"]) >= 2 and abs(out["z"]) >= 2 and \
-            np.sign(kin["z"]) != np.sign(out["z"]):
-        out.update(valid=False, consistent=False,
-                   reason=f"the learned energy trends the other way (z = {out['z']:.1f}) from the kinetic energy "
-                          f"(z = {kin['z']:.1f}): either the learned Lagrangian is not a usable energy, or the "
-                          "potential is attractive like 1/r (there ⟨T⟩ = −E); the energy trend is not used")
+    if (
+        kin["valid"]
+        and out["valid"]
+        and abs(kin["z"]) >= 2
+        and abs(out["z"]) >= 2
+        and np.sign(kin["z"]) != np.sign(out["z"])
+    ):
+        out.update(
+            valid=False,
+            consistent=False,
+            reason=f"the learned energy trends the other way (z = {out['z']:.1f}) from the kinetic energy "
+            f"(z = {kin['z']:.1f}): either the learned Lagrangian is not a usable energy, or the "
+            "potential is attractive like 1/r (there ⟨T⟩ = −E); the energy trend is not used",
+        )
     return out
 
 
 # ------------------------------------------------------------------------------------------------------------------
 # multiple shooting
-
-

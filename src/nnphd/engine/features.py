@@ -11,6 +11,7 @@ A catalogue system names its set in :attr:`nnphd.engine.systems.System.feature_s
 Any other set is a mapping name → function(q, q̇) → scalar (see :func:`feature_lagrangian`). The overall scale of c is
 not identifiable (L and αL give the same motion); :meth:`FeatureLagrangian.normalized` divides by a reference term.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
@@ -155,6 +156,7 @@ def constrained_model(
     c_start = jnp.ones(n_c) if c_init is None else jnp.asarray(c_init)
 
     if coef_scale is None:
+
         def coefs(params):
             return params["c"]
     else:

@@ -26,6 +26,7 @@ Tikhonov-regularised solve :math:`x = (H^2 + \varepsilon^2 I)^{-1} H\,r` (H is s
 (smallest singular value σ) the relative change is ≤ (ε/σ)², and for a singular H the output stays bounded by
 |r|/(2ε) instead of becoming inf/NaN.
 """
+
 from __future__ import annotations
 
 import operator
@@ -375,7 +376,7 @@ def lnn_derivatives(lnn: list, q, qd, cfg: ModelConfig):
         g = (g * s1) @ layer["w"].T
     if periodic:  # ∇_q L = J_φᵀ ∇_φ L
         n_rest = n - len(periodic)
-        g_rest, g_sin, g_cos = g[:, :n_rest], g[:, n_rest:nq - len(periodic)], g[:, nq - len(periodic):nq]
+        g_rest, g_sin, g_cos = g[:, :n_rest], g[:, n_rest : nq - len(periodic)], g[:, nq - len(periodic) : nq]
         g_per = cos_p * g_sin - sin_p * g_cos
         grad_q = jnp.zeros((bsz, n), dt).at[:, rest].set(g_rest).at[:, per].set(g_per)
     else:

@@ -1,5 +1,6 @@
 """Multiple shooting: the positions fitted window by window by RK4 of q̈ = (1 + c)·f_c − D q̇ with free initial
 states; point 2 of :mod:`nnphd.engine.evidence`, which explains the method."""
+
 from __future__ import annotations
 
 import functools
@@ -34,8 +35,8 @@ def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> 
             if len(s) >= MIN_WINDOW:
                 wins.append(s)
             continue
-        parts = [s[i * L:(i + 1) * L] for i in range(k)]
-        rest = s[k * L:]
+        parts = [s[i * L : (i + 1) * L] for i in range(k)]
+        rest = s[k * L :]
         if len(rest) >= MIN_WINDOW:
             parts.append(rest)
         elif len(rest) and len(parts[-1]) + len(rest) <= MAX_WINDOW:
@@ -48,8 +49,10 @@ def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> 
 def _damping_rhs(accel):
     """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
     object per ``accel``, so the shooting fit compiles once per model)."""
+
     def rhs(theta, q, v, t, params):
         return (1.0 + theta[0]) * accel(params, q, v) - theta[1:] * v
+
     return rhs
 
 
@@ -58,8 +61,7 @@ def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
     direction (one direction perturbs the same component of every window's initial state; windows are independent)
     and every global one (see :func:`model_residuals_and_jac`)."""
     t0w = jnp.zeros(tw.shape[0], tw.dtype)
-    return model_residuals_and_jac(s, theta, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel),
-                                   nsub=nsub)
+    return model_residuals_and_jac(s, theta, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel), nsub=nsub)
 
 
 def _solve(A, b):
@@ -103,8 +105,10 @@ def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
 
 def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
     """Levenberg–Marquardt over window initial states and the free global parameters."""
+
     def resjac(s_, th_):
         return _residuals_and_jac(params, s_, th_, tw, qw, mask, inv_sigma, accel, nsub)
+
     return lm_windows(resjac, s, theta, free, iters, tol)
 
 
@@ -166,8 +170,11 @@ def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, ns
                 k2q, k2v = f(q + 0.5 * hh * k1q, v + 0.5 * hh * k1v, tt + 0.5 * h)
                 k3q, k3v = f(q + 0.5 * hh * k2q, v + 0.5 * hh * k2v, tt + 0.5 * h)
                 k4q, k4v = f(q + hh * k3q, v + hh * k3v, tt + h)
-                return (q + hh / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
-                        v + hh / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v), tt + h)
+                return (
+                    q + hh / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
+                    v + hh / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v),
+                    tt + h,
+                )
 
             q, v, tt = jax.lax.fori_loop(0, nsub, sub, carry)
             return (q, v, tt), q
@@ -179,8 +186,13 @@ def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, ns
 
     r = simulate(s, theta)
     P_loc, P_glob = s.shape[1], theta.shape[0]
-    ds = jnp.concatenate([jnp.broadcast_to(jnp.eye(P_loc, dtype=s.dtype)[:, None, :], (P_loc, *s.shape)),
-                          jnp.zeros((P_glob, *s.shape), s.dtype)], axis=0)
+    ds = jnp.concatenate(
+        [
+            jnp.broadcast_to(jnp.eye(P_loc, dtype=s.dtype)[:, None, :], (P_loc, *s.shape)),
+            jnp.zeros((P_glob, *s.shape), s.dtype),
+        ],
+        axis=0,
+    )
     dth = jnp.concatenate([jnp.zeros((P_loc, P_glob), s.dtype), jnp.eye(P_glob, dtype=s.dtype)], axis=0)
     jac = jax.vmap(lambda a, b: jax.jvp(simulate, (s, theta), (a, b))[1])(ds, dth)
     return r, jac
@@ -203,14 +215,27 @@ def _pad_windows(wins, t, q, x0):
     return tw, qw, mask, s0
 
 
-def shooting_fit(accel, params, q, qd, t, segs, sigma, period: float, kinetic_weights=None,
-                 n_boot: int = 200, seed: int = 0, max_windows: int = 400) -> dict:
+def shooting_fit(
+    accel,
+    params,
+    q,
+    qd,
+    t,
+    segs,
+    sigma,
+    period: float,
+    kinetic_weights=None,
+    n_boot: int = 200,
+    seed: int = 0,
+    max_windows: int = 400,
+) -> dict:
     """See :func:`_shooting_fit`; a fit that cannot be carried out (the model's trajectories leave the finite
     numbers, singular normal equations) is reported as ``valid: False`` with the reason, never raised."""
     try:
         with np.errstate(all="ignore"):
-            return _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed,
-                                 max_windows)
+            return _shooting_fit(
+                accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows
+            )
     except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
         return {"valid": False, "reason": f"the shooting fit failed ({e.__class__.__name__}: {e})"}
 
@@ -303,12 +328,25 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
         zb.append(float(a @ thb) / se_mean)
     out.update(
         valid=bool(np.isfinite(chi2) and np.all(np.isfinite(th))),
-        c=float(th[0]), d=th[1:].tolist(), d_mean=d_mean, se_c=float(se_d[0]), se_d=se_d[1:].tolist(),
-        se_d_mean=se_mean, se_d_mean_model=math.sqrt(max(var_model, 0.0)),
-        se_d_mean_jackknife=math.sqrt(max(var_jack, 0.0)), z=d_mean / se_mean,
-        chi2=float(chi2), chi2_conservative=float(chi2_c), n_residuals=n_res, reduced_chi2=float(s2),
-        window_samples=int(max(len(w_) for w_ in wins)), window_median_samples=int(np.median([len(w_) for w_ in wins])),
-        substeps=nsub, weights=w.tolist(), bootstrap_z=zb, jackknife_groups=G,
+        c=float(th[0]),
+        d=th[1:].tolist(),
+        d_mean=d_mean,
+        se_c=float(se_d[0]),
+        se_d=se_d[1:].tolist(),
+        se_d_mean=se_mean,
+        se_d_mean_model=math.sqrt(max(var_model, 0.0)),
+        se_d_mean_jackknife=math.sqrt(max(var_jack, 0.0)),
+        z=d_mean / se_mean,
+        chi2=float(chi2),
+        chi2_conservative=float(chi2_c),
+        n_residuals=n_res,
+        reduced_chi2=float(s2),
+        window_samples=int(max(len(w_) for w_ in wins)),
+        window_median_samples=int(np.median([len(w_) for w_ in wins])),
+        substeps=nsub,
+        weights=w.tolist(),
+        bootstrap_z=zb,
+        jackknife_groups=G,
         rms_residual=(np.sqrt(np.sum((r * sig) ** 2, axis=(0, 1)) / mask.sum())).tolist(),
     )
     return out

@@ -18,6 +18,7 @@ their new physics (``nnphd discover``, Table II) needs: the name of their constr
 parameters (computed from the system's parameters), the acceptance band of each (:class:`Goal`), and the default
 trajectory length for the rediscovery.
 """
+
 from __future__ import annotations
 
 import math
@@ -328,21 +329,56 @@ def _toy(name, n, params, description, fc, fn, lag, energy):
 
 
 _SYSTEM_LIST = [
-    _toy("ho+mf", 2, {"k": 1.0, "B": 1.0},
-         "harmonic oscillator + magnetic field: q̈ = -k q + B (q̇2, -q̇1) (conservative)",
-         _mf_fc, _zero_fn, _mf_lag, _ho_energy),
-    _toy("ho+cg", 1, {"k": 1.0, "g": 1.0},
-         "harmonic oscillator + constant gravity: q̈ = -k q - g (conservative)",
-         _cg_fc, _zero_fn, _cg_lag, _cg_energy),
-    _toy("ho+ld", 1, {"k": 1.0, "gamma": 0.5},
-         "harmonic oscillator + linear damping: q̈ = -k q - γ q̇",
-         _ho_fc, _ld_fn, _ho_lag, _ho_energy),
-    _toy("ho+cd", 1, {"k": 1.0, "gamma": 0.5},
-         "harmonic oscillator + constant damping: q̈ = -k q - γ sgn(q̇)",
-         _ho_fc, _cd_fn, _ho_lag, _ho_energy),
-    _toy("ho+pf", 1, {"k": 1.0, "a": 0.5},
-         "harmonic oscillator + periodic force: q̈ = -k q + a sin(t)",
-         _ho_fc, _pf_fn, _ho_lag, _ho_energy),
+    _toy(
+        "ho+mf",
+        2,
+        {"k": 1.0, "B": 1.0},
+        "harmonic oscillator + magnetic field: q̈ = -k q + B (q̇2, -q̇1) (conservative)",
+        _mf_fc,
+        _zero_fn,
+        _mf_lag,
+        _ho_energy,
+    ),
+    _toy(
+        "ho+cg",
+        1,
+        {"k": 1.0, "g": 1.0},
+        "harmonic oscillator + constant gravity: q̈ = -k q - g (conservative)",
+        _cg_fc,
+        _zero_fn,
+        _cg_lag,
+        _cg_energy,
+    ),
+    _toy(
+        "ho+ld",
+        1,
+        {"k": 1.0, "gamma": 0.5},
+        "harmonic oscillator + linear damping: q̈ = -k q - γ q̇",
+        _ho_fc,
+        _ld_fn,
+        _ho_lag,
+        _ho_energy,
+    ),
+    _toy(
+        "ho+cd",
+        1,
+        {"k": 1.0, "gamma": 0.5},
+        "harmonic oscillator + constant damping: q̈ = -k q - γ sgn(q̇)",
+        _ho_fc,
+        _cd_fn,
+        _ho_lag,
+        _ho_energy,
+    ),
+    _toy(
+        "ho+pf",
+        1,
+        {"k": 1.0, "a": 0.5},
+        "harmonic oscillator + periodic force: q̈ = -k q + a sin(t)",
+        _ho_fc,
+        _pf_fn,
+        _ho_lag,
+        _ho_energy,
+    ),
     System(
         name="double-pendulum",
         n=2,
@@ -360,10 +396,17 @@ _SYSTEM_LIST = [
         angles=(True, True),
         feature_set="double-pendulum",
         law_family="linear-full",
-        law_params={f"Gamma_{a}{b}": f"Gamma_{i + 1}{j + 1}"
-                    for i, a in enumerate(("theta1", "theta2")) for j, b in enumerate(("theta1", "theta2"))},
-        goals={"Gamma_11": Goal("abs", 0.0005), "Gamma_12": Goal("zero", 0.0005), "Gamma_21": Goal("zero", 0.0005),
-               "Gamma_22": Goal("abs", 0.0005)},
+        law_params={
+            f"Gamma_{a}{b}": f"Gamma_{i + 1}{j + 1}"
+            for i, a in enumerate(("theta1", "theta2"))
+            for j, b in enumerate(("theta1", "theta2"))
+        },
+        goals={
+            "Gamma_11": Goal("abs", 0.0005),
+            "Gamma_12": Goal("zero", 0.0005),
+            "Gamma_21": Goal("zero", 0.0005),
+            "Gamma_22": Goal("abs", 0.0005),
+        },
         discover_n_steps=600,  # the paper's 300 do not identify Γ (nnphd.paper.discover's docstring)
         _truth=lambda p: {"Gamma_11": p["gamma"], "Gamma_12": 0.0, "Gamma_21": 0.0, "Gamma_22": p["gamma"]},
     ),

@@ -9,6 +9,7 @@ Training: Adam over a piecewise-constant learning rate (paper: {1e-2, 1e-3, 1e-4
 32 drawn with replacement, the whole loop one ``lax.scan`` under ``jit``. λ is a traced argument, so one compiled
 trainer serves every λ (and ``vmap`` over λ trains all of them at once).
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -287,8 +288,17 @@ def sweep(
         if on_point:
             on_point(pt)
 
-    lambda_sweep(make_trainer(cfg, tcfg), init_nnphd(k_init, cfg), _as_arrays(train_data, dtype), lams, k_train,
-                 mode, resume={lam: pt.params for lam, pt in points.items()}, on_point=finish, progress=progress)
+    lambda_sweep(
+        make_trainer(cfg, tcfg),
+        init_nnphd(k_init, cfg),
+        _as_arrays(train_data, dtype),
+        lams,
+        k_train,
+        mode,
+        resume={lam: pt.params for lam, pt in points.items()},
+        on_point=finish,
+        progress=progress,
+    )
     out = sorted((points[lam] for lam in set(lams)), key=lambda pt: pt.lam)
     if not keep_params:
         for pt in out:

@@ -16,6 +16,7 @@ and the jump must be more than numerical noise (1e-4 of the force: "new physics"
 friction is 0.7% and gravitational radiation 0.15% of the force on the paper's Table I trajectories). The estimated non-conservative force is reported two ways:
 L_above (the error the conservative model cannot remove) and L_b just below λ = 1 (the size of the UAN's output).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence

@@ -6,6 +6,7 @@ on an orbit the velocity is a rotation of the position and a curl field would ab
 velocity terms q̇_j q̇_k (Christoffel-type) — and the one time-reversal-odd conservative force, the gyroscopic
 (magnetic-type) term B q̇ with B antisymmetric (:func:`conservative_basis`).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,8 +40,9 @@ def _pot_monomials(d: int) -> list[tuple[int, ...]]:
     import itertools
 
     deg = 4 if d <= 2 else 3
-    return sorted((e for e in itertools.product(range(deg + 1), repeat=d) if 0 < sum(e) <= deg),
-                  key=lambda e: (sum(e), e[::-1]))
+    return sorted(
+        (e for e in itertools.product(range(deg + 1), repeat=d) if 0 < sum(e) <= deg), key=lambda e: (sum(e), e[::-1])
+    )
 
 
 def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = True):

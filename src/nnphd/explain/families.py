@@ -10,6 +10,7 @@ a sparse polynomial (odd in q̇, degree ≤ 3, :func:`sparse_family` on a suppor
 :func:`nnphd.explain.laws.rank_laws`), and user laws written as SymPy strings (:func:`parse_law`).
 :func:`family_from_spec` rebuilds any of them from its JSON-ready :attr:`Family.spec`.
 """
+
 from __future__ import annotations
 
 import re
@@ -73,36 +74,71 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
 
     # linear friction
     if not one:
-        add("linear", "linear friction −γ q̇ (isotropic)", ("gamma",),
-            lambda xp, th, q, v, t: -v[:, :, None], lambda th, Q, V, T: [[-V[i]] for i in range(n)], terms=("q̇",))
-    add("linear-diag" if not one else "linear", "linear friction −γ_i q̇_i" if not one else "linear friction −γ q̇",
+        add(
+            "linear",
+            "linear friction −γ q̇ (isotropic)",
+            ("gamma",),
+            lambda xp, th, q, v, t: -v[:, :, None],
+            lambda th, Q, V, T: [[-V[i]] for i in range(n)],
+            terms=("q̇",),
+        )
+    add(
+        "linear-diag" if not one else "linear",
+        "linear friction −γ_i q̇_i" if not one else "linear friction −γ q̇",
         tuple(f"gamma_{c}" for c in nm) if not one else ("gamma",),
-        lambda xp, th, q, v, t: _eye_cols(xp, -v), lambda th, Q, V, T: _sym_diag(n, [-x for x in V]),
-        terms=("q̇_i",) if not one else ("q̇",))
+        lambda xp, th, q, v, t: _eye_cols(xp, -v),
+        lambda th, Q, V, T: _sym_diag(n, [-x for x in V]),
+        terms=("q̇_i",) if not one else ("q̇",),
+    )
     if not one:
-        add("linear-full", "linear friction −Γ q̇ (full Γ)", tuple(f"Gamma_{a}{b}" for a in nm for b in nm),
-            lambda xp, th, q, v, t: -(v[:, None, None, :] * xp.eye(n, dtype=v.dtype)[None, :, :, None]).reshape(
-                v.shape[0], n, n * n),
-            lambda th, Q, V, T: [[(-V[j] if a == i else sp.Integer(0)) for a in range(n) for j in range(n)]
-                                 for i in range(n)], terms=("Γq̇",))
+        add(
+            "linear-full",
+            "linear friction −Γ q̇ (full Γ)",
+            tuple(f"Gamma_{a}{b}" for a in nm for b in nm),
+            lambda xp, th, q, v, t: (
+                -(v[:, None, None, :] * xp.eye(n, dtype=v.dtype)[None, :, :, None]).reshape(v.shape[0], n, n * n)
+            ),
+            lambda th, Q, V, T: [
+                [(-V[j] if a == i else sp.Integer(0)) for a in range(n) for j in range(n)] for i in range(n)
+            ],
+            terms=("Γq̇",),
+        )
     # quadratic drag
     if not one:
-        add("quadratic", "quadratic drag −c |q̇| q̇", ("c",),
+        add(
+            "quadratic",
+            "quadratic drag −c |q̇| q̇",
+            ("c",),
             lambda xp, th, q, v, t: -(xp.sqrt(xp.sum(v * v, axis=1))[:, None] * v)[:, :, None],
-            lambda th, Q, V, T: [[-sp.sqrt(sum(x**2 for x in V)) * V[i]] for i in range(n)], terms=("|q̇|q̇",))
-    add("quadratic-diag" if not one else "quadratic", "quadratic drag −c_i |q̇_i| q̇_i" if not one else
-        "quadratic drag −c |q̇| q̇", tuple(f"c_{c}" for c in nm) if not one else ("c",),
+            lambda th, Q, V, T: [[-sp.sqrt(sum(x**2 for x in V)) * V[i]] for i in range(n)],
+            terms=("|q̇|q̇",),
+        )
+    add(
+        "quadratic-diag" if not one else "quadratic",
+        "quadratic drag −c_i |q̇_i| q̇_i" if not one else "quadratic drag −c |q̇| q̇",
+        tuple(f"c_{c}" for c in nm) if not one else ("c",),
         lambda xp, th, q, v, t: _eye_cols(xp, -xp.abs(v) * v),
-        lambda th, Q, V, T: _sym_diag(n, [-sp.Abs(x) * x for x in V]), terms=("|q̇_i|q̇_i",) if not one else ("|q̇|q̇",))
+        lambda th, Q, V, T: _sym_diag(n, [-sp.Abs(x) * x for x in V]),
+        terms=("|q̇_i|q̇_i",) if not one else ("|q̇|q̇",),
+    )
     # Coulomb (dry) friction, smoothed sign
     if not one:
-        add("coulomb", "Coulomb friction −μ q̇/|q̇|", ("mu",),
+        add(
+            "coulomb",
+            "Coulomb friction −μ q̇/|q̇|",
+            ("mu",),
             lambda xp, th, q, v, t: -(v / xp.sqrt(xp.sum(v * v, axis=1) + eps_all**2)[:, None])[:, :, None],
-            lambda th, Q, V, T: [[-V[i] / sp.sqrt(sum(x**2 for x in V))] for i in range(n)], terms=("q̇/|q̇|",))
-    add("coulomb-diag" if not one else "coulomb", "Coulomb friction −μ_i sign(q̇_i)" if not one else
-        "Coulomb friction −μ sign(q̇)", tuple(f"mu_{c}" for c in nm) if not one else ("mu",),
+            lambda th, Q, V, T: [[-V[i] / sp.sqrt(sum(x**2 for x in V))] for i in range(n)],
+            terms=("q̇/|q̇|",),
+        )
+    add(
+        "coulomb-diag" if not one else "coulomb",
+        "Coulomb friction −μ_i sign(q̇_i)" if not one else "Coulomb friction −μ sign(q̇)",
+        tuple(f"mu_{c}" for c in nm) if not one else ("mu",),
         lambda xp, th, q, v, t: _eye_cols(xp, -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2)),
-        lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]), terms=("sign(q̇_i)",) if not one else ("sign(q̇)",))
+        lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]),
+        terms=("sign(q̇_i)",) if not one else ("sign(q̇)",),
+    )
 
     # power law with m free
     def _pow_basis(xp, th, q, v, t):
@@ -110,28 +146,53 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         sm = xp.where(s > 0, xp.where(s > 0, s, 1.0) ** th[0], 0.0)
         return -(sm[:, None] * v)[:, :, None]
 
-    add("power", "power-law drag −k (|q̇|²)^m q̇", ("k",), _pow_basis,
-        lambda th, Q, V, T: [[-(sum(x**2 for x in V)) ** sp.Float(th[0], DIGITS) * V[i]] for i in range(n)],
-        nl_names=("m",), nl_starts=lambda ctx: [[0.25], [1.0], [2.0], [4.0]], nl_bounds=([0.0], [8.0]),
-        terms=("(|q̇|²)^m q̇",), per_term=False)
+    add(
+        "power",
+        "power-law drag −k (|q̇|²)^m q̇",
+        ("k",),
+        _pow_basis,
+        lambda th, Q, V, T: [[-((sum(x**2 for x in V)) ** sp.Float(th[0], DIGITS)) * V[i]] for i in range(n)],
+        nl_names=("m",),
+        nl_starts=lambda ctx: [[0.25], [1.0], [2.0], [4.0]],
+        nl_bounds=([0.0], [8.0]),
+        terms=("(|q̇|²)^m q̇",),
+        per_term=False,
+    )
     # Rayleigh / van der Pol, per coordinate
     sfx = (lambda c: f"_{c}") if not one else (lambda c: "")
-    add("rayleigh", "Rayleigh (a + c q̇²) q̇", tuple(f"{p}{sfx(c)}" for p in ("a", "c") for c in nm),
+    add(
+        "rayleigh",
+        "Rayleigh (a + c q̇²) q̇",
+        tuple(f"{p}{sfx(c)}" for p in ("a", "c") for c in nm),
         lambda xp, th, q, v, t: xp.concatenate([_eye_cols(xp, v), _eye_cols(xp, v**3)], axis=2),
         lambda th, Q, V, T: [r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**3 for x in V]))],
-        terms=("q̇", "q̇³"))
-    add("vanderpol", "van der Pol (a + b q²) q̇", tuple(f"{p}{sfx(c)}" for p in ("a", "b") for c in nm),
+        terms=("q̇", "q̇³"),
+    )
+    add(
+        "vanderpol",
+        "van der Pol (a + b q²) q̇",
+        tuple(f"{p}{sfx(c)}" for p in ("a", "b") for c in nm),
         lambda xp, th, q, v, t: xp.concatenate([_eye_cols(xp, v), _eye_cols(xp, q * q * v)], axis=2),
-        lambda th, Q, V, T: [r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]))],
-        terms=("q̇", "q²q̇"))
-    add("rayleigh-vdp", "Rayleigh–van der Pol (a + b q² + c q̇²) q̇",
+        lambda th, Q, V, T: [
+            r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]))
+        ],
+        terms=("q̇", "q²q̇"),
+    )
+    add(
+        "rayleigh-vdp",
+        "Rayleigh–van der Pol (a + b q² + c q̇²) q̇",
         tuple(f"{p}{sfx(c)}" for p in ("a", "b", "c") for c in nm),
-        lambda xp, th, q, v, t: xp.concatenate([_eye_cols(xp, v), _eye_cols(xp, q * q * v), _eye_cols(xp, v**3)],
-                                               axis=2),
-        lambda th, Q, V, T: [r1 + r2 + r3 for r1, r2, r3 in zip(_sym_diag(n, V),
-                                                               _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]),
-                                                               _sym_diag(n, [x**3 for x in V]))],
-        terms=("q̇", "q²q̇", "q̇³"))
+        lambda xp, th, q, v, t: xp.concatenate(
+            [_eye_cols(xp, v), _eye_cols(xp, q * q * v), _eye_cols(xp, v**3)], axis=2
+        ),
+        lambda th, Q, V, T: [
+            r1 + r2 + r3
+            for r1, r2, r3 in zip(
+                _sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]), _sym_diag(n, [x**3 for x in V])
+            )
+        ],
+        terms=("q̇", "q²q̇", "q̇³"),
+    )
 
     # drive of unknown frequency
     def _drive_basis(xp, th, q, v, t):
@@ -139,11 +200,23 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         ones = xp.ones_like(q)
         return xp.concatenate([_eye_cols(xp, c[:, None] * ones), _eye_cols(xp, s[:, None] * ones)], axis=2)
 
-    add("drive", "drive A cos(ω t + φ)", tuple(f"{p}{sfx(c)}" for p in ("A_cos", "A_sin") for c in nm), _drive_basis,
-        lambda th, Q, V, T: [r1 + r2 for r1, r2 in zip(_sym_diag(n, [sp.cos(sp.Float(th[0], 6) * T)] * n),
-                                                       _sym_diag(n, [sp.sin(sp.Float(th[0], 6) * T)] * n))],
-        nl_names=("omega",), nl_starts=lambda ctx: [[w] for w in ctx["drive_omegas"]],
-        nl_bounds=([1e-9], [np.inf]), terms=("cos(ωt)",), per_term=False)
+    add(
+        "drive",
+        "drive A cos(ω t + φ)",
+        tuple(f"{p}{sfx(c)}" for p in ("A_cos", "A_sin") for c in nm),
+        _drive_basis,
+        lambda th, Q, V, T: [
+            r1 + r2
+            for r1, r2 in zip(
+                _sym_diag(n, [sp.cos(sp.Float(th[0], 6) * T)] * n), _sym_diag(n, [sp.sin(sp.Float(th[0], 6) * T)] * n)
+            )
+        ],
+        nl_names=("omega",),
+        nl_starts=lambda ctx: [[w] for w in ctx["drive_omegas"]],
+        nl_bounds=([1e-9], [np.inf]),
+        terms=("cos(ωt)",),
+        per_term=False,
+    )
     spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)]}
     return [replace(f, spec={**spec, "key": f.key}) for f in out]
 
@@ -195,10 +268,19 @@ def perturber_family(names: Sequence[str]) -> Family:
             return []
         return [[f.params["R"], f.params["omega"], f.params["phi"]]]
 
-    return Family("perturber", "perturber GM (r_p(t) − q)/|r_p(t) − q|³ on a circular orbit", ("GM",), basis, symbols,
-                  nl_names=("R", "omega", "phi"), nl_starts=starts,
-                  nl_bounds=([1e-9, -np.inf, -np.inf], [np.inf, np.inf, np.inf]), terms=("(r_p(t) − q)/|r_p − q|³",),
-                  per_term=False, spec={"kind": "perturber"})
+    return Family(
+        "perturber",
+        "perturber GM (r_p(t) − q)/|r_p(t) − q|³ on a circular orbit",
+        ("GM",),
+        basis,
+        symbols,
+        nl_names=("R", "omega", "phi"),
+        nl_starts=starts,
+        nl_bounds=([1e-9, -np.inf, -np.inf], [np.inf, np.inf, np.inf]),
+        terms=("(r_p(t) − q)/|r_p − q|³",),
+        per_term=False,
+        spec={"kind": "perturber"},
+    )
 
 
 def _odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
@@ -249,9 +331,15 @@ def sparse_family(n: int, names: Sequence[str], support: np.ndarray) -> Family:
     Vs = [sp.Symbol(f"{c}_dot") for c in names]
     msym = _monomial_sym(mons, Qs, Vs)
     coef = tuple(f"{names[i]}_ddot:{msym[m]}" for i, m in idx)
-    return Family("sparse", "sparse polynomial (odd in q̇, degree ≤ 3)", coef, basis, symbols,
-                  terms=tuple(sorted({str(msym[m]) for _, m in idx})),
-                  spec={"kind": "sparse", "support": np.asarray(support, bool).tolist()})
+    return Family(
+        "sparse",
+        "sparse polynomial (odd in q̇, degree ≤ 3)",
+        coef,
+        basis,
+        symbols,
+        terms=tuple(sorted({str(msym[m]) for _, m in idx})),
+        spec={"kind": "sparse", "support": np.asarray(support, bool).tolist()},
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------- user laws
@@ -276,14 +364,17 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
         if sep:
             name = head.strip().removesuffix("_ddot")
             if name not in coords:
-                raise ValueError(f"law {text!r}: {head.strip()!r} is not a coordinate (expected one of "
-                                 f"{', '.join(coords)})")
+                raise ValueError(
+                    f"law {text!r}: {head.strip()!r} is not a coordinate (expected one of {', '.join(coords)})"
+                )
             comps[coords.index(name)] = body
         elif len(coords) == 1 and not comps:
             comps[0] = p
         else:
-            raise ValueError(f"law {text!r}: with {len(coords)} coordinates name the component of each term, "
-                             f"e.g. '{coords[0]}: -c*{coords[0]}_dot; {coords[1]}: -c*{coords[1]}_dot'")
+            raise ValueError(
+                f"law {text!r}: with {len(coords)} coordinates name the component of each term, "
+                f"e.g. '{coords[0]}: -c*{coords[0]}_dot; {coords[1]}: -c*{coords[1]}_dot'"
+            )
     Q = [sp.Symbol(c) for c in coords]
     V = [sp.Symbol(f"{c}_dot") for c in coords]
     T = sp.Symbol("t")
@@ -293,23 +384,28 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
         try:
             e = sp.sympify(body, locals={**known, "abs": sp.Abs, "sign": sp.sign})
         except (sp.SympifyError, SyntaxError, TypeError) as err:
-            raise ValueError(f"law {text!r}: cannot read {body.strip()!r} as a formula ({err.__class__.__name__})") \
-                from None
+            raise ValueError(
+                f"law {text!r}: cannot read {body.strip()!r} as a formula ({err.__class__.__name__})"
+            ) from None
         if not isinstance(e, sp.Expr):
             raise ValueError(f"law {text!r}: {body.strip()!r} is not a formula")  # noqa: TRY004 (a bad --law is bad input: exit 2)
         exprs[i] = e
     params = sorted({s for e in exprs for s in e.free_symbols} - set(known.values()), key=lambda s: s.name)
     if not params:
-        raise ValueError(f"law {text!r} has no free parameter to fit (symbols other than the coordinates, "
-                         f"their _dot velocities and t are parameters)")
+        raise ValueError(
+            f"law {text!r} has no free parameter to fit (symbols other than the coordinates, "
+            f"their _dot velocities and t are parameters)"
+        )
     bad = [p.name for p in params if p.name.endswith("_dot")]
     if bad:
-        raise ValueError(f"law {text!r}: {bad[0]!r} is not the velocity of a coordinate (coordinates: "
-                         f"{', '.join(coords)})")
+        raise ValueError(
+            f"law {text!r}: {bad[0]!r} is not the velocity of a coordinate (coordinates: {', '.join(coords)})"
+        )
     lin: list = []  # parameters the law is jointly linear in (their coefficients may hold the others)
     for p in params:
-        if all(sp.simplify(sp.diff(e, p, 2)) == 0 and all(sp.simplify(sp.diff(e, p, p2)) == 0 for p2 in lin)
-               for e in exprs):
+        if all(
+            sp.simplify(sp.diff(e, p, 2)) == 0 and all(sp.simplify(sp.diff(e, p, p2)) == 0 for p2 in lin) for e in exprs
+        ):
             lin.append(p)
     nl = [p for p in params if p not in lin]
     base = [[sp.diff(e, p) for p in lin] for e in exprs]
@@ -324,6 +420,7 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
         def ev(th, q, v, t):
             vals = f(list(th), [q[:, j] for j in range(n)], [v[:, j] for j in range(n)], t)
             return [xp.broadcast_to(xp.asarray(x, dtype=q.dtype), t.shape) for x in vals]
+
         return ev
 
     flat = [b for row in base for b in row]
@@ -340,6 +437,7 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
 
     fixed = None
     if any(r != 0 for r in rest):
+
         def fixed(xp, th, q, v, t):
             key = (xp.__name__, "f")
             if key not in cache:
@@ -347,16 +445,32 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
             return xp.stack(cache[key](th, q, v, t), axis=1)
 
     def symbols(th, Qs, Vs, Ts):
-        sub = {**{a: b for a, b in zip(Q, Qs)}, **{a: b for a, b in zip(V, Vs)}, T: Ts,
-               **{p: sp.Float(x, DIGITS) for p, x in zip(nl, th)}}
+        sub = {
+            **{a: b for a, b in zip(Q, Qs)},
+            **{a: b for a, b in zip(V, Vs)},
+            T: Ts,
+            **{p: sp.Float(x, DIGITS) for p, x in zip(nl, th)},
+        }
         return [[b.xreplace(sub) for b in row] for row in base]
 
-    fam = Family("user", f"user law {text}", tuple(p.name for p in lin), basis, symbols,
-                 nl_names=tuple(p.name for p in nl), nl_starts=(lambda ctx: [[1.0] * len(nl)]) if nl else None,
-                 nl_bounds=([-np.inf] * len(nl), [np.inf] * len(nl)), terms=(text,), fixed=fixed, per_term=False,
-                 spec={"kind": "user", "text": text})
+    fam = Family(
+        "user",
+        f"user law {text}",
+        tuple(p.name for p in lin),
+        basis,
+        symbols,
+        nl_names=tuple(p.name for p in nl),
+        nl_starts=(lambda ctx: [[1.0] * len(nl)]) if nl else None,
+        nl_bounds=([-np.inf] * len(nl), [np.inf] * len(nl)),
+        terms=(text,),
+        fixed=fixed,
+        per_term=False,
+        spec={"kind": "user", "text": text},
+    )
     if not lin:
-        raise ValueError(f"law {text!r}: it must be linear in at least one parameter (a coefficient in front of a "
-                         "term), e.g. 'c*x_dot**m'")
+        raise ValueError(
+            f"law {text!r}: it must be linear in at least one parameter (a coefficient in front of a "
+            "term), e.g. 'c*x_dot**m'"
+        )
     _ = fam.symbols([1.0] * len(nl), Q, V, T)  # fail early on a formula SymPy cannot rebuild
     return fam

@@ -15,6 +15,7 @@ the linear families). Coefficient uncertainties are the spread of a moving-block
 samples, τ the integrated autocorrelation time of the residuals: derivative errors are correlated over the
 differentiation window), the larger of it and the model-based standard error inflated by √τ.
 """
+
 from __future__ import annotations
 
 import math
@@ -102,8 +103,9 @@ class _Problem:
         for th0 in fam.nl_starts(ctx):
             th0 = np.clip(np.asarray(th0, float), lo + 1e-12, np.where(np.isfinite(hi), hi - 1e-12, np.inf))
             try:
-                sol = least_squares(res, th0, bounds=(lo, hi), method="trf", x_scale="jac", xtol=1e-12,
-                                    ftol=1e-12, max_nfev=200)
+                sol = least_squares(
+                    res, th0, bounds=(lo, hi), method="trf", x_scale="jac", xtol=1e-12, ftol=1e-12, max_nfev=200
+                )
             except (ValueError, np.linalg.LinAlgError, FloatingPointError):
                 continue
             if np.isfinite(sol.cost) and (best is None or sol.cost < best.cost):
@@ -130,8 +132,13 @@ class _Problem:
             d = ((Bp @ b + offp) - (Bw @ b + off)) / h
             cols.append(d[:, None])
             pcols.append(sm * (self.pw * d)[:, None])
-        J = np.concatenate([np.concatenate(cols, axis=1).reshape(self.N, self.n, -1),
-                            np.concatenate(pcols, axis=1).reshape(self.N, self.n, -1)], axis=1)
+        J = np.concatenate(
+            [
+                np.concatenate(cols, axis=1).reshape(self.N, self.n, -1),
+                np.concatenate(pcols, axis=1).reshape(self.N, self.n, -1),
+            ],
+            axis=1,
+        )
         R = np.concatenate([fit["r"].reshape(self.N, self.n), fit["rp"].reshape(self.N, self.n)], axis=1)
         return J, R
 
@@ -200,7 +207,7 @@ def _linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     mse = sse / max(m, 1)
     # moving-block bootstrap over rows within trajectories
     L = max(1, math.ceil(2 * tau))
-    blocks = [s[i:i + L] for s in segs for i in range(0, len(s), L)]
+    blocks = [s[i : i + L] for s in segs for i in range(0, len(s), L)]
     Gb = np.stack([Gs[b].sum(0) for b in blocks])
     hb = np.stack([hs[b].sum(0) for b in blocks])
     rng = np.random.default_rng(seed)
@@ -216,4 +223,3 @@ def _linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     cov = s2 * np.linalg.pinv(Gi)
     se_model = np.sqrt(np.maximum(np.diag(cov)[P_law_idx], 0.0) * tau) if len(P_law_idx) else np.zeros(0)
     return mse, se_boot, se_model
-

@@ -13,6 +13,7 @@ Model. q̈ = f_c(q, q̇) + g(q, q̇, t; β, θ), fitted to the rows (q, q̇, q̈
 
 The same candidates are re-fitted to the positions by multiple shooting in :mod:`nnphd.explain.trajectory`.
 """
+
 from __future__ import annotations
 
 import math
@@ -89,10 +90,26 @@ def _sparse_supports(prob: _Problem, mons_n: int, n: int) -> list[np.ndarray]:
     return sups
 
 
-def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, angles=None, qdd_err=None,
-              fc=None, user_laws: Sequence[str] = (), include: Sequence[str] | None = None, n_boot: int = N_BOOT,
-              seed: int = 0, max_rows: int = 20000, library: bool = True,
-              conservative_cols=None, perturber: bool = False) -> LawTable:
+def rank_laws(
+    q,
+    qd,
+    qdd,
+    t,
+    traj=None,
+    *,
+    names: Sequence[str] | None = None,
+    angles=None,
+    qdd_err=None,
+    fc=None,
+    user_laws: Sequence[str] = (),
+    include: Sequence[str] | None = None,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+    max_rows: int = 20000,
+    library: bool = True,
+    conservative_cols=None,
+    perturber: bool = False,
+) -> LawTable:
     """Fit every candidate law jointly with the conservative model and rank them (see the module docstring).
 
     q, qd, qdd (N, n); t (N,); traj (N,) trajectory ids (rows of a trajectory contiguous; None: one trajectory);
@@ -114,8 +131,9 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
     if qdd_err is not None:
         qdd_err = np.asarray(qdd_err, float)
         ok = np.isfinite(qdd_err) & (qdd_err > 0)
-        fill = np.array([np.median(qdd_err[ok[:, j], j]) if ok[:, j].any() else np.std(qdd[:, j]) or 1.0
-                         for j in range(n)])
+        fill = np.array(
+            [np.median(qdd_err[ok[:, j], j]) if ok[:, j].any() else np.std(qdd[:, j]) or 1.0 for j in range(n)]
+        )
         qdd_err = np.where(ok, qdd_err, fill[None])
         w = 1.0 / qdd_err
     else:
@@ -168,8 +186,9 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
         J, R = prob.jacobian(f, fit)
         law_idx = np.arange(Kc, J.shape[2])
         mse, se_b, se_m = _linear_stats(J, R, folds, segs, tau, n_boot if f is not None else 0, seed, law_idx)
-        stats.append((mse, 0 if f is None else f.k,
-                      _overdispersion(se_b, se_m, np.concatenate([fit["beta"], fit["theta"]]))))
+        stats.append(
+            (mse, 0 if f is None else f.k, _overdispersion(se_b, se_m, np.concatenate([fit["beta"], fit["theta"]])))
+        )
         if f is None:
             row = _zero_row(names, mse, N, "pointwise")
         else:
@@ -191,7 +210,21 @@ def rank_laws(q, qd, qdd, t, traj=None, *, names: Sequence[str] | None = None, a
         rows = [r for r in rows if r.key != "sparse" or r is keep_s]
     named = {tuple(r.formula.values()) for r in rows if r.key != "sparse"}
     rows = [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
-    settings = {"mu": MU, "ic_tie": IC_TIE, "n_boot": n_boot, "seed": seed, "rows": int(N), "method": "pointwise",
-                "conservative_columns": int(C.shape[2]), "conservative_rank": int(Kc), "conservative_base": fc is not None, "names": names,
-                "library": bool(library), "conservative_extra": int(n_extra), "_alpha": alphas, "_center": center, "_y_rms": y_rms}
+    settings = {
+        "mu": MU,
+        "ic_tie": IC_TIE,
+        "n_boot": n_boot,
+        "seed": seed,
+        "rows": int(N),
+        "method": "pointwise",
+        "conservative_columns": int(C.shape[2]),
+        "conservative_rank": int(Kc),
+        "conservative_base": fc is not None,
+        "names": names,
+        "library": bool(library),
+        "conservative_extra": int(n_extra),
+        "_alpha": alphas,
+        "_center": center,
+        "_y_rms": y_rms,
+    }
     return _select(rows, n_eff, tau, fold_desc, settings)

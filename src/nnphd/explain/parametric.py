@@ -8,6 +8,7 @@ s² = RSS / (N·n − p)), the residual rms and a human-readable formula.
 * :func:`fit_drag_power` — f_n ≈ −k (|q̇|²)^m q̇;
 * :func:`fit_perturber` — f_n ≈ GM (r_p(t) − q)/|r_p(t) − q|³, r_p(t) = R (cos(ωt+φ), sin(ωt+φ)).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -154,8 +155,18 @@ def fit_drag_power(qd, fn, m_bounds=(0.0, 10.0)) -> Fit:
         dm = (k * (sm * np.log(ss))[:, None] * qd).ravel()
         return np.column_stack([dk, dm])
 
-    res = least_squares(resid, [k0, m0], jac=jac, bounds=([-np.inf, lo], [np.inf, hi]), method="trf",
-                        x_scale="jac", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=2000)
+    res = least_squares(
+        resid,
+        [k0, m0],
+        jac=jac,
+        bounds=([-np.inf, lo], [np.inf, hi]),
+        method="trf",
+        x_scale="jac",
+        xtol=1e-14,
+        ftol=1e-14,
+        gtol=1e-14,
+        max_nfev=2000,
+    )
     k, m = res.x
     r = resid(res.x)
     errs = _stderr_from_jac(jac(res.x), r)
@@ -264,8 +275,18 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
     for _, gm0, R0, w0, ph0 in starts[: max(1, int(n_keep))]:
         x0 = np.array([max(gm0, 1e-12), R0, w0, ph0])
         try:
-            res = least_squares(resid, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale="jac",
-                                xtol=1e-13, ftol=1e-13, gtol=1e-13, max_nfev=500)
+            res = least_squares(
+                resid,
+                x0,
+                jac=jac,
+                bounds=(lower, upper),
+                method="trf",
+                x_scale="jac",
+                xtol=1e-13,
+                ftol=1e-13,
+                gtol=1e-13,
+                max_nfev=500,
+            )
         except (ValueError, FloatingPointError):
             continue
         r = resid(res.x)
@@ -281,6 +302,7 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
     x = np.array([gm, R, w, ph])
     r = resid(x)
     errs = _stderr_from_jac(jac(x), r)
-    formula = (f"f_n = {gm:.6g} (r_p - q)/|r_p - q|^3, r_p(t) = {R:.6g} (cos({w:.6g} t {ph:+.6g}), "
-               f"sin({w:.6g} t {ph:+.6g}))")
+    formula = (
+        f"f_n = {gm:.6g} (r_p - q)/|r_p - q|^3, r_p(t) = {R:.6g} (cos({w:.6g} t {ph:+.6g}), sin({w:.6g} t {ph:+.6g}))"
+    )
     return _make_fit("perturber", ["GM", "R", "omega", "phi"], x, errs, r, fn, formula)

@@ -6,6 +6,7 @@ component the sparsity threshold is swept over a grid (plus an exhaustive search
 the model that minimises log(rms) + term_cost·terms: every term must cut the residual by 25%. The result is a SymPy expression built from the library terms.
 When the best model still leaves a large residual or needs many terms, it says so (``readable = False``).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -40,7 +41,15 @@ class BlindFormula:
         }
 
 
-def _library(x: np.ndarray, names: Sequence[str], vel_idx: Sequence[int], t_idx: int | None, degree: int, speed_powers: int, fourier: int):
+def _library(
+    x: np.ndarray,
+    names: Sequence[str],
+    vel_idx: Sequence[int],
+    t_idx: int | None,
+    degree: int,
+    speed_powers: int,
+    fourier: int,
+):
     """Columns Θ(x) and their SymPy terms (no duplicates)."""
     from nnphd._extras import require
 
@@ -53,10 +62,16 @@ def _library(x: np.ndarray, names: Sequence[str], vel_idx: Sequence[int], t_idx:
         lib = PolynomialLibrary(degree=block_degree, include_bias=include_bias).fit(x[:, block])
         th = lib.transform(x[:, block])
         for j, fname in enumerate(lib.get_feature_names([f"x{k}" for k in range(len(block))])):
-            expr = sp.Integer(1) if fname == "1" else sp.Mul(*[
-                syms[block_names[int(tok.split("^")[0][1:])]] ** (int(tok.split("^")[1]) if "^" in tok else 1)
-                for tok in fname.split(" ")
-            ])
+            expr = (
+                sp.Integer(1)
+                if fname == "1"
+                else sp.Mul(
+                    *[
+                        syms[block_names[int(tok.split("^")[0][1:])]] ** (int(tok.split("^")[1]) if "^" in tok else 1)
+                        for tok in fname.split(" ")
+                    ]
+                )
+            )
             if expr not in seen:
                 seen.add(expr)
                 cols.append(th[:, j])
@@ -183,7 +198,16 @@ def sparse_formula(
     elif k == 0:
         note = "nothing readable: the sparsest model is zero"
     else:
-        note = (f"nothing readable: the best sparse model needs {k} terms and leaves {100 * rel:.0f}% rms "
-                f"(readable means ≤ {READABLE_MAX_TERMS} terms and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)")
-    return BlindFormula("sparse regression (pysindy STLSQ; every term must cut the residual by 25%)", tuple(str(e) for e in exprs), tuple(component_names),
-                        rel, k, readable, note)
+        note = (
+            f"nothing readable: the best sparse model needs {k} terms and leaves {100 * rel:.0f}% rms "
+            f"(readable means ≤ {READABLE_MAX_TERMS} terms and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)"
+        )
+    return BlindFormula(
+        "sparse regression (pysindy STLSQ; every term must cut the residual by 25%)",
+        tuple(str(e) for e in exprs),
+        tuple(component_names),
+        rel,
+        k,
+        readable,
+        note,
+    )

@@ -9,6 +9,7 @@ node must instead cut the residual by ≈5.7% — the sparse step's rule of 25% 
 Complements :mod:`nnphd.explain.sparse`: no fixed library, so it can find forms that are not in one, at the price of
 being stochastic (the seed fixes it) and slower.
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -107,7 +108,16 @@ def genetic_formula(
     if readable:
         note = f"expression trees of {max(lengths)} nodes at most explain f_n to {100 * rel:.1f}% rms"
     else:
-        note = (f"nothing readable: the selected models leave {100 * rel:.0f}% rms with up to {max(lengths)} nodes "
-                f"(readable means ≤ {READABLE_MAX_LENGTH} nodes and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)")
-    return BlindFormula("genetic symbolic regression (pyoperon; Pareto front of accuracy vs size; each node must cut the residual by 5.7%)",
-                        tuple(str(e) for e in exprs), tuple(component_names), rel, int(sum(lengths)), readable, note)
+        note = (
+            f"nothing readable: the selected models leave {100 * rel:.0f}% rms with up to {max(lengths)} nodes "
+            f"(readable means ≤ {READABLE_MAX_LENGTH} nodes and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)"
+        )
+    return BlindFormula(
+        "genetic symbolic regression (pyoperon; Pareto front of accuracy vs size; each node must cut the residual by 5.7%)",
+        tuple(str(e) for e in exprs),
+        tuple(component_names),
+        rel,
+        int(sum(lengths)),
+        readable,
+        note,
+    )

@@ -11,6 +11,7 @@ lowest IC; among the candidates within :data:`IC_TIE` of it the one with the few
 more specific family). When no candidate beats zero, there is no law and the table says so
 (:attr:`LawTable.reason`).
 """
+
 from __future__ import annotations
 
 import math
@@ -53,11 +54,23 @@ class LawFit:
     beta: np.ndarray | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
-        return {"law": self.key, "title": self.title, "k": self.k, "params": self.params, "stderr": self.stderr,
-                "formula": self.formula, "latex": self.latex, "heldout_mse": self.heldout_mse,
-                "heldout_ratio": self.heldout_ratio, "ic": self.ic, "delta_ic": self.delta_ic,
-                "fn_rel": self.fn_rel, "terms": list(self.terms), "method": self.method,
-                "significant": self.significant}
+        return {
+            "law": self.key,
+            "title": self.title,
+            "k": self.k,
+            "params": self.params,
+            "stderr": self.stderr,
+            "formula": self.formula,
+            "latex": self.latex,
+            "heldout_mse": self.heldout_mse,
+            "heldout_ratio": self.heldout_ratio,
+            "ic": self.ic,
+            "delta_ic": self.delta_ic,
+            "fn_rel": self.fn_rel,
+            "terms": list(self.terms),
+            "method": self.method,
+            "significant": self.significant,
+        }
 
     def predict(self, q, qd, t, xp=np):
         """The law at new states (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an integrator)."""
@@ -84,10 +97,15 @@ class LawTable:
     settings: dict
 
     def to_dict(self) -> dict:
-        return {"law": self.law.to_dict() if self.law else None, "reason": self.reason,
-                "candidates": [r.to_dict() for r in self.rows], "n_eff": self.n_eff, "tau": self.tau,
-                "folds": self.folds, "settings": {k: v for k, v in self.settings.items() if not k.startswith("_")}}
-
+        return {
+            "law": self.law.to_dict() if self.law else None,
+            "reason": self.reason,
+            "candidates": [r.to_dict() for r in self.rows],
+            "n_eff": self.n_eff,
+            "tau": self.tau,
+            "folds": self.folds,
+            "settings": {k: v for k, v in self.settings.items() if not k.startswith("_")},
+        }
 
 
 def _overdispersion(se_boot, se_model, values=None) -> float | None:
@@ -145,16 +163,46 @@ def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: st
         exprs.append(e)
     pn = list(fam.coef_names) + list(fam.nl_names)
     vals = np.concatenate([beta, theta])
-    return LawFit(fam.key, fam.title, fam.k, {p: float(x) for p, x in zip(pn, vals)},
-                  {p: float(x) for p, x in zip(pn, se)}, {f"{c}_ddot": str(e) for c, e in zip(names, exprs)},
-                  {f"{c}_ddot": sp.latex(e) for c, e in zip(names, exprs)}, heldout_mse, 1.0, 0.0, 0.0, 0.0,
-                  fam.terms, method=method, family=fam, theta=np.asarray(theta, float), beta=np.asarray(beta, float))
+    return LawFit(
+        fam.key,
+        fam.title,
+        fam.k,
+        {p: float(x) for p, x in zip(pn, vals)},
+        {p: float(x) for p, x in zip(pn, se)},
+        {f"{c}_ddot": str(e) for c, e in zip(names, exprs)},
+        {f"{c}_ddot": sp.latex(e) for c, e in zip(names, exprs)},
+        heldout_mse,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+        fam.terms,
+        method=method,
+        family=fam,
+        theta=np.asarray(theta, float),
+        beta=np.asarray(beta, float),
+    )
 
 
 def _zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
     zero = {f"{c}_ddot": "0" for c in names}
-    return LawFit("none", "no law (conservative model alone)", 0, {}, {}, zero, dict(zero), heldout_mse, 1.0, 0.0,
-                  0.0, 0.0, (), method=method, fn=np.zeros((N, len(names))))
+    return LawFit(
+        "none",
+        "no law (conservative model alone)",
+        0,
+        {},
+        {},
+        zero,
+        dict(zero),
+        heldout_mse,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+        (),
+        method=method,
+        fn=np.zeros((N, len(names))),
+    )
 
 
 def _relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
@@ -178,19 +226,26 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
     rows.insert(0, win)
     if win.key == "none":
         nxt = rows[1] if len(rows) > 1 else None
-        reason = ("no candidate beats zero: " + (
+        reason = "no candidate beats zero: " + (
             f"the best, {nxt.title}, changes the held-out error by {100 * (nxt.heldout_ratio - 1):+.2f}% and its "
-            f"{nxt.k} parameter(s) cost more (ΔIC = {nxt.delta_ic:+.1f})" if nxt else "no candidate could be fitted"))
+            f"{nxt.k} parameter(s) cost more (ΔIC = {nxt.delta_ic:+.1f})"
+            if nxt
+            else "no candidate could be fitted"
+        )
         law = None
     else:
-        reason = (f"{win.title} lowers the held-out error by {100 * (1 - win.heldout_ratio):.2f}% with {win.k} "
-                  f"parameter(s) (ΔIC = {win.delta_ic:.1f} against no law)")
+        reason = (
+            f"{win.title} lowers the held-out error by {100 * (1 - win.heldout_ratio):.2f}% with {win.k} "
+            f"parameter(s) (ΔIC = {win.delta_ic:.1f} against no law)"
+        )
         if len(tied) > 1:
             reason += f"; {len(tied) - 1} other candidate(s) within ΔIC {IC_TIE:g} — the simplest is kept"
         skipped = [r for r in rows if not r.significant and r.ic < win.ic]
         if skipped:
-            reason += (f"; {len(skipped)} candidate(s) with a lower IC have a term within {Z_TERM:g} standard errors "
-                       f"of zero or a parameter at the edge of its range and are not eligible "
-                       f"({', '.join(r.key for r in skipped)})")
+            reason += (
+                f"; {len(skipped)} candidate(s) with a lower IC have a term within {Z_TERM:g} standard errors "
+                f"of zero or a parameter at the edge of its range and are not eligible "
+                f"({', '.join(r.key for r in skipped)})"
+            )
         law = win
     return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings)

@@ -2,6 +2,7 @@ r"""Trajectory-level ranking of the law: the pointwise table's best candidates (
 *positions* by multiple shooting and ranked again (:func:`rank_trajectory`) — for records whose pointwise q̈ is too
 noisy or biased for the law (a Coulomb force's jumps are smeared, cubic terms biased).
 """
+
 from __future__ import annotations
 
 import math
@@ -32,18 +33,33 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
         out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center, library), theta[:Kc])
         off = Kc
         for f, (K, m) in zip(fams, sizes):
-            b, th, gate = theta[off:off + K], theta[off + K:off + K + m], theta[off + K + m]
+            b, th, gate = theta[off : off + K], theta[off + K : off + K + m], theta[off + K + m]
             off += K + m + 1
             g = jnp.einsum("wnk,k->wn", f.basis(jnp, th, q, v, t), b)
             if f.fixed is not None:
                 g = g + f.fixed(jnp, th, q, v, t)
             out = out + jnp.where(gate != 0, gate * g, 0.0)
         return out
+
     return rhs
 
 
-def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: float, angles=None, fc_fn=None,
-                    shortlist: int = 16, n_boot: int = N_BOOT, seed: int = 0, max_windows: int = 200) -> LawTable:
+def rank_trajectory(
+    table: LawTable,
+    q_pos,
+    qd,
+    t,
+    traj=None,
+    *,
+    sigma,
+    period: float,
+    angles=None,
+    fc_fn=None,
+    shortlist: int = 16,
+    n_boot: int = N_BOOT,
+    seed: int = 0,
+    max_windows: int = 200,
+) -> LawTable:
     """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* by multiple shooting and
     rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
     :mod:`nnphd.engine.evidence`: windows of ¾ period with free initial states, RK4 at the recorded times).
@@ -103,13 +119,12 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
         off += K + m + 1
     P_glob = off
     P_dir = Kc + max([K + m for _, K, m in slots], default=0)
-    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"],
-                         table.settings.get("library", True))
+    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"], table.settings.get("library", True))
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):
         if m:
             lo, hi = (np.asarray(x, float) for x in f.nl_bounds)
-            nl_defaults[o + K:o + K + m] = np.clip(1.0, lo, np.where(np.isfinite(hi), hi, 1.0))
+            nl_defaults[o + K : o + K + m] = np.clip(1.0, lo, np.where(np.isfinite(hi), hi, 1.0))
     results = []
     for ci, row in enumerate([zero, *cands]):
         fam = row.family
@@ -121,7 +136,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
             base[o + K + m] = 1.0
             idx += list(range(o, o + K + m))
             u0 += list(row.beta) + list(row.theta)
-            base[o:o + K + m] = 0.0
+            base[o : o + K + m] = 0.0
         D = np.zeros((P_dir, P_glob))
         D[np.arange(len(idx)), idx] = 1.0
         u0 = np.concatenate([u0, np.zeros(P_dir - len(idx))])
@@ -131,7 +146,7 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
             return model_residuals_and_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
 
         free = np.zeros(P_dir, bool)
-        free[:len(idx)] = True
+        free[: len(idx)] = True
         try:
             s, th, r, jac, chi2 = lm_windows(resjac, s0, u0, free, iters=15)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
@@ -141,17 +156,17 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
         if fam is not None and fam.nl_names:  # LM knows no bounds: out of them, fit again with θ clipped and fixed
             lo, hi = (np.asarray(x, float) for x in fam.nl_bounds)
             K = len(fam.coef_names)
-            nl = th[Kc + K:len(idx)]
+            nl = th[Kc + K : len(idx)]
             if np.any(nl < lo) or np.any(nl > hi):
                 th1 = th.copy()
-                th1[Kc + K:len(idx)] = np.clip(nl, lo, hi)
-                free[Kc + K:len(idx)] = False
+                th1[Kc + K : len(idx)] = np.clip(nl, lo, hi)
+                free[Kc + K : len(idx)] = False
                 s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15)
                 if not np.isfinite(chi2):
                     continue
-        th = th[:len(idx)]
-        free = free[:len(idx)]
-        jac = jac[:2 * n + len(idx)]
+        th = th[: len(idx)]
+        free = free[: len(idx)]
+        jac = jac[: 2 * n + len(idx)]
         AtA, AtB, BtB, Atr, Btr, rr = _blocks(r, jac, 2 * n)
         S, g, _XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free)
         c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
@@ -191,11 +206,21 @@ def rank_trajectory(table: LawTable, q_pos, qd, t, traj=None, *, sigma, period: 
             new = _zero_row(table.settings["names"], cv / n_res, N, "trajectory")
         else:
             K = len(fam.coef_names)
-            new = _law_row(fam, th[Kc:Kc + K], th[Kc + K:], se, table.settings["names"], cv / n_res, "trajectory")
+            new = _law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, table.settings["names"], cv / n_res, "trajectory")
             new.fn = new.predict(q_pos, qd, t)
         new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
         rows.append(new)
     _relative_to_zero(rows, table.settings["_y_rms"])
-    return _select(rows, n_eff, tau, f"{G} held-out groups of shooting windows ({W} windows)",
-                   {**table.settings, "method": "trajectory", "windows": W, "substeps": nsub,
-                    "pointwise_candidates": [r.to_dict() for r in table.rows]})
+    return _select(
+        rows,
+        n_eff,
+        tau,
+        f"{G} held-out groups of shooting windows ({W} windows)",
+        {
+            **table.settings,
+            "method": "trajectory",
+            "windows": W,
+            "substeps": nsub,
+            "pointwise_candidates": [r.to_dict() for r in table.rows],
+        },
+    )

@@ -11,6 +11,7 @@
 Nothing read back is trusted beyond data: a file that does not parse, or that was written under other settings, is
 ignored (treated as absent), never executed.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -36,8 +37,9 @@ def fingerprint(settings: dict) -> str:
 def save_npz(path: str | os.PathLike, meta: dict, arrays: dict[str, np.ndarray]) -> None:
     """``meta`` (JSON) and ``arrays`` in one .npz, written atomically."""
     buf = io.BytesIO()
-    np.savez(buf, __meta__=np.array(json.dumps(meta, default=_json_default)),
-             **{k: np.asarray(v) for k, v in arrays.items()})
+    np.savez(
+        buf, __meta__=np.array(json.dumps(meta, default=_json_default)), **{k: np.asarray(v) for k, v in arrays.items()}
+    )
     atomic_write_bytes(path, buf.getvalue())
 
 

@@ -4,6 +4,7 @@ The reports (``nnphd reproduce``: :mod:`nnphd.paper.reproduce`; ``nnphd detect``
 their own content with these pieces. Every function returns an HTML string; arguments named ``body`` or ``cells``
 are HTML already (escape text with :func:`escape` first), titles, names and links are escaped here.
 """
+
 from __future__ import annotations
 
 import base64
@@ -32,14 +33,17 @@ def escape(x) -> str:
 
 def page(title: str, body: str) -> str:
     """A whole document: ``<title>`` (escaped), the stylesheet :data:`CSS` and ``body``."""
-    return (f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{escape(title)}</title><style>{CSS}</style>"
-            f"</head><body>{body}</body></html>")
+    return (
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{escape(title)}</title><style>{CSS}</style>"
+        f"</head><body>{body}</body></html>"
+    )
 
 
 def table(header: Sequence[str], rows: Iterable[Sequence], left: int = 1, row_classes: Sequence[str] = ()) -> str:
     """A table: ``header`` (text, escaped) and ``rows`` of cells (HTML, or anything ``str`` turns into HTML); the first
     ``left`` columns are left-aligned (class "l"), the rest right-aligned. ``row_classes``: a class per row ("" for
     none), e.g. "best" (bold)."""
+
     def cls(i):
         return ' class="l"' if i < left else ""
 
@@ -55,8 +59,10 @@ def table(header: Sequence[str], rows: Iterable[Sequence], left: int = 1, row_cl
 def figure(png: bytes, href: str) -> str:
     """A PNG embedded as a data URI (the page opens alone), captioned with a link to its file ``href``."""
     data = base64.b64encode(png).decode()
-    return (f'<figure><img src="data:image/png;base64,{data}" alt="{escape(href)}">'
-            f'<figcaption><a href="{escape(href)}">{escape(href)}</a></figcaption></figure>')
+    return (
+        f'<figure><img src="data:image/png;base64,{data}" alt="{escape(href)}">'
+        f'<figcaption><a href="{escape(href)}">{escape(href)}</a></figcaption></figure>'
+    )
 
 
 def figure_file(outdir: str | Path, rel: str) -> str:

@@ -4,6 +4,7 @@ Every long computation in nnphd (λ-sweeps, studies, detection, the demos) takes
 with this signature; ``done`` of ``total`` steps are finished and ``message`` says what is running. The CLI turns it
 into a rich progress bar; a notebook may print it or ignore it.
 """
+
 from __future__ import annotations
 
 from typing import Protocol
@@ -20,8 +21,7 @@ def nested(progress: Progress | None, prefix: str, base: int = 0, total: int | N
         return None
 
     def inner(done: int, tot: int, message: str) -> None:
-        progress(base + done if total is not None else done, total if total is not None else tot,
-                 f"{prefix}{message}")
+        progress(base + done if total is not None else done, total if total is not None else tot, f"{prefix}{message}")
 
     return inner
 

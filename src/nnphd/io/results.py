@@ -1,4 +1,5 @@
 """Writing results: atomic JSON and PNG files (nothing half-written), and the L_e(λ) plot."""
+
 from __future__ import annotations
 
 import json
@@ -84,7 +85,9 @@ def plot_sweep(curves: dict[str, Sequence[dict]], title: str = "", show_lb: bool
         color = f"C{i}"
         ax.plot(lam, [max(r["L_e"], 1e-8) for r in rows], "o-", color=color, label=f"{name}: $L_e$")
         if show_lb:
-            ax.plot(lam, [max(r["L_b"], 1e-8) for r in rows], "s--", color=color, alpha=0.5, ms=3, label=f"{name}: $L_b$")
+            ax.plot(
+                lam, [max(r["L_b"], 1e-8) for r in rows], "s--", color=color, alpha=0.5, ms=3, label=f"{name}: $L_b$"
+            )
     ax.axvline(1.0, color="k", lw=0.8, ls=":")
     ax.set_xscale("log")
     ax.set_yscale("log")

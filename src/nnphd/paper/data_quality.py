@@ -19,6 +19,7 @@ L_e and m on a full (balanced) Gaussian test set are reported beside them. m_c, 
 The two grids are cached in ``out`` (out/alpha.json, out/beta.json, :mod:`nnphd.io.cache`): a repeated call with
 the same settings loads them (flag ``cached``) instead of training.
 """
+
 from __future__ import annotations
 
 import time
@@ -72,11 +73,24 @@ def _dq_grid_run(kind: str, grid, steps: int, seed: int, n_train: int, n_test: i
     sysm = get_system(system)
     cfg = ModelConfig(n=1)
     tcfg = TrainConfig(steps=steps, p=DQ_P)
-    settings = {"kind": kind, "system": system, "system_params": dict(sysm.params), "lam": lam, "p": DQ_P,
-                "grid": list(grid), "steps": steps, "seed": seed, "n_train": n_train, "n_test": n_test,
-                "learning_rates": list(tcfg.lrs), "batch_size": tcfg.batch_size, "model": asdict(cfg),
-                "standardize": False, "training": "from scratch at fixed λ, all grid points in one vmap",
-                "format": _FORMAT}
+    settings = {
+        "kind": kind,
+        "system": system,
+        "system_params": dict(sysm.params),
+        "lam": lam,
+        "p": DQ_P,
+        "grid": list(grid),
+        "steps": steps,
+        "seed": seed,
+        "n_train": n_train,
+        "n_test": n_test,
+        "learning_rates": list(tcfg.lrs),
+        "batch_size": tcfg.batch_size,
+        "model": asdict(cfg),
+        "standardize": False,
+        "training": "from scratch at fixed λ, all grid points in one vmap",
+        "format": _FORMAT,
+    }
     cache = Cache(path.parent if path is not None else None, settings)
     cached = cache.load(path.name) if path is not None else None
     if cached is not None:
@@ -95,20 +109,38 @@ def _dq_grid_run(kind: str, grid, steps: int, seed: int, n_train: int, n_test: i
         e_te, e_tr, e_full = (evaluate(prm, d, cfg, DQ_P) for d in (te, tr, full))
         row = {
             "alpha" if kind == "alpha" else "beta": g,
-            "L_e": e_te.L_e, "L_b": e_te.L_b, "L_e_train": e_tr.L_e, "L_e_full": e_full.L_e,
-            "fn_size": float(np.mean(np.abs(te.fn))),  # ‖f_n‖₁ on the evaluation data (the L_e a Lagrangian-only model would leave if it fits f_c exactly)
-            "m_c": alignment(e_te.fc, te.fc), "m_n": alignment(e_te.fn, te.fn),
-            "m_c_train": alignment(e_tr.fc, tr.fc), "m_n_train": alignment(e_tr.fn, tr.fn),
-            "m_c_full": alignment(e_full.fc, full.fc), "m_n_full": alignment(e_full.fn, full.fn),
+            "L_e": e_te.L_e,
+            "L_b": e_te.L_b,
+            "L_e_train": e_tr.L_e,
+            "L_e_full": e_full.L_e,
+            "fn_size": float(
+                np.mean(np.abs(te.fn))
+            ),  # ‖f_n‖₁ on the evaluation data (the L_e a Lagrangian-only model would leave if it fits f_c exactly)
+            "m_c": alignment(e_te.fc, te.fc),
+            "m_n": alignment(e_te.fn, te.fn),
+            "m_c_train": alignment(e_tr.fc, tr.fc),
+            "m_n_train": alignment(e_tr.fn, tr.fn),
+            "m_c_full": alignment(e_full.fc, full.fc),
+            "m_n_full": alignment(e_full.fn, full.fn),
             # robust companions of m_c, m_n (rms): the median |f^NN − f^PHY| over the test samples
-            "m_c_median": float(np.median(np.abs(e_te.fc - te.fc))), "m_n_median": float(np.median(np.abs(e_te.fn - te.fn))),
+            "m_c_median": float(np.median(np.abs(e_te.fc - te.fc))),
+            "m_n_median": float(np.median(np.abs(e_te.fn - te.fn))),
             "frac_qd_pos": float(np.mean(tr.qd[:, 0] > 0)),
         }
         rows.append(row)
-    res = cache.save({"settings": settings, "table": rows, "train_wall_time_s": wall,
-                      "evaluated_on": ("L_e, L_b, m_c, m_n: held-out test set from the same distribution as the "
-                                       "training set (same α/β, other seed); *_train: the training set; *_full: a "
-                                       "full N(0,1) Gaussian test set")}, path.name if path is not None else "results.json")
+    res = cache.save(
+        {
+            "settings": settings,
+            "table": rows,
+            "train_wall_time_s": wall,
+            "evaluated_on": (
+                "L_e, L_b, m_c, m_n: held-out test set from the same distribution as the "
+                "training set (same α/β, other seed); *_train: the training set; *_full: a "
+                "full N(0,1) Gaussian test set"
+            ),
+        },
+        path.name if path is not None else "results.json",
+    )
     res["cached"] = False
     return res
 
@@ -121,46 +153,56 @@ def _dq_claims(alpha_rows: list[dict], beta_rows: list[dict]) -> list[dict]:
         worst = max(lo, key=lambda r: r["L_e"])
         tol = NEAR_ZERO_FRACTION * max(r["fn_size"] for r in lo) if any(r["fn_size"] > 0 for r in lo) else None
         tol = NEAR_ZERO_FRACTION * 0.5 if tol is None else tol
-        claims.append({
-            "claim": f"HO+CD, λ=10: L_e nearly zero for α ≤ 0.5 (≤ {NEAR_ZERO_FRACTION:g}× ‖f_n‖₁ = {tol:.3g}): "
-                     "on q̇ ≥ 0 the damping looks like a constant conservative force",
-            "ours": f"max L_e = {worst['L_e']:.3g} at α={worst['alpha']:g}; "
-                    + ", ".join(f"α={r['alpha']:g}: {r['L_e']:.3g}" for r in lo),
-            "met": bool(worst["L_e"] <= tol),
-        })
+        claims.append(
+            {
+                "claim": f"HO+CD, λ=10: L_e nearly zero for α ≤ 0.5 (≤ {NEAR_ZERO_FRACTION:g}× ‖f_n‖₁ = {tol:.3g}): "
+                "on q̇ ≥ 0 the damping looks like a constant conservative force",
+                "ours": f"max L_e = {worst['L_e']:.3g} at α={worst['alpha']:g}; "
+                + ", ".join(f"α={r['alpha']:g}: {r['L_e']:.3g}" for r in lo),
+                "met": bool(worst["L_e"] <= tol),
+            }
+        )
     if lo and hi:
         med_lo = float(np.median([r["L_e"] for r in lo]))
         med_hi = float(np.median([r["L_e"] for r in hi]))
-        claims.append({
-            "claim": f"HO+CD, λ=10: L_e jumps past α = 0.5 (median L_e over α > 0.5 ≥ {MIN_RATIO:g}× median over "
-                     "α ≤ 0.5, the verdict's statistic)",
-            "ours": f"median {med_hi:.3g} vs {med_lo:.3g}: ×{med_hi / max(med_lo, 1e-300):.3g}",
-            "met": bool(med_hi >= MIN_RATIO * med_lo),
-        })
+        claims.append(
+            {
+                "claim": f"HO+CD, λ=10: L_e jumps past α = 0.5 (median L_e over α > 0.5 ≥ {MIN_RATIO:g}× median over "
+                "α ≤ 0.5, the verdict's statistic)",
+                "ours": f"median {med_hi:.3g} vs {med_lo:.3g}: ×{med_hi / max(med_lo, 1e-300):.3g}",
+                "met": bool(med_hi >= MIN_RATIO * med_lo),
+            }
+        )
         mn_hi = min(r["L_e"] for r in hi)
         mx_lo = max(r["L_e"] for r in lo)
-        claims.append({
-            "claim": f"HO+CD, λ=10: every α > 0.5 has L_e ≥ {MIN_RATIO:g}× every α ≤ 0.5 (strict reading)",
-            "ours": f"min over α > 0.5 = {mn_hi:.3g}, max over α ≤ 0.5 = {mx_lo:.3g}: ×{mn_hi / max(mx_lo, 1e-300):.3g}",
-            "met": bool(mn_hi >= MIN_RATIO * mx_lo),
-        })
+        claims.append(
+            {
+                "claim": f"HO+CD, λ=10: every α > 0.5 has L_e ≥ {MIN_RATIO:g}× every α ≤ 0.5 (strict reading)",
+                "ours": f"min over α > 0.5 = {mn_hi:.3g}, max over α ≤ 0.5 = {mx_lo:.3g}: ×{mn_hi / max(mx_lo, 1e-300):.3g}",
+                "met": bool(mn_hi >= MIN_RATIO * mx_lo),
+            }
+        )
     if beta_rows:
         half = [r for r in beta_rows if r["beta"] == 0.5]
         if half and len(beta_rows) > 1:
             bc = min(beta_rows, key=lambda r: r["m_c"])
             bn = min(beta_rows, key=lambda r: r["m_n"])
-            claims.append({
-                "claim": "HO+LD, λ=0.5: misalignment m_c, m_n is smallest at β = 0.5 (balanced data)",
-                "ours": f"argmin m_c: β={bc['beta']:g} ({bc['m_c']:.3g}); argmin m_n: β={bn['beta']:g} ({bn['m_n']:.3g})",
-                "met": bool(bc["beta"] == 0.5 and bn["beta"] == 0.5),
-            })
+            claims.append(
+                {
+                    "claim": "HO+LD, λ=0.5: misalignment m_c, m_n is smallest at β = 0.5 (balanced data)",
+                    "ours": f"argmin m_c: β={bc['beta']:g} ({bc['m_c']:.3g}); argmin m_n: β={bn['beta']:g} ({bn['m_n']:.3g})",
+                    "met": bool(bc["beta"] == 0.5 and bn["beta"] == 0.5),
+                }
+            )
         if half:
             h = half[0]
-            claims.append({
-                "claim": f"HO+LD, λ=0.5: nearly zero misalignment at β = 0.5 (m_c, m_n ≤ {ALIGN_TOL:g})",
-                "ours": f"m_c = {h['m_c']:.3g}, m_n = {h['m_n']:.3g}",
-                "met": bool(max(h["m_c"], h["m_n"]) <= ALIGN_TOL),
-            })
+            claims.append(
+                {
+                    "claim": f"HO+LD, λ=0.5: nearly zero misalignment at β = 0.5 (m_c, m_n ≤ {ALIGN_TOL:g})",
+                    "ours": f"m_c = {h['m_c']:.3g}, m_n = {h['m_n']:.3g}",
+                    "met": bool(max(h["m_c"], h["m_n"]) <= ALIGN_TOL),
+                }
+            )
     return claims
 
 
@@ -211,11 +253,22 @@ def data_quality_study(
     if progress:
         progress(2, 2, "done")
     result = {
-        "settings": {"steps": steps, "seed": seed, "alphas": list(al), "betas": list(be), "p": DQ_P,
-                     "lam_alpha": DQ_LAM_ALPHA, "lam_beta": DQ_LAM_BETA, "n_train": n_train, "n_test": n_test,
-                     "alpha_system": "ho+cd", "beta_system": "ho+ld", "standardize": False,
-                     "training": "from scratch at fixed λ (no sweep), one vmap over the grid, same init",
-                     "align_tol": ALIGN_TOL},
+        "settings": {
+            "steps": steps,
+            "seed": seed,
+            "alphas": list(al),
+            "betas": list(be),
+            "p": DQ_P,
+            "lam_alpha": DQ_LAM_ALPHA,
+            "lam_beta": DQ_LAM_BETA,
+            "n_train": n_train,
+            "n_test": n_test,
+            "alpha_system": "ho+cd",
+            "beta_system": "ho+ld",
+            "standardize": False,
+            "training": "from scratch at fixed λ (no sweep), one vmap over the grid, same init",
+            "align_tol": ALIGN_TOL,
+        },
         "evaluated_on": ares["evaluated_on"],
         "alpha": ares,
         "beta": bres,
@@ -226,5 +279,3 @@ def data_quality_study(
         "jax_version": jax.__version__,
     }
     return write_results(outdir, result, {"fig6.png": plot_fig6}, t0)
-
-

@@ -24,6 +24,7 @@ of the principle within the pendulum feature family has Γ11 = 0.0192, Γ21 = 0.
 (t ≤ 60) the optimum moves to Γ11 = 0.0198, Γ21 = 1.5e-4 and a full run gives Γ11 = 0.01990, Γ21 = 1.0e-4, so
 ``discover`` uses 600 steps for the pendulum by default.
 """
+
 from __future__ import annotations
 
 import time
@@ -62,8 +63,10 @@ PAPER_TABLE2 = {
 def _table2_params(sysm, row) -> tuple[dict, dict]:
     """The Table II parameters (paper's names) and their standard errors from a law-table row."""
     key = sysm.law_params
-    return ({key[k]: v for k, v in row.params.items() if k in key},
-            {key[k]: v for k, v in row.stderr.items() if k in key})
+    return (
+        {key[k]: v for k, v in row.params.items() if k in key},
+        {key[k]: v for k, v in row.stderr.items() if k in key},
+    )
 
 
 def joint_laws(sysm, d, fl, cf, seed: int = 0, n_boot: int = 200):
@@ -73,8 +76,20 @@ def joint_laws(sysm, d, fl, cf, seed: int = 0, n_boot: int = 200):
     import jax.numpy as jnp
 
     dfc = np.asarray(jax.jit(jax.jacfwd(fl.accel))(jnp.asarray(cf.coefs), jnp.asarray(d.q), jnp.asarray(d.qd)))
-    return rank_laws(d.q, d.qd, d.qdd, d.t, names=sysm.coords, angles=list(sysm.angles), fc=cf.fc,
-                     library=False, conservative_cols=dfc, perturber=not any(sysm.angles), seed=seed, n_boot=n_boot)
+    return rank_laws(
+        d.q,
+        d.qd,
+        d.qdd,
+        d.t,
+        names=sysm.coords,
+        angles=list(sysm.angles),
+        fc=cf.fc,
+        library=False,
+        conservative_cols=dfc,
+        perturber=not any(sysm.angles),
+        seed=seed,
+        n_boot=n_boot,
+    )
 
 
 def _parametric(sysm, d, fn):
@@ -133,15 +148,27 @@ def discover(
     for key, tv in truth.items():
         ours = joint[key]
         goal = sysm.goals[key]
-        rows.append({"quantity": key, "truth": tv, "paper": paper[key], "ours": ours, "stderr": joint_se[key],
-                     "goal": goal.label, "goal_met": bool(goal.met(ours, tv)), "posthoc": fit.params[key],
-                     "posthoc_stderr": fit.stderr[key]})
+        rows.append(
+            {
+                "quantity": key,
+                "truth": tv,
+                "paper": paper[key],
+                "ours": ours,
+                "stderr": joint_se[key],
+                "goal": goal.label,
+                "goal_met": bool(goal.met(ours, tv)),
+                "posthoc": fit.params[key],
+                "posthoc_stderr": fit.stderr[key],
+            }
+        )
     say("blind explanation (sparse regression)")
     names = list(sysm.coords) + [f"{c}_dot" for c in sysm.coords]
     inputs = {n: col for n, col in zip(names, np.concatenate([d.q, d.qd], axis=1).T)}
     inputs["t"] = d.t
     comps = [f"{c}_ddot" for c in sysm.coords]
-    blind = {"sparse": sparse_formula(inputs, cf.fn, comps, velocities=[f"{c}_dot" for c in sysm.coords], time="t").to_dict()}
+    blind = {
+        "sparse": sparse_formula(inputs, cf.fn, comps, velocities=[f"{c}_dot" for c in sysm.coords], time="t").to_dict()
+    }
     if sr_time > 0:
         say("blind explanation (genetic symbolic regression)")
         blind["genetic"] = genetic_formula(inputs, cf.fn, comps, seed=seed, max_time=sr_time).to_dict()
@@ -151,23 +178,39 @@ def discover(
         "new_physics": sw["new_physics"],
         "verdict": sw["verdict"],
         "sweep_table": sw["table"],
-        "constrained_lagrangian": {"terms": list(fl.names), "coefficients": cf.coefs.tolist(),
-                                   "normalized": fl.normalized(cf.coefs).tolist(), "formula": fl.formula(cf.coefs),
-                                   "L_e": cf.L_e, "L_b": cf.L_b},
+        "constrained_lagrangian": {
+            "terms": list(fl.names),
+            "coefficients": cf.coefs.tolist(),
+            "normalized": fl.normalized(cf.coefs).tolist(),
+            "formula": fl.formula(cf.coefs),
+            "L_e": cf.L_e,
+            "L_b": cf.L_b,
+        },
         "fn_truth_rms": float(np.sqrt(np.mean(d.fn**2))),
         "fn_learned_rms": float(np.sqrt(np.mean(cf.fn**2))),
         "fn_mismatch_rms": float(np.sqrt(np.mean((cf.fn - d.fn) ** 2))),
-        "parametric": {"form": fit.name, "formula": fit.formula, "params": fit.params, "stderr": fit.stderr,
-                       "rel_rms": fit.rel_rms},
+        "parametric": {
+            "form": fit.name,
+            "formula": fit.formula,
+            "params": fit.params,
+            "stderr": fit.stderr,
+            "rel_rms": fit.rel_rms,
+        },
         "table2": rows,
         "law": table.to_dict(),
         "law_winner": table.law.key if table.law else None,
         "law_hypothesis": sysm.law_family,
         "blind": blind,
-        "settings": {"steps": steps, "sweep_steps": sweep_steps, "sweep_lambdas": sorted(sw["settings"]["lambdas"]), "lambda": lam, "seed": seed, "standardize": standardize,
-                     "sr_time_per_component_s": sr_time,
-                     "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps,
-                                    "paper_n_steps": paper_n_steps}},
+        "settings": {
+            "steps": steps,
+            "sweep_steps": sweep_steps,
+            "sweep_lambdas": sorted(sw["settings"]["lambdas"]),
+            "lambda": lam,
+            "seed": seed,
+            "standardize": standardize,
+            "sr_time_per_component_s": sr_time,
+            "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps, "paper_n_steps": paper_n_steps},
+        },
         "wall_time_s": time.perf_counter() - t0,
     }
 
@@ -175,18 +218,24 @@ def discover(
 def write_discovery(res: dict, out: str | Path) -> None:
     outdir = ensure_writable_dir(out)
     write_json(outdir / "results.json", res)
-    save_figure(plot_sweep({res["system"]: res["sweep_table"]}, f"{res['system']}: new physics = {res['new_physics']}"),
-                outdir / "loss_vs_lambda.png")
+    save_figure(
+        plot_sweep({res["system"]: res["sweep_table"]}, f"{res['system']}: new physics = {res['new_physics']}"),
+        outdir / "loss_vs_lambda.png",
+    )
 
 
 def write_fig3(results: list[dict], out: str | Path) -> None:
     """The paper's Fig. 3: L_e(λ) of the three systems on one figure."""
     outdir = ensure_writable_dir(out)
-    save_figure(plot_sweep({r["system"]: r["sweep_table"] for r in results}, "Fig. 3: $L_e(\\lambda)$", show_lb=False),
-                outdir / "fig3_loss_vs_lambda.png")
+    save_figure(
+        plot_sweep({r["system"]: r["sweep_table"] for r in results}, "Fig. 3: $L_e(\\lambda)$", show_lb=False),
+        outdir / "fig3_loss_vs_lambda.png",
+    )
 
 
 def write_table2(results: list[dict], out: str | Path) -> None:
     """Fig. 3 and our Table II (rows and blind formulas of every system) in ``out``."""
     write_fig3(results, out)
-    write_json(Path(out) / "table2.json", [{"system": r["system"], "rows": r["table2"], "blind": r["blind"]} for r in results])
+    write_json(
+        Path(out) / "table2.json", [{"system": r["system"], "rows": r["table2"], "blind": r["blind"]} for r in results]
+    )

@@ -1,4 +1,5 @@
 """The figures of the λ/p study (Fig. 5) and the data-quality study (Fig. 6); Fig. 4's are in :mod:`nnphd.paper.predict`."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -31,7 +32,10 @@ def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):
     ax_n.set_ylabel(r"$f_n^{NN}$")
     # a few points where the learned Lagrangian's mass is nearly singular can be far off: keep the axes on the truth's
     # scale and count what falls outside
-    for ax, _x, truth, preds in ((ax_c, q, -q, [d["fc"] for d in order]), (ax_n, qd, -0.5 * qd, [d["fn"] for d in order])):
+    for ax, _x, truth, preds in (
+        (ax_c, q, -q, [d["fc"] for d in order]),
+        (ax_n, qd, -0.5 * qd, [d["fn"] for d in order]),
+    ):
         lim = 2.0 * float(np.max(np.abs(truth))) + 0.5
         n_out = sum(int(np.sum(np.abs(np.asarray(p)) > lim)) for p in preds)
         ax.set_ylim(-lim, lim)
@@ -57,8 +61,14 @@ def plot_fig5(result: dict):
         l = labels[j]
         for i, (s, by_p) in enumerate(result["curves"].items()):
             rows = by_p[l]
-            ax.plot([r["lam"] for r in rows], [max(r["L_e"], 1e-9) for r in rows], "o-", ms=3, color=f"C{i}",
-                    label=_SYS_LABEL.get(s, s))
+            ax.plot(
+                [r["lam"] for r in rows],
+                [max(r["L_e"], 1e-9) for r in rows],
+                "o-",
+                ms=3,
+                color=f"C{i}",
+                label=_SYS_LABEL.get(s, s),
+            )
         ax.axvline(1.0, color="k", lw=0.8, ls=":")
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -74,14 +84,22 @@ def plot_fig5(result: dict):
             ax.axis("off")
     else:
         l0 = labels[0]
-        _force_panels(row2[0], row2[1], al["forces"][l0], f"HO+LD {_loss_title(l0)}", (letters[ncol], letters[ncol + 1]))
+        _force_panels(
+            row2[0], row2[1], al["forces"][l0], f"HO+LD {_loss_title(l0)}", (letters[ncol], letters[ncol + 1])
+        )
         row2[0].legend(fontsize=6, markerscale=3)
         for j, key in ((2, "m_c"), (3, "m_n")):
             ax = row2[j]
             for i, l in enumerate(labels):
                 rows = al["by_p"][l]
-                ax.plot([r["lam"] for r in rows], [max(r[key], 1e-9) for r in rows], "o-", ms=3, color=f"C{i}",
-                        label=_loss_title(l))
+                ax.plot(
+                    [r["lam"] for r in rows],
+                    [max(r[key], 1e-9) for r in rows],
+                    "o-",
+                    ms=3,
+                    color=f"C{i}",
+                    label=_loss_title(l),
+                )
             ax.axvline(1.0, color="k", lw=0.8, ls=":")
             ax.axhline(result["settings"]["align_tol"], color="gray", lw=0.8, ls="--")
             ax.set_xscale("log")
@@ -106,7 +124,6 @@ def plot_fig5_forces(result: dict):
     axes[0, 0].legend(fontsize=6, markerscale=3)
     fig.tight_layout()
     return fig
-
 
 
 def plot_fig6(result: dict):

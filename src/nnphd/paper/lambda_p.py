@@ -38,6 +38,7 @@ The sweeps are cached in ``out`` (one JSON per (system, p) under ``out/runs/``, 
 call with the same settings loads them (flag ``cached``) instead of training, and an interrupted λ-sweep resumes
 from its per-λ checkpoint. A cache file is only used when its fingerprint (every training setting) matches.
 """
+
 from __future__ import annotations
 
 import math
@@ -99,8 +100,9 @@ def p_label(p) -> str:
 # jump vs smooth
 
 
-def transition_sharpness(lams: Sequence[float], L_e: Sequence[float],
-                         jump: float = JUMP_SHARPNESS, smooth: float = SMOOTH_SHARPNESS) -> dict:
+def transition_sharpness(
+    lams: Sequence[float], L_e: Sequence[float], jump: float = JUMP_SHARPNESS, smooth: float = SMOOTH_SHARPNESS
+) -> dict:
     """How step-like L_e(λ) is at λ = 1 (see the module docstring): the log-log slope across λ = 1 divided by the
     steepest |slope| between other neighbouring grid points. Returns a dict with ``sharpness``, ``slope_across``,
     ``slope_max_other``, ``lam_below``, ``lam_above`` and ``kind`` ∈ {"jump", "smooth", "ambiguous", "none"}."""
@@ -136,9 +138,17 @@ def transition_sharpness(lams: Sequence[float], L_e: Sequence[float],
     lo_plateau = [e for l, e in below if l >= 0.05] or [e for _, e in below]
     rise = math.log(float(np.median([e for _, e in above]))) - math.log(float(np.median(lo_plateau)))
     rise_fraction = (math.log(hi[1]) - math.log(lo[1])) / rise if rise != 0 else None
-    return {"sharpness": sharp, "slope_across": across, "slope_max_other": max_other, "lam_below": lo[0],
-            "lam_above": hi[0], "kind": kind, "jump_threshold": jump, "smooth_threshold": smooth,
-            "rise_fraction": rise_fraction}
+    return {
+        "sharpness": sharp,
+        "slope_across": across,
+        "slope_max_other": max_other,
+        "lam_below": lo[0],
+        "lam_above": hi[0],
+        "kind": kind,
+        "jump_threshold": jump,
+        "smooth_threshold": smooth,
+        "rise_fraction": rise_fraction,
+    }
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -150,13 +160,28 @@ def _rms(a) -> float:
     return float(np.sqrt(np.mean(a * a)))
 
 
-def _lambda_p_subrun(system: str, p, steps: int, seed: int, lambdas, subdir: Path | None, force_lams,
-                     n_train: int, n_test: int, progress: Progress | None) -> dict:
+def _lambda_p_subrun(
+    system: str,
+    p,
+    steps: int,
+    seed: int,
+    lambdas,
+    subdir: Path | None,
+    force_lams,
+    n_train: int,
+    n_test: int,
+    progress: Progress | None,
+) -> dict:
     """One λ-sweep of :func:`nnphd.paper.sweep.system_sweep` (warm mode, standardised inputs), cached in ``subdir``
     with the learned forces of the test set at ``force_lams``."""
     force_lams = sorted(x for x in force_lams if x in lambdas) if system == FORCE_SYSTEM else []
-    extra = {"n_train": n_train, "n_test": n_test, "force_lambdas": force_lams,
-             "n_force_points": N_FORCE_POINTS if force_lams else 0, "format": _FORMAT}
+    extra = {
+        "n_train": n_train,
+        "n_test": n_test,
+        "force_lambdas": force_lams,
+        "n_force_points": N_FORCE_POINTS if force_lams else 0,
+        "format": _FORMAT,
+    }
     plan = plan_sweep(system, p, steps, seed, lambdas, "warm", None, n_train, n_test, True, subdir, extra)
     cached = plan.cache.load()
     if cached is not None:
@@ -172,30 +197,48 @@ def _lambda_p_subrun(system: str, p, steps: int, seed: int, lambdas, subdir: Pat
     forces = None
     if force_lams:
         k = min(N_FORCE_POINTS, len(test))
-        forces = {"evaluated_on": f"first {k} test points", "q": test.q[:k, 0], "qd": test.qd[:k, 0],
-                  "fc_true": test.fc[:k, 0], "fn_true": test.fn[:k, 0], "by_lambda": {}}
+        forces = {
+            "evaluated_on": f"first {k} test points",
+            "q": test.q[:k, 0],
+            "qd": test.qd[:k, 0],
+            "fc_true": test.fc[:k, 0],
+            "fn_true": test.fn[:k, 0],
+            "by_lambda": {},
+        }
     for pt in r.points:
         ev = evaluate(pt.params, test, cfg, tcfg.p)
-        table.append({"lam": pt.lam, "L_e": pt.L_e, "L_b": pt.L_b, "L_e_train": pt.L_e_train, "L_b_train": pt.L_b_train,
-                      "m_c": pt.m_c, "m_n": pt.m_n, "fn_rms": _rms(ev.fn),
-                      # robust companions of m_c, m_n: the median |f^NN − f^PHY| over the test samples
-                      "m_c_median": float(np.median(np.abs(ev.fc - test.fc))),
-                      "m_n_median": float(np.median(np.abs(ev.fn - test.fn)))})
+        table.append(
+            {
+                "lam": pt.lam,
+                "L_e": pt.L_e,
+                "L_b": pt.L_b,
+                "L_e_train": pt.L_e_train,
+                "L_b_train": pt.L_b_train,
+                "m_c": pt.m_c,
+                "m_n": pt.m_n,
+                "fn_rms": _rms(ev.fn),
+                # robust companions of m_c, m_n: the median |f^NN − f^PHY| over the test samples
+                "m_c_median": float(np.median(np.abs(ev.fc - test.fc))),
+                "m_n_median": float(np.median(np.abs(ev.fn - test.fn))),
+            }
+        )
         if forces is not None and pt.lam in force_lams:
             forces["by_lambda"][f"{pt.lam:g}"] = {"lam": pt.lam, "fc": ev.fc[:k, 0], "fn": ev.fn[:k, 0]}
-    res = plan.cache.save({
-        "system": sysm.name,
-        "p": p_label(tcfg.p),
-        "truth_conservative": sysm.conservative,
-        "table": table,
-        "verdict": r.verdict.to_dict(),
-        "fn_true_rms": _rms(test.fn),
-        "forces": forces,
-        "evaluated_on": "test set (10³ Gaussian samples independent of the training set)",
-        "settings": plan.settings,
-        "train_wall_time_s": r.wall_time_s,
-        "resumed_lambdas": r.resumed,
-    })
+    res = plan.cache.save(
+        {
+            "system": sysm.name,
+            "p": p_label(tcfg.p),
+            "truth_conservative": sysm.conservative,
+            "table": table,
+            "verdict": r.verdict.to_dict(),
+            "fn_true_rms": _rms(test.fn),
+            "forces": forces,
+            "evaluated_on": "test set (10³ Gaussian samples independent of the training set)",
+            "settings": plan.settings,
+            "train_wall_time_s": r.wall_time_s,
+            "resumed_lambdas": r.resumed,
+        }
+    )
     plan.cache.clear_checkpoint()
     res["cached"] = False
     return res
@@ -217,17 +260,27 @@ def _lambda_p_claims(runs: dict, systems, labels, lambdas) -> list[dict]:
                 v = runs[s][l]["verdict"]
                 ok &= v["new_physics"]
                 parts.append(f"{s} p={l}: ×{v['ratio']:.3g} ({'new physics' if v['new_physics'] else 'none'})")
-        claims.append({"claim": f"L_e jumps at λ=1 (verdict: new physics) for {', '.join(nc)} with p={', '.join(pnorm_labels)}",
-                       "ours": "; ".join(parts), "met": bool(ok)})
+        claims.append(
+            {
+                "claim": f"L_e jumps at λ=1 (verdict: new physics) for {', '.join(nc)} with p={', '.join(pnorm_labels)}",
+                "ours": "; ".join(parts),
+                "met": bool(ok),
+            }
+        )
         ok, parts = True, []
         for l in pnorm_labels:
             for s in nc:
                 t = runs[s][l]["transition"]
                 ok &= t["kind"] == "jump"
                 parts.append(f"{s} p={l}: {_fmt(t['sharpness'])} ({t['kind']})")
-        claims.append({"claim": f"those transitions are sharp steps: sharpness ≥ {JUMP_SHARPNESS:g} "
-                                f"(slope across λ=1 vs steepest slope elsewhere)",
-                       "ours": "; ".join(parts), "met": bool(ok)})
+        claims.append(
+            {
+                "claim": f"those transitions are sharp steps: sharpness ≥ {JUMP_SHARPNESS:g} "
+                f"(slope across λ=1 vs steepest slope elsewhere)",
+                "ours": "; ".join(parts),
+                "met": bool(ok),
+            }
+        )
     if cons and pnorm_labels:
         ok, parts = True, []
         for l in pnorm_labels:
@@ -235,24 +288,40 @@ def _lambda_p_claims(runs: dict, systems, labels, lambdas) -> list[dict]:
                 v = runs[s][l]["verdict"]
                 ok &= not v["new_physics"]
                 parts.append(f"{s} p={l}: ×{v['ratio']:.3g} ({'new physics' if v['new_physics'] else 'none'})")
-        claims.append({"claim": f"no jump at λ=1 (verdict: no new physics) for {', '.join(cons)} with p={', '.join(pnorm_labels)}",
-                       "ours": "; ".join(parts), "met": bool(ok)})
+        claims.append(
+            {
+                "claim": f"no jump at λ=1 (verdict: no new physics) for {', '.join(cons)} with p={', '.join(pnorm_labels)}",
+                "ours": "; ".join(parts),
+                "met": bool(ok),
+            }
+        )
     if "ho+mf" in systems and "1" in labels:
         v = runs["ho+mf"]["1"]["verdict"]
-        claims.append({"claim": "HO+MF has lower L_e above λ=1 than below (p=1; the LNN beats the black box)",
-                       "ours": f"median L_e above / below = {v['ratio']:.3g} ({v['L_above']:.3g} / {v['L_below']:.3g})",
-                       "met": bool(v["ratio"] < 1)})
+        claims.append(
+            {
+                "claim": "HO+MF has lower L_e above λ=1 than below (p=1; the LNN beats the black box)",
+                "ours": f"median L_e above / below = {v['ratio']:.3g} ({v['L_above']:.3g} / {v['L_below']:.3g})",
+                "met": bool(v["ratio"] < 1),
+            }
+        )
     if nc and "mse" in labels:
         ok, parts = True, []
         for s in nc:
             t = runs[s]["mse"]["transition"]
             v = runs[s]["mse"]["verdict"]
             ok &= t["kind"] == "smooth"
-            parts.append(f"{s}: sharpness {_fmt(t['sharpness'])} ({t['kind']}; L_e ×{v['ratio']:.3g} across λ=1, "
-                         f"verdict {'new physics' if v['new_physics'] else 'none'})")
-        claims.append({"claim": f"MSE loss gives a smooth (second-order) transition for {', '.join(nc)}: "
-                                f"sharpness < {SMOOTH_SHARPNESS:g}",
-                       "ours": "; ".join(parts), "met": bool(ok)})
+            parts.append(
+                f"{s}: sharpness {_fmt(t['sharpness'])} ({t['kind']}; L_e ×{v['ratio']:.3g} across λ=1, "
+                f"verdict {'new physics' if v['new_physics'] else 'none'})"
+            )
+        claims.append(
+            {
+                "claim": f"MSE loss gives a smooth (second-order) transition for {', '.join(nc)}: "
+                f"sharpness < {SMOOTH_SHARPNESS:g}",
+                "ours": "; ".join(parts),
+                "met": bool(ok),
+            }
+        )
     if FORCE_SYSTEM in systems:
         by_p = runs[FORCE_SYSTEM]
         rng = [x for x in lambdas if 0.05 <= x < 1]
@@ -261,38 +330,46 @@ def _lambda_p_claims(runs: dict, systems, labels, lambdas) -> list[dict]:
             if not rows:
                 continue
             worst = max(max(r["m_c"], r["m_n"]) for r in rows)
-            claims.append({
-                "claim": f"HO+LD, p={l}, 0.05 ≲ λ < 1: f_c^NN ≈ −q and f_n^NN ≈ −½q̇ (m_c, m_n ≤ {ALIGN_TOL:g} "
-                         f"at λ = {', '.join(f'{x:g}' for x in rng)})",
-                "ours": "; ".join(f"λ={r['lam']:g}: {r['m_c']:.3f}/{r['m_n']:.3f}" for r in rows),
-                "met": bool(worst <= ALIGN_TOL),
-            })
+            claims.append(
+                {
+                    "claim": f"HO+LD, p={l}, 0.05 ≲ λ < 1: f_c^NN ≈ −q and f_n^NN ≈ −½q̇ (m_c, m_n ≤ {ALIGN_TOL:g} "
+                    f"at λ = {', '.join(f'{x:g}' for x in rng)})",
+                    "ours": "; ".join(f"λ={r['lam']:g}: {r['m_c']:.3f}/{r['m_n']:.3f}" for r in rows),
+                    "met": bool(worst <= ALIGN_TOL),
+                }
+            )
         if "1" in labels:
             t1 = by_p["1"]["table"]
             fnr = by_p["1"]["fn_true_rms"]
             hi = [r for r in t1 if r["lam"] > 1]
             if hi:
-                claims.append({
-                    "claim": f"HO+LD, p=1, λ > 1: f_n^NN ≈ 0 (rms ≤ {NEAR_ZERO_FRACTION:g}× rms f_n^PHY = "
-                             f"{NEAR_ZERO_FRACTION * fnr:.3f})",
-                    "ours": "; ".join(f"λ={r['lam']:g}: {r['fn_rms']:.2g}" for r in hi),
-                    "met": bool(all(r["fn_rms"] <= NEAR_ZERO_FRACTION * fnr for r in hi)),
-                })
-                claims.append({
-                    "claim": f"HO+LD, p=1, λ > 1: f_c^NN ≈ f_c^PHY = −q (m_c ≤ {ALIGN_TOL:g})",
-                    "ours": "; ".join(f"λ={r['lam']:g}: m_c {r['m_c']:.3f}" for r in hi),
-                    "met": bool(all(r["m_c"] <= ALIGN_TOL for r in hi)),
-                })
+                claims.append(
+                    {
+                        "claim": f"HO+LD, p=1, λ > 1: f_n^NN ≈ 0 (rms ≤ {NEAR_ZERO_FRACTION:g}× rms f_n^PHY = "
+                        f"{NEAR_ZERO_FRACTION * fnr:.3f})",
+                        "ours": "; ".join(f"λ={r['lam']:g}: {r['fn_rms']:.2g}" for r in hi),
+                        "met": bool(all(r["fn_rms"] <= NEAR_ZERO_FRACTION * fnr for r in hi)),
+                    }
+                )
+                claims.append(
+                    {
+                        "claim": f"HO+LD, p=1, λ > 1: f_c^NN ≈ f_c^PHY = −q (m_c ≤ {ALIGN_TOL:g})",
+                        "ours": "; ".join(f"λ={r['lam']:g}: m_c {r['m_c']:.3f}" for r in hi),
+                        "met": bool(all(r["m_c"] <= ALIGN_TOL for r in hi)),
+                    }
+                )
             lo = min(t1, key=lambda r: r["lam"])
             mid = [r for r in t1 if 0.1 <= r["lam"] <= 0.5]
             if lo["lam"] <= 0.05 and mid:
                 ref = max(r["m_c"] for r in mid)
-                claims.append({
-                    "claim": "HO+LD, p=1, λ ≲ 0.05: the weakly penalised UAN absorbs part of the conservative force "
-                             "(m_c at the smallest λ above every m_c on 0.1 ≤ λ ≤ 0.5)",
-                    "ours": f"m_c(λ={lo['lam']:g}) = {lo['m_c']:.3f} vs max m_c on [0.1, 0.5] = {ref:.3f}",
-                    "met": bool(lo["m_c"] > ref),
-                })
+                claims.append(
+                    {
+                        "claim": "HO+LD, p=1, λ ≲ 0.05: the weakly penalised UAN absorbs part of the conservative force "
+                        "(m_c at the smallest λ above every m_c on 0.1 ≤ λ ≤ 0.5)",
+                        "ours": f"m_c(λ={lo['lam']:g}) = {lo['m_c']:.3f} vs max m_c on [0.1, 0.5] = {ref:.3f}",
+                        "met": bool(lo["m_c"] > ref),
+                    }
+                )
     return claims
 
 
@@ -364,32 +441,59 @@ def lambda_p_study(
         for l in labels:
             r = runs[s][l]
             v = r["verdict"]
-            verdicts.append({
-                "system": s, "p": l, "truth_conservative": r["truth_conservative"], "new_physics": v["new_physics"],
-                "correct": v["new_physics"] != r["truth_conservative"], "ratio": v["ratio"], "L_below": v["L_below"],
-                "L_above": v["L_above"], "relative_size": v["relative_size"], "reason": v["reason"],
-                "sharpness": r["transition"]["sharpness"], "transition": r["transition"]["kind"],
-                "rise_fraction": r["transition"]["rise_fraction"],
-                "train_wall_time_s": r["train_wall_time_s"], "cached": r["cached"],
-            })
+            verdicts.append(
+                {
+                    "system": s,
+                    "p": l,
+                    "truth_conservative": r["truth_conservative"],
+                    "new_physics": v["new_physics"],
+                    "correct": v["new_physics"] != r["truth_conservative"],
+                    "ratio": v["ratio"],
+                    "L_below": v["L_below"],
+                    "L_above": v["L_above"],
+                    "relative_size": v["relative_size"],
+                    "reason": v["reason"],
+                    "sharpness": r["transition"]["sharpness"],
+                    "transition": r["transition"]["kind"],
+                    "rise_fraction": r["transition"]["rise_fraction"],
+                    "train_wall_time_s": r["train_wall_time_s"],
+                    "cached": r["cached"],
+                }
+            )
     alignment_ = None
     if FORCE_SYSTEM in systems:
         alignment_ = {
             "system": FORCE_SYSTEM,
             "truth": "f_c = −q, f_n = −½q̇",
             "fn_true_rms": runs[FORCE_SYSTEM][labels[0]]["fn_true_rms"],
-            "by_p": {l: [{"lam": r["lam"], "m_c": r["m_c"], "m_n": r["m_n"], "fn_rms": r["fn_rms"]}
-                         for r in runs[FORCE_SYSTEM][l]["table"]] for l in labels},
+            "by_p": {
+                l: [
+                    {"lam": r["lam"], "m_c": r["m_c"], "m_n": r["m_n"], "fn_rms": r["fn_rms"]}
+                    for r in runs[FORCE_SYSTEM][l]["table"]
+                ]
+                for l in labels
+            },
             "forces": {l: runs[FORCE_SYSTEM][l]["forces"] for l in labels},
         }
     result = {
         "settings": {
-            "systems": list(systems), "ps": labels, "lambdas": list(lams), "steps_per_lambda": steps, "seed": seed,
+            "systems": list(systems),
+            "ps": labels,
+            "lambdas": list(lams),
+            "steps_per_lambda": steps,
+            "seed": seed,
             "mode": "warm (paper appendix B: increasing λ, each from the previous λ's parameters)",
-            "n_train": n_train, "n_test": n_test, "data": "iid N(0,1) q, q̇, t (paper III.C)",
-            "standardize": True, "learning_rates": list(TrainConfig().lrs), "batch_size": TrainConfig().batch_size,
-            "force_system": FORCE_SYSTEM, "force_lambdas": [x for x in force_lambdas if x in lams],
-            "jump_sharpness": JUMP_SHARPNESS, "smooth_sharpness": SMOOTH_SHARPNESS, "align_tol": ALIGN_TOL,
+            "n_train": n_train,
+            "n_test": n_test,
+            "data": "iid N(0,1) q, q̇, t (paper III.C)",
+            "standardize": True,
+            "learning_rates": list(TrainConfig().lrs),
+            "batch_size": TrainConfig().batch_size,
+            "force_system": FORCE_SYSTEM,
+            "force_lambdas": [x for x in force_lambdas if x in lams],
+            "jump_sharpness": JUMP_SHARPNESS,
+            "smooth_sharpness": SMOOTH_SHARPNESS,
+            "align_tol": ALIGN_TOL,
             "verdict_min_ratio": MIN_RATIO,
         },
         "evaluated_on": "test set (L_e, L_b, m_c, m_n, forces)",
@@ -408,5 +512,3 @@ def lambda_p_study(
 
 # ----------------------------------------------------------------------------------------------------------------
 # figures of the λ/p study
-
-

@@ -28,6 +28,7 @@ bookkeeping and of the integration), and (2) how the learned dissipation compare
 q̇ᵀ M(q) f_n^true = −γ q̇ᵀ M q̇, at the true test states. L is determined only up to a scale (L and αL give the same
 motion), so (2) also reports the scale α of the learned energy (slope of H against the true energy).
 """
+
 from __future__ import annotations
 
 import functools
@@ -217,8 +218,10 @@ def run_prediction(
     n_traj = int(n_traj)
     i_split = int(round(t_split / dt))
     if not (1 <= i_split < n_traj) or abs(i_split * dt - t_split) > 1e-9 * max(1.0, t_split):
-        raise ValueError(f"t_split must be a positive multiple of dt = {dt:g} inside the trajectory "
-                         f"(0, {n_traj * dt:g}), got {t_split:g}")
+        raise ValueError(
+            f"t_split must be a positive multiple of dt = {dt:g} inside the trajectory "
+            f"(0, {n_traj * dt:g}), got {t_split:g}"
+        )
     tcfg = TrainConfig(steps=steps, p=p)  # validates steps and p
     outdir = ensure_writable_dir(out) if out is not None else None
     t_start = time.perf_counter()
@@ -285,25 +288,46 @@ def run_prediction(
 
     results = {
         "experiment": f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
-                      f"extrapolate to t = {n_traj * dt:g} with RK4",
+        f"extrapolate to t = {n_traj * dt:g} with RK4",
         "settings": {
-            "seed": seed, "steps": tcfg.steps, "lambda": lam, "p": tcfg.p, "learning_rates": list(tcfg.lrs),
-            "batch_size": tcfg.batch_size, "widths": list(widths), "lnn_activation": cfg.lnn_activation,
-            "split_mass": cfg.split_mass, "uan_activation": f"{cfg.uan_activation}({cfg.leaky_slope:g})",
+            "seed": seed,
+            "steps": tcfg.steps,
+            "lambda": lam,
+            "p": tcfg.p,
+            "learning_rates": list(tcfg.lrs),
+            "batch_size": tcfg.batch_size,
+            "widths": list(widths),
+            "lnn_activation": cfg.lnn_activation,
+            "split_mass": cfg.split_mass,
+            "uan_activation": f"{cfg.uan_activation}({cfg.leaky_slope:g})",
             "blackbox": f"MLP (q, q̇) → q̈, widths {list(widths)}, {cfg.uan_activation}({cfg.leaky_slope:g})",
-            "uan_inputs": "(q, q̇, t)" if uan_time else "(q, q̇)", "uan_time": uan_time, "standardize": standardize,
-            "system": sysm.name, "system_params": dict(sysm.params), "x0": list(sysm.x0), "dt": dt,
-            "n_traj": n_traj, "t_split": t_split, "t_end": n_traj * dt, "n_train": len(train),
+            "uan_inputs": "(q, q̇, t)" if uan_time else "(q, q̇)",
+            "uan_time": uan_time,
+            "standardize": standardize,
+            "system": sysm.name,
+            "system_params": dict(sysm.params),
+            "x0": list(sysm.x0),
+            "dt": dt,
+            "n_traj": n_traj,
+            "t_split": t_split,
+            "t_end": n_traj * dt,
+            "n_train": len(train),
             "rollout": f"RK4, dt = {dt:g}, from the true state at t = {t_split:g}",
             "theta_tolerance": THETA_TOL,
         },
         "metrics": metrics,
-        "truth": {"energy_t_split": float(e_true[0]), "energy_t_end": float(e_true[-1]),
-                  "energy_loss": float(e_true[0] - e_true[-1])},
+        "truth": {
+            "energy_t_split": float(e_true[0]),
+            "energy_t_end": float(e_true[-1]),
+            "energy_loss": float(e_true[0] - e_true[-1]),
+        },
         "lnn_energy_constancy": lnn_const,
-        "decomposition": {"what": "NNPhD's f_n (an acceleration, so independent of the scale of L) against the true "
-                                  "friction −γq̇: rms values and ‖f_n − f_n^true‖_rms / ‖f_n^true‖_rms on the training "
-                                  "and test states", **decomposition},
+        "decomposition": {
+            "what": "NNPhD's f_n (an acceleration, so independent of the scale of L) against the true "
+            "friction −γq̇: rms values and ‖f_n − f_n^true‖_rms / ‖f_n^true‖_rms on the training "
+            "and test states",
+            **decomposition,
+        },
         "energy_balance": balance,
         "claims": claims,
         "jax_version": jax.__version__,
@@ -351,9 +375,9 @@ def _energy_balance(sysm, cfg, params, rolls, test: Dataset, uan_time: bool, dt:
     alpha = float(np.polyfit(e_true_states, h_true_states, 1)[0])
     return {
         "what": "dH/dt of the learned energy H = q̇·∂L/∂q̇ − L (4th-order central differences along the NNPhD "
-                "rollout) "
-                "against the learned dissipated power q̇ᵀ(∂²L/∂q̇²)f_n; and the learned dissipation against the true "
-                "−γ q̇ᵀM q̇ at the true test states (scale α of the learned energy: slope of H against the true E)",
+        "rollout) "
+        "against the learned dissipated power q̇ᵀ(∂²L/∂q̇²)f_n; and the learned dissipation against the true "
+        "−γ q̇ᵀM q̇ at the true test states (scale α of the learned energy: slope of H against the true E)",
         "rollout_finite": finite,
         "dHdt_vs_power_rel_rms": _rel_rms(dh[inner], power[inner]) if finite else float("nan"),
         "dHdt_vs_power_corr": _corr(dh[inner], power[inner]),
@@ -391,8 +415,9 @@ def _lnn_energy_constancy(cfg, lnn_params, roll, test: Dataset, e_true) -> dict:
         "lnn_true_energy_drift_over_truth_drift": abs(drift_true) / max(abs(truth_drift), 1e-300),
         "lnn_learned_energy_range": float(np.ptp(h)) if finite else float("inf"),
         "lnn_learned_energy_range_on_true_states": float(np.ptp(h_truth)),
-        "lnn_learned_energy_range_ratio": (float(np.ptp(h)) / max(float(np.ptp(h_truth)), 1e-300)
-                                           if finite else float("inf")),
+        "lnn_learned_energy_range_ratio": (
+            float(np.ptp(h)) / max(float(np.ptp(h_truth)), 1e-300) if finite else float("inf")
+        ),
     }
 
 
@@ -403,22 +428,30 @@ def _claims(metrics, lnn_const, e_true) -> list[dict]:
     e = {k: metrics[k]["energy_rmse_30_200"] for k in MODELS}
     drift = lnn_const["lnn_true_energy_drift_over_truth_drift"]
     return [
-        {"claim": "NNPhD energy RMSE over [30, 200] ≤ ½ × the black box's",
-         "ours": f"NNPhD {e['nnphd']:.4g} vs ½ × {e['blackbox']:.4g} = {0.5 * e['blackbox']:.4g} "
-                 f"(ratio {e['nnphd'] / e['blackbox']:.3g})",
-         "met": bool(e["nnphd"] <= 0.5 * e["blackbox"])},
-        {"claim": "NNPhD energy RMSE over [30, 200] < the LNN's",
-         "ours": f"NNPhD {e['nnphd']:.4g} vs LNN {e['lnn']:.4g} (ratio {e['nnphd'] / e['lnn']:.3g})",
-         "met": bool(e["nnphd"] < e["lnn"])},
-        {"claim": f"the LNN predicts (nearly) constant energy: the true energy of its rollout drifts (mean over "
-                  f"[30, 40] → mean over [190, 200]) by < {CONSTANCY_TOL:g} × the truth's drift",
-         "ours": f"LNN drift {lnn_const['lnn_true_energy_window_mean_drift']:.4g} vs truth "
-                 f"{lnn_const['truth_window_mean_drift']:.4g} (fraction {drift:.3g}); its learned energy varies "
-                 f"{lnn_const['lnn_learned_energy_range_ratio']:.2g} × as much along its rollout as along the truth",
-         "met": bool(drift < CONSTANCY_TOL)},
-        {"claim": "the LNN cannot fit the training accelerations as well as NNPhD (training force error larger)",
-         "ours": f"LNN {metrics['lnn']['train_force_error']:.3g} vs NNPhD {metrics['nnphd']['train_force_error']:.3g}",
-         "met": bool(metrics["lnn"]["train_force_error"] > metrics["nnphd"]["train_force_error"])},
+        {
+            "claim": "NNPhD energy RMSE over [30, 200] ≤ ½ × the black box's",
+            "ours": f"NNPhD {e['nnphd']:.4g} vs ½ × {e['blackbox']:.4g} = {0.5 * e['blackbox']:.4g} "
+            f"(ratio {e['nnphd'] / e['blackbox']:.3g})",
+            "met": bool(e["nnphd"] <= 0.5 * e["blackbox"]),
+        },
+        {
+            "claim": "NNPhD energy RMSE over [30, 200] < the LNN's",
+            "ours": f"NNPhD {e['nnphd']:.4g} vs LNN {e['lnn']:.4g} (ratio {e['nnphd'] / e['lnn']:.3g})",
+            "met": bool(e["nnphd"] < e["lnn"]),
+        },
+        {
+            "claim": f"the LNN predicts (nearly) constant energy: the true energy of its rollout drifts (mean over "
+            f"[30, 40] → mean over [190, 200]) by < {CONSTANCY_TOL:g} × the truth's drift",
+            "ours": f"LNN drift {lnn_const['lnn_true_energy_window_mean_drift']:.4g} vs truth "
+            f"{lnn_const['truth_window_mean_drift']:.4g} (fraction {drift:.3g}); its learned energy varies "
+            f"{lnn_const['lnn_learned_energy_range_ratio']:.2g} × as much along its rollout as along the truth",
+            "met": bool(drift < CONSTANCY_TOL),
+        },
+        {
+            "claim": "the LNN cannot fit the training accelerations as well as NNPhD (training force error larger)",
+            "ours": f"LNN {metrics['lnn']['train_force_error']:.3g} vs NNPhD {metrics['nnphd']['train_force_error']:.3g}",
+            "met": bool(metrics["lnn"]["train_force_error"] > metrics["nnphd"]["train_force_error"]),
+        },
     ]
 
 

@@ -21,6 +21,7 @@ The report (``out/report.html``) embeds every figure as a PNG data URI (it opens
 file beside it; each figure sits beside the paper's claim, each number beside the paper's number, with every claim
 judged met / not met and the settings used. ``out/summary.json`` holds the same verdicts as data.
 """
+
 from __future__ import annotations
 
 import json
@@ -55,18 +56,18 @@ QUICK: dict[str, dict] = {
 # the paper's words for each figure (captions and text of sections III.A–III.D)
 PAPER_CLAIMS = {
     "discover": "“In all our three examples, clear phase transitions at λ=1 indicate the existence of new physics.” "
-                "(Fig. 3) — and NNPhD + symbolic regression recovers the friction matrix, Neptune's GM, orbit radius "
-                "and frequency, and the radiation-reaction law (Table II).",
+    "(Fig. 3) — and NNPhD + symbolic regression recovers the friction matrix, Neptune's GM, orbit radius "
+    "and frequency, and the radiation-reaction law (Table II).",
     "predict": "“Both NNPhD and the black-box can accurately fit the angle θ1 of training samples, and can successfully "
-               "extrapolate for a brief period, while LNN fails to model the non-conservative dynamics; NNPhD "
-               "correctly predicts the exponential energy decay on testing samples, while the black-box generalizes "
-               "worse, and LNN incorrectly conserves energy.” (Fig. 4)",
+    "extrapolate for a brief period, while LNN fails to model the non-conservative dynamics; NNPhD "
+    "correctly predicts the exponential energy decay on testing samples, while the black-box generalizes "
+    "worse, and LNN incorrectly conserves energy.” (Fig. 4)",
     "lambda-p": "“For ‖·‖_p (p=1,2,3), non-conservative dynamics has an error jump at λ=1, while conservative dynamics "
-                "does not. Mean squared loss leads to a smooth phase transition for non-conservative dynamics.” "
-                "(Fig. 5 a–d); f_c and f_n of q̈ = −q − ½q̇ align with the physical split for 0.05 ≲ λ < 1 (Fig. 5 e–h).",
+    "does not. Mean squared loss leads to a smooth phase transition for non-conservative dynamics.” "
+    "(Fig. 5 a–d); f_c and f_n of q̈ = −q − ½q̇ align with the physical split for 0.05 ≲ λ < 1 (Fig. 5 e–h).",
     "data-quality": "“Low quality data might prevent new physics discovery via (a) incomplete data coverage and (b) "
-                    "biased data distribution.” L_e is nearly zero for α ≤ 0.5 and jumps past it; the misalignment "
-                    "is smallest for balanced data, β = 0.5 (Fig. 6).",
+    "biased data distribution.” L_e is nearly zero for α ≤ 0.5 and jumps past it; the misalignment "
+    "is smallest for balanced data, β = 0.5 (Fig. 6).",
 }
 TITLES = {
     "discover": "Fig. 3 and Table II — friction, Neptune, gravitational waves",
@@ -111,15 +112,21 @@ def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dic
     t0 = time.perf_counter()
     res = fn()
     wall = time.perf_counter() - t0
-    cache.save({"settings": settings, "wall_time_s": wall,
-                "finished": datetime.now(UTC).isoformat(timespec="seconds")}, MARKER)
+    cache.save(
+        {"settings": settings, "wall_time_s": wall, "finished": datetime.now(UTC).isoformat(timespec="seconds")}, MARKER
+    )
     log["cached"] = False
     log["compute_time_s"] = wall
     return res
 
 
-def reproduce(out: str | Path = "out/reproduce", quick: bool = False, seed: int = 0,
-              overrides: dict[str, dict] | None = None, progress: Progress | None = None) -> dict:
+def reproduce(
+    out: str | Path = "out/reproduce",
+    quick: bool = False,
+    seed: int = 0,
+    overrides: dict[str, dict] | None = None,
+    progress: Progress | None = None,
+) -> dict:
     """Run (or load from the cache) every experiment, write ``report.html`` and ``summary.json``; return the summary."""
     outdir = ensure_writable_dir(out)
     kw = plan(quick, overrides)
@@ -159,10 +166,13 @@ def reproduce(out: str | Path = "out/reproduce", quick: bool = False, seed: int 
     from nnphd.paper.data_quality import data_quality_study
     from nnphd.paper.lambda_p import lambda_p_study
     from nnphd.paper.predict import run_prediction
+
     others = {
         "predict": lambda d, k: run_prediction(seed=seed, out=d, progress=part(len(systems), "predict"), **k),
         "lambda-p": lambda d, k: lambda_p_study(seed=seed, out=d, progress=part(len(systems) + 1, "λ/p study"), **k),
-        "data-quality": lambda d, k: data_quality_study(seed=seed, out=d, progress=part(len(systems) + 2, "data-quality study"), **k),
+        "data-quality": lambda d, k: data_quality_study(
+            seed=seed, out=d, progress=part(len(systems) + 2, "data-quality study"), **k
+        ),
     }
     for exp, fn in others.items():
         d = ensure_writable_dir(outdir / exp)
@@ -195,15 +205,26 @@ def _discover_claims(disc: list[dict]) -> list[dict]:
     claims = []
     for r in disc:
         v = r["verdict"]
-        claims.append({"experiment": "discover", "claim": f"{r['system']}: a jump of L_e at λ = 1, verdict new physics",
-                       "paper": "new physics", "ours": f"{'new physics' if r['new_physics'] else 'no new physics'} "
-                                                      f"(L_e ratio across λ=1: {v['ratio']:.3g})",
-                       "met": bool(r["new_physics"])})
+        claims.append(
+            {
+                "experiment": "discover",
+                "claim": f"{r['system']}: a jump of L_e at λ = 1, verdict new physics",
+                "paper": "new physics",
+                "ours": f"{'new physics' if r['new_physics'] else 'no new physics'} "
+                f"(L_e ratio across λ=1: {v['ratio']:.3g})",
+                "met": bool(r["new_physics"]),
+            }
+        )
         for row in r["table2"]:
-            claims.append({"experiment": "discover", "claim": f"{r['system']}: {row['quantity']} = {row['truth']:.4g} "
-                                                              f"(goal {row['goal']})",
-                           "paper": f"{row['paper']:.4g}", "ours": f"{row['ours']:.4g} ± {row['stderr']:.2g}",
-                           "met": bool(row["goal_met"])})
+            claims.append(
+                {
+                    "experiment": "discover",
+                    "claim": f"{r['system']}: {row['quantity']} = {row['truth']:.4g} (goal {row['goal']})",
+                    "paper": f"{row['paper']:.4g}",
+                    "ours": f"{row['ours']:.4g} ± {row['stderr']:.2g}",
+                    "met": bool(row["goal_met"]),
+                }
+            )
     return claims
 
 
@@ -212,8 +233,15 @@ def collect_claims(results: dict) -> list[dict]:
     claims = _discover_claims(results["discover"])
     for exp in EXPERIMENTS[1:]:
         for c in results[exp]["claims"]:
-            claims.append({"experiment": exp, "claim": c["claim"], "paper": c.get("paper", ""), "ours": c["ours"],
-                           "met": bool(c["met"])})
+            claims.append(
+                {
+                    "experiment": exp,
+                    "claim": c["claim"],
+                    "paper": c.get("paper", ""),
+                    "ours": c["ours"],
+                    "met": bool(c["met"]),
+                }
+            )
     return claims
 
 
@@ -223,8 +251,11 @@ def _met(m: bool) -> str:
 
 
 def _claims_table(claims: list[dict]) -> str:
-    return table(["claim", "paper", "ours", ""],
-                 [[_e(c["claim"]), _e(c["paper"]), _e(c["ours"]), _met(c["met"])] for c in claims], left=3)
+    return table(
+        ["claim", "paper", "ours", ""],
+        [[_e(c["claim"]), _e(c["paper"]), _e(c["ours"]), _met(c["met"])] for c in claims],
+        left=3,
+    )
 
 
 def _fmt(x, nd=4) -> str:
@@ -232,30 +263,74 @@ def _fmt(x, nd=4) -> str:
 
 
 def _discover_body(disc: list[dict]) -> str:
-    rows = [[_e(r["system"]), "new physics" if r["new_physics"] else "no new physics", _fmt(r["verdict"]["ratio"], 3),
-             _fmt(r["settings"]["trajectory"]["n_steps"]), _fmt(r["settings"]["trajectory"]["paper_n_steps"]),
-             _fmt(r["wall_time_s"], 3)] for r in disc]
-    s = "<h3>Verdicts</h3>" + table(["system", "verdict", "L_e ratio across λ=1", "trajectory steps", "paper's steps",
-                                     "time (s)"], rows)
+    rows = [
+        [
+            _e(r["system"]),
+            "new physics" if r["new_physics"] else "no new physics",
+            _fmt(r["verdict"]["ratio"], 3),
+            _fmt(r["settings"]["trajectory"]["n_steps"]),
+            _fmt(r["settings"]["trajectory"]["paper_n_steps"]),
+            _fmt(r["wall_time_s"], 3),
+        ]
+        for r in disc
+    ]
+    s = "<h3>Verdicts</h3>" + table(
+        ["system", "verdict", "L_e ratio across λ=1", "trajectory steps", "paper's steps", "time (s)"], rows
+    )
     t2 = []
     for r in disc:
         for row in r["table2"]:
-            t2.append([_e(r["system"]), _e(row["quantity"]), _fmt(row["truth"]), _fmt(row["paper"]),
-                       f"{_fmt(row['ours'])} ± {_fmt(row['stderr'], 2)}", _e(row["goal"]), _met(row["goal_met"]),
-                       f"{_fmt(row['posthoc'])} ± {_fmt(row['posthoc_stderr'], 2)}"])
+            t2.append(
+                [
+                    _e(r["system"]),
+                    _e(row["quantity"]),
+                    _fmt(row["truth"]),
+                    _fmt(row["paper"]),
+                    f"{_fmt(row['ours'])} ± {_fmt(row['stderr'], 2)}",
+                    _e(row["goal"]),
+                    _met(row["goal_met"]),
+                    f"{_fmt(row['posthoc'])} ± {_fmt(row['posthoc_stderr'], 2)}",
+                ]
+            )
     s += "<h3>Table II: ground truth, paper, ours</h3>" + table(
-        ["system", "quantity", "truth", "paper", "ours (joint law fit) ± stderr", "goal", "",
-         "post hoc (the paper's way) ± stderr"], t2, left=2)
+        [
+            "system",
+            "quantity",
+            "truth",
+            "paper",
+            "ours (joint law fit) ± stderr",
+            "goal",
+            "",
+            "post hoc (the paper's way) ± stderr",
+        ],
+        t2,
+        left=2,
+    )
     s += "<h3>Explanations of the learned non-conservative force</h3>"
     ex = []
     for r in disc:
-        ex.append([_e(r["system"]), "parametric", f"<code>{_e(r['parametric']['formula'])}</code>",
-                   _fmt(r["parametric"]["rel_rms"], 3)])
+        ex.append(
+            [
+                _e(r["system"]),
+                "parametric",
+                f"<code>{_e(r['parametric']['formula'])}</code>",
+                _fmt(r["parametric"]["rel_rms"], 3),
+            ]
+        )
         for method, b in r["blind"].items():
-            f = "<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in b["formula"].items()) if b["readable"] \
+            f = (
+                "<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in b["formula"].items())
+                if b["readable"]
                 else "nothing readable"
-            ex.append([_e(r["system"]), f"blind ({_e(method)})", f + f"<br><small>{_e(b['note'])}</small>",
-                       _fmt(b["rel_rms"], 3)])
+            )
+            ex.append(
+                [
+                    _e(r["system"]),
+                    f"blind ({_e(method)})",
+                    f + f"<br><small>{_e(b['note'])}</small>",
+                    _fmt(b["rel_rms"], 3),
+                ]
+            )
     s += table(["system", "method", "formula", "rel. rms"], ex, left=3)
     return s
 
@@ -264,56 +339,97 @@ def _predict_body(res: dict) -> str:
     from nnphd.paper.predict import LABELS, MODELS, THETA_TOL
 
     tkey = f"t_error_exceeds_{THETA_TOL:g}"
-    rows = [[_e(LABELS[k]), _fmt(res["metrics"][k]["theta1_rmse_30_40"]), _fmt(res["metrics"][k]["theta1_rmse_30_200"]),
-             _fmt(res["metrics"][k]["energy_rmse_30_200"]),
-             "never" if res["metrics"][k][tkey] is None else _fmt(res["metrics"][k][tkey], 3)] for k in MODELS]
+    rows = [
+        [
+            _e(LABELS[k]),
+            _fmt(res["metrics"][k]["theta1_rmse_30_40"]),
+            _fmt(res["metrics"][k]["theta1_rmse_30_200"]),
+            _fmt(res["metrics"][k]["energy_rmse_30_200"]),
+            "never" if res["metrics"][k][tkey] is None else _fmt(res["metrics"][k][tkey], 3),
+        ]
+        for k in MODELS
+    ]
     b = res["energy_balance"]
-    return ("<h3>Metrics (rollout from t = 30)</h3>" +
-            table(["model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t"], rows)
-            + f"<p>Energy balance of the NNPhD rollout: dH/dt against the power of the learned f_n — rel. rms "
-              f"difference {_fmt(b['dHdt_vs_power_rel_rms'], 3)}, correlation {_fmt(b['dHdt_vs_power_corr'], 4)}; "
-              f"learned vs true dissipated power: correlation {_fmt(b['learned_vs_true_power_corr'], 3)}.</p>")
+    return (
+        "<h3>Metrics (rollout from t = 30)</h3>"
+        + table(
+            ["model", "θ1 RMSE [30,40]", "θ1 RMSE [30,200]", "E RMSE [30,200]", f"|Δθ1| > {THETA_TOL:g} at t"], rows
+        )
+        + f"<p>Energy balance of the NNPhD rollout: dH/dt against the power of the learned f_n — rel. rms "
+        f"difference {_fmt(b['dHdt_vs_power_rel_rms'], 3)}, correlation {_fmt(b['dHdt_vs_power_corr'], 4)}; "
+        f"learned vs true dissipated power: correlation {_fmt(b['learned_vs_true_power_corr'], 3)}.</p>"
+    )
 
 
 def _lambda_p_body(res: dict) -> str:
-    rows = [[_e(v["system"]), "MSE" if v["p"] == "mse" else f"p={_e(v['p'])}", _fmt(v["L_below"], 3),
-             _fmt(v["L_above"], 3), _fmt(v["ratio"], 3), "new physics" if v["new_physics"] else "none",
-             "" if v["correct"] else '<span class="miss">wrong</span>',
-             f"{_fmt(v['sharpness'], 3)} ({_e(v['transition'])})"] for v in res["verdicts"]]
+    rows = [
+        [
+            _e(v["system"]),
+            "MSE" if v["p"] == "mse" else f"p={_e(v['p'])}",
+            _fmt(v["L_below"], 3),
+            _fmt(v["L_above"], 3),
+            _fmt(v["ratio"], 3),
+            "new physics" if v["new_physics"] else "none",
+            "" if v["correct"] else '<span class="miss">wrong</span>',
+            f"{_fmt(v['sharpness'], 3)} ({_e(v['transition'])})",
+        ]
+        for v in res["verdicts"]
+    ]
     return "<h3>Verdict per system and loss</h3>" + table(
-        ["system", "loss", "L_e λ<1", "L_e λ>1", "ratio", "verdict", "", "sharpness"], rows, left=2)
+        ["system", "loss", "L_e λ<1", "L_e λ>1", "ratio", "verdict", "", "sharpness"], rows, left=2
+    )
 
 
 def _data_quality_body(res: dict) -> str:
     a = [[_fmt(r["alpha"], 3), _fmt(r["L_e"]), _fmt(r["L_e_full"])] for r in res["alpha"]["table"]]
     b = [[_fmt(r["beta"], 3), _fmt(r["m_c"]), _fmt(r["m_n"])] for r in res["beta"]["table"]]
-    return figures(["<div><h3>HO+CD, λ = 10: L_e(α)</h3>" + table(["α", "L_e (same-α test)", "L_e (full Gaussian)"], a)
-                    + "</div>", "<div><h3>HO+LD, λ = 0.5: misalignment(β)</h3>" + table(["β", "m_c", "m_n"], b)
-                    + "</div>"])
+    return figures(
+        [
+            "<div><h3>HO+CD, λ = 10: L_e(α)</h3>"
+            + table(["α", "L_e (same-α test)", "L_e (full Gaussian)"], a)
+            + "</div>",
+            "<div><h3>HO+LD, λ = 0.5: misalignment(β)</h3>" + table(["β", "m_c", "m_n"], b) + "</div>",
+        ]
+    )
 
 
 def render_html(outdir: Path, summary: dict, results: dict) -> str:
     """The self-contained report: one section per experiment, figures embedded as data URIs and linked."""
-    bodies = {"discover": _discover_body(results["discover"]), "predict": _predict_body(results["predict"]),
-              "lambda-p": _lambda_p_body(results["lambda-p"]), "data-quality": _data_quality_body(results["data-quality"])}
+    bodies = {
+        "discover": _discover_body(results["discover"]),
+        "predict": _predict_body(results["predict"]),
+        "lambda-p": _lambda_p_body(results["lambda-p"]),
+        "data-quality": _data_quality_body(results["data-quality"]),
+    }
     parts = ["<h1>nnphd — reproduction of the paper's experiments</h1>"]
     if summary["mode"] == "quick":
-        parts.append('<p class="quick"><b>Quick mode:</b> the same code with fewer training steps (see the settings). '
-                     "Its numbers are a smoke test, not the paper-scale results; run <code>nnphd reproduce</code> "
-                     "without <code>--quick</code> for those.</p>")
+        parts.append(
+            '<p class="quick"><b>Quick mode:</b> the same code with fewer training steps (see the settings). '
+            "Its numbers are a smoke test, not the paper-scale results; run <code>nnphd reproduce</code> "
+            "without <code>--quick</code> for those.</p>"
+        )
     n_cached = sum(r["cached"] for r in summary["runs"].values())
-    parts.append(f"<p>Mode <b>{_e(summary['mode'])}</b>, seed {summary['seed']}, written "
-                 f"{datetime.now(UTC).isoformat(timespec='seconds')}. This run: {summary['wall_time_s']:.0f} s "
-                 f"({n_cached} of {len(summary['runs'])} units loaded from the cache); compute time of all units as "
-                 f"measured when they ran: {summary['compute_time_s']:.0f} s. Claims met: "
-                 f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p>")
+    parts.append(
+        f"<p>Mode <b>{_e(summary['mode'])}</b>, seed {summary['seed']}, written "
+        f"{datetime.now(UTC).isoformat(timespec='seconds')}. This run: {summary['wall_time_s']:.0f} s "
+        f"({n_cached} of {len(summary['runs'])} units loaded from the cache); compute time of all units as "
+        f"measured when they ran: {summary['compute_time_s']:.0f} s. Claims met: "
+        f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p>"
+    )
     parts.append(bullets(f'<a href="#{e}">{_e(TITLES[e])}</a>' for e in EXPERIMENTS))
     for exp in EXPERIMENTS:
         claims = [c for c in summary["claims"] if c["experiment"] == exp]
         settings = json.dumps(summary["settings"][exp], indent=1)
         units = {k: v for k, v in summary["runs"].items() if k.split("/")[0] == exp}
-        parts.append(section(TITLES[exp], f'<div class="claim"><b>Paper:</b> {_e(PAPER_CLAIMS[exp])}</div>'
-                             + figures(figure_file(outdir, rel) for rel in FIGURES[exp]) + bodies[exp]
-                             + f"<h3>Claims</h3>{_claims_table(claims)}"
-                             + details("settings and run log", f"{settings}\n{json.dumps(units, indent=1)}"), exp))
+        parts.append(
+            section(
+                TITLES[exp],
+                f'<div class="claim"><b>Paper:</b> {_e(PAPER_CLAIMS[exp])}</div>'
+                + figures(figure_file(outdir, rel) for rel in FIGURES[exp])
+                + bodies[exp]
+                + f"<h3>Claims</h3>{_claims_table(claims)}"
+                + details("settings and run log", f"{settings}\n{json.dumps(units, indent=1)}"),
+                exp,
+            )
+        )
     return page("nnphd reproduce", "".join(parts))

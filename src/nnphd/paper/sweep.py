@@ -2,6 +2,7 @@
 
 This is what ``nnphd sweep`` calls; a notebook can call it the same way.
 """
+
 from __future__ import annotations
 
 import time
@@ -38,8 +39,10 @@ class SweepPlan:
 
     def run(self, progress: Progress | None = None) -> SystemSweep:
         """Train (resuming from the checkpoint, saving one after every λ) and read the verdict."""
-        done = {lam: SweepPoint(lam, **m, params=prm)
-                for lam, (m, prm) in self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg)).items()}
+        done = {
+            lam: SweepPoint(lam, **m, params=prm)
+            for lam, (m, prm) in self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg)).items()
+        }
         resumed = sorted(done)
 
         def on_point(pt: SweepPoint):
@@ -47,8 +50,18 @@ class SweepPlan:
             _save_checkpoint(self.cache, done)
 
         t0 = time.perf_counter()
-        points = sweep(self.train, self.cfg, self.tcfg, self.lambdas, seed=self.seed, test_data=self.test,
-                       mode=self.mode, progress=progress, resume=done, on_point=on_point)
+        points = sweep(
+            self.train,
+            self.cfg,
+            self.tcfg,
+            self.lambdas,
+            seed=self.seed,
+            test_data=self.test,
+            mode=self.mode,
+            progress=progress,
+            resume=done,
+            on_point=on_point,
+        )
         wall = time.perf_counter() - t0
         ev = self.test if self.test is not None else self.train
         return SystemSweep(self, points, verdict(points, force_norm(ev.qdd, self.tcfg.p)), wall, resumed)
@@ -112,8 +125,14 @@ def _save_checkpoint(cache: Cache, done: dict[float, SweepPoint]) -> None:
     cache.checkpoint({lam: ({k: getattr(pt, k) for k in keys}, pt.params) for lam, pt in done.items()})
 
 
-def run_sweep(system: System | str, *, out: str | Path | None = None, progress: Progress | None = None,
-              resume: bool = True, **plan_kw) -> dict:
+def run_sweep(
+    system: System | str,
+    *,
+    out: str | Path | None = None,
+    progress: Progress | None = None,
+    resume: bool = True,
+    **plan_kw,
+) -> dict:
     """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given).
 
     ``plan_kw`` (p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize) as :func:`plan_sweep`. With
@@ -125,7 +144,15 @@ def run_sweep(system: System | str, *, out: str | Path | None = None, progress: 
     r = plan.run(progress)
     sysm, v, points = plan.system, r.verdict, r.points
     table = [
-        {"lam": pt.lam, "L_e": pt.L_e, "L_b": pt.L_b, "L_e_train": pt.L_e_train, "L_b_train": pt.L_b_train, "m_c": pt.m_c, "m_n": pt.m_n}
+        {
+            "lam": pt.lam,
+            "L_e": pt.L_e,
+            "L_b": pt.L_b,
+            "L_e_train": pt.L_e_train,
+            "L_b_train": pt.L_b_train,
+            "m_c": pt.m_c,
+            "m_n": pt.m_n,
+        }
         for pt in points
     ]
     aligned = [r for r in table if 0.1 <= r["lam"] <= 0.5 and r["m_c"] is not None]
@@ -149,6 +176,9 @@ def run_sweep(system: System | str, *, out: str | Path | None = None, progress: 
     }
     if outdir is not None:
         write_json(outdir / "results.json", results)
-        save_figure(plot_sweep({sysm.name: table}, f"{sysm.name}, p={plan.tcfg.p}: new physics = {v.new_physics}"), outdir / "loss_vs_lambda.png")
+        save_figure(
+            plot_sweep({sysm.name: table}, f"{sysm.name}, p={plan.tcfg.p}: new physics = {v.new_physics}"),
+            outdir / "loss_vs_lambda.png",
+        )
         plan.cache.clear_checkpoint()
     return results

@@ -40,6 +40,7 @@ window/block bootstrap replicas of that seed's trajectory-level evidence (trajec
 reproduce its call — how often a similar record would give the same call, not a probability that the call is right.
 ``new_physics`` (best call): the status, or when inconclusive, the majority of seeds.
 """
+
 from __future__ import annotations
 
 import time
@@ -150,8 +151,9 @@ def assess(
     if position_noise is None:
         from nnphd.user.sampling import noise_level
 
-        position_noise = [float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs])))
-                          for j in range(n)]
+        position_noise = [
+            float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs]))) for j in range(n)
+        ]
     sd = np.std(q_pos * sc.s_q, axis=0)
     noise_rel = [p / s if s > 0 else 0.0 for p, s in zip(position_noise, sd)]
     quality = data_quality(period_samples, noise_rel, derivative_error)
@@ -160,12 +162,25 @@ def assess(
         return _unusable(quality, sc, data, is_angle, clock, time.perf_counter() - t_start)
     cfg_kw = {"periodic": tuple(int(i) for i in np.flatnonzero(is_angle))} if is_angle.any() else {}
     ctx = {
-        "q": q, "qd": qd, "tp": tp, "qdd": qdd, "segs": segs, "q_pos": q_pos, "sc": sc, "steps": steps,
-        "lambdas": tuple(lambdas), "width": width, "long_factor": long_factor, "holdout_frac": holdout_frac,
+        "q": q,
+        "qd": qd,
+        "tp": tp,
+        "qdd": qdd,
+        "segs": segs,
+        "q_pos": q_pos,
+        "sc": sc,
+        "steps": steps,
+        "lambdas": tuple(lambdas),
+        "width": width,
+        "long_factor": long_factor,
+        "holdout_frac": holdout_frac,
         # t enters the UAN only where a clock can be told from a trajectory label; along one trajectory (or at
         # disjoint times) it only lets the UAN fit the training times and extrapolate wildly to held-out ones
         "feats": time_features(tp, float(tp.max() - tp.min())) if clock[0] else np.zeros((len(tp), 0)),
-        "period": period, "sigma": np.asarray(position_noise, float) / sc.s_q, "quality": quality, "clock": clock,
+        "period": period,
+        "sigma": np.asarray(position_noise, float) / sc.s_q,
+        "quality": quality,
+        "clock": clock,
         "cfg": ModelConfig(n=n, lnn_widths=(width, width), uan_widths=(width, width), **cfg_kw),
     }
     total = n_seeds * (len(lambdas) + 2 * long_factor + 1)
@@ -187,30 +202,40 @@ def assess(
 def _unusable(quality: dict, sc: Scaling, data: Dataset, is_angle, clock, wall: float) -> dict:
     """The result for data that cannot decide (no training is done): inconclusive, with the reason."""
     empty = {"valid": False, "reason": "not computed: " + quality["reason"]}
-    keys = {"energy_trend": ("rate", "se", "z", "rate_per_period", "n_blocks", "valid"),
-            "shooting": ("d_mean", "se_d_mean", "z", "c", "n_windows", "valid"),
-            "drift": ("rho_median", "magnitude_median", "slow_ratio_median", "bootstrap_fraction", "significant",
-                      "valid"),
-            "uan_power": ("rho_median", "magnitude_median", "significant"),
-            "time": ("gain", "abs_gain", "improved_fraction", "significant", "valid"),
-            "gap": ("gap_train", "gap_test", "conservative_train", "conservative_test", "free_train", "free_test",
-                    "large"),
-            "capacity": ("relative_drop", "still_falling"),
-            "optimisation": ("L_e_train_below", "L_e_train_above", "retrained", "ok")}
+    keys = {
+        "energy_trend": ("rate", "se", "z", "rate_per_period", "n_blocks", "valid"),
+        "shooting": ("d_mean", "se_d_mean", "z", "c", "n_windows", "valid"),
+        "drift": ("rho_median", "magnitude_median", "slow_ratio_median", "bootstrap_fraction", "significant", "valid"),
+        "uan_power": ("rho_median", "magnitude_median", "significant"),
+        "time": ("gain", "abs_gain", "improved_fraction", "significant", "valid"),
+        "gap": ("gap_train", "gap_test", "conservative_train", "conservative_test", "free_train", "free_test", "large"),
+        "capacity": ("relative_drop", "still_falling"),
+        "optimisation": ("L_e_train_below", "L_e_train_above", "retrained", "ok"),
+    }
     checks = {name: {k: [] for k in ks} for name, ks in keys.items()}
     checks.update(naive={"new_physics": [], "ratio": []}, per_seed=[], scaling=sc.to_dict(), wall_time_s=wall)
     zeros = np.zeros_like(data.q)
     return {
-        "status": "inconclusive", "new_physics": False,
+        "status": "inconclusive",
+        "new_physics": False,
         "statistic": {"name": "z of the energy trend (not computed: the data cannot decide)", "value": None},
         "effect": None,
-        "evidence": {"energy_trend": empty, "shooting": empty,
-                     "combined": {"significant": False, "valid": False, "bootstrap_fraction": None}},
+        "evidence": {
+            "energy_trend": empty,
+            "shooting": empty,
+            "combined": {"significant": False, "valid": False, "bootstrap_fraction": None},
+        },
         "confidence": 1.0,
         "confidence_basis": "the data-quality gate alone (no model was trained): the reason is a property of the data",
         "reasons": [f"the data cannot decide: {quality['reason']}"],
-        "checks": checks, "table": [], "lambda_forces": None, "f_c": zeros, "f_n": zeros,
-        "quality": quality, "angles": [bool(a) for a in is_angle], "clock": {"testable": clock[0], "why": clock[1]},
+        "checks": checks,
+        "table": [],
+        "lambda_forces": None,
+        "f_c": zeros,
+        "f_n": zeros,
+        "quality": quality,
+        "angles": [bool(a) for a in is_angle],
+        "clock": {"testable": clock[0], "why": clock[1]},
     }
 
 
@@ -246,28 +271,67 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
         return {k: v for k, v in d.items() if not k.startswith("_")}
 
     checks = {
-        "energy_trend": _agg([{"e": public(s["energy_trend"])} for s in seeds], "e",
-                             ("rate", "se", "z", "rate_per_period", "n_blocks", "valid")),
-        "shooting": _agg([{"e": public(s["shooting"])} for s in seeds], "e",
-                         ("d_mean", "se_d_mean", "z", "c", "n_windows", "valid")),
-        "drift": _agg(seeds, "drift", ("rho_median", "magnitude_median", "slow_ratio_median", "bootstrap_fraction",
-                                       "significant", "valid")),
+        "energy_trend": _agg(
+            [{"e": public(s["energy_trend"])} for s in seeds],
+            "e",
+            ("rate", "se", "z", "rate_per_period", "n_blocks", "valid"),
+        ),
+        "shooting": _agg(
+            [{"e": public(s["shooting"])} for s in seeds], "e", ("d_mean", "se_d_mean", "z", "c", "n_windows", "valid")
+        ),
+        "drift": _agg(
+            seeds,
+            "drift",
+            ("rho_median", "magnitude_median", "slow_ratio_median", "bootstrap_fraction", "significant", "valid"),
+        ),
         "uan_power": _agg(seeds, "uan_power", ("rho_median", "magnitude_median", "significant")),
         "time": _agg(seeds, "time", ("gain", "abs_gain", "improved_fraction", "significant", "valid")),
-        "gap": _agg(seeds, "gap", ("gap_train", "gap_test", "conservative_train", "conservative_test", "free_train",
-                                   "free_test", "large")),
+        "gap": _agg(
+            seeds,
+            "gap",
+            ("gap_train", "gap_test", "conservative_train", "conservative_test", "free_train", "free_test", "large"),
+        ),
         "capacity": _agg(seeds, "capacity", ("relative_drop", "still_falling")),
-        "optimisation": _agg(seeds, "optimisation", ("L_e_train_below", "L_e_train_above", "retrained", "ok",
-                                                     "L_e_heldout_below", "L_e_heldout_above", "heldout_ok")),
-        "naive": {"new_physics": [s["naive"]["new_physics"] for s in seeds],
-                  "ratio": [s["naive"]["ratio"] for s in seeds]},
-        "per_seed": [{k: (public(v) if isinstance(v, dict) else v) for k, v in s.items()
-                      if k not in ("forces", "table", "_conservative")} for s in seeds],
+        "optimisation": _agg(
+            seeds,
+            "optimisation",
+            (
+                "L_e_train_below",
+                "L_e_train_above",
+                "retrained",
+                "ok",
+                "L_e_heldout_below",
+                "L_e_heldout_above",
+                "heldout_ok",
+            ),
+        ),
+        "naive": {
+            "new_physics": [s["naive"]["new_physics"] for s in seeds],
+            "ratio": [s["naive"]["ratio"] for s in seeds],
+        },
+        "per_seed": [
+            {
+                k: (public(v) if isinstance(v, dict) else v)
+                for k, v in s.items()
+                if k not in ("forces", "table", "_conservative")
+            }
+            for s in seeds
+        ],
         "scaling": sc.to_dict(),
-        "thresholds": {"rho_min": RHO_MIN, "rho_low": RHO_LOW, "z_min": Z_MIN, "drift_min": DRIFT_MIN,
-                       "min_oscillations": MIN_OSCILLATIONS, "z_both": Z_BOTH, "z_one": Z_ONE,
-                       "z_contradict": Z_CONTRA, "time_gain_min": TIME_GAIN_MIN, "time_abs_min": TIME_ABS_MIN,
-                       "gap_min": GAP_MIN, "still_falling": STILL_FALLING},
+        "thresholds": {
+            "rho_min": RHO_MIN,
+            "rho_low": RHO_LOW,
+            "z_min": Z_MIN,
+            "drift_min": DRIFT_MIN,
+            "min_oscillations": MIN_OSCILLATIONS,
+            "z_both": Z_BOTH,
+            "z_one": Z_ONE,
+            "z_contradict": Z_CONTRA,
+            "time_gain_min": TIME_GAIN_MIN,
+            "time_abs_min": TIME_ABS_MIN,
+            "gap_min": GAP_MIN,
+            "still_falling": STILL_FALLING,
+        },
         "wall_time_s": wall,
     }
     zs = [s["energy_trend"]["z"] if s["energy_trend"].get("valid") else float("nan") for s in seeds]
@@ -275,16 +339,20 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
     return {
         "status": status,
         "new_physics": new,
-        "statistic": {"name": "z of the energy trend of the learned Lagrangian along the record (decay > 0; median "
-                              "over seeds)",
-                      "value": float(np.nanmedian(zs)) if np.any(np.isfinite(zs)) else None},
+        "statistic": {
+            "name": "z of the energy trend of the learned Lagrangian along the record (decay > 0; median over seeds)",
+            "value": float(np.nanmedian(zs)) if np.any(np.isfinite(zs)) else None,
+        },
         "effect": first["trajectory_evidence"].get("effect"),
-        "evidence": {"energy_trend": public(first["energy_trend"]), "shooting": public(first["shooting"]),
-                     "combined": first["trajectory_evidence"]},
+        "evidence": {
+            "energy_trend": public(first["energy_trend"]),
+            "shooting": public(first["shooting"]),
+            "combined": first["trajectory_evidence"],
+        },
         "confidence": conf,
         "confidence_basis": "mean over seeds of [seed agrees] × the share of window/block bootstrap replicas of its "
-                            "trajectory-level evidence (or of trajectories, for the net-power check) that give "
-                            "the same call",
+        "trajectory-level evidence (or of trajectories, for the net-power check) that give "
+        "the same call",
         "reasons": reasons,
         "checks": checks,
         "table": table,
@@ -304,6 +372,7 @@ def conservative_fn(cons: dict):
 
     def fc(q, qd):
         return accel(lnn, (q - mu) / s_q, qd * s_t / s_q) * s_q / s_t**2
+
     return fc
 
 

@@ -79,6 +79,7 @@ script (benchmarks/trust_table.py, 24 runs at each of the two configs, all corre
   MIN_SAMPLES_PER_PERIOD = 6, QDD_ERR_MAX = 50 %, CLOCK_MIN_TRAJ = 3 and CLOCK_MANY_TRAJ = 8 are judgement (white
   noise gives σ/std ≈ 1 and q̈ errors > 100 %; a cosine sampled every 2.9 s has 2.2 samples per period).
 """
+
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -156,8 +157,8 @@ def slow_energy_ratio(power, t, segs, n_osc) -> np.ndarray:
         e = np.concatenate([[0.0], np.cumsum(0.5 * (p[1:] + p[:-1]) * np.diff(ts))])
         w = max(3, int(round(len(s) / k)))
         nw = len(s) // w
-        means = [float(np.mean(e[i * w:(i + 1) * w])) for i in range(nw)]
-        tvs = [_trapz(np.abs(p[i * w:(i + 1) * w]), ts[i * w:(i + 1) * w]) for i in range(nw)]
+        means = [float(np.mean(e[i * w : (i + 1) * w])) for i in range(nw)]
+        tvs = [_trapz(np.abs(p[i * w : (i + 1) * w]), ts[i * w : (i + 1) * w]) for i in range(nw)]
         med = float(np.median(tvs))
         out.append((max(means) - min(means)) / med if med > 0 else 0.0)
     return np.asarray(out)
@@ -239,9 +240,12 @@ def capacity_check(errors: Sequence[float]) -> dict:
     """Errors of the conservative model after successive rounds of training: still falling?"""
     e = np.asarray(errors, float)
     drop = float(1.0 - e[-1] / e[0]) if e[0] > 0 else 0.0
-    return {"errors": e.tolist(), "relative_drop": drop, "still_falling": bool(drop > STILL_FALLING),
-            "threshold": STILL_FALLING}
-
+    return {
+        "errors": e.tolist(),
+        "relative_drop": drop,
+        "still_falling": bool(drop > STILL_FALLING),
+        "threshold": STILL_FALLING,
+    }
 
 
 def _poly_features(x, degree: int) -> np.ndarray:
@@ -286,15 +290,18 @@ def clock_testable(t, segs) -> tuple[bool, str]:
         return False, "one trajectory: time and state are confounded along it"
     t = np.asarray(t, float)
     rng_ = [(float(t[s].min()), float(t[s].max())) for s in segs]
-    overlaps = [any(i != j and min(b1, b2) > max(a1, a2) for j, (a2, b2) in enumerate(rng_))
-                for i, (a1, b1) in enumerate(rng_)]
+    overlaps = [
+        any(i != j and min(b1, b2) > max(a1, a2) for j, (a2, b2) in enumerate(rng_)) for i, (a1, b1) in enumerate(rng_)
+    ]
     if K >= CLOCK_MANY_TRAJ:
         return True, f"{K} trajectories"
     if K >= CLOCK_MIN_TRAJ and all(overlaps):
         return True, f"{K} trajectories overlapping in time"
     if not all(overlaps):
-        return False, (f"{K} trajectories, {sum(not o for o in overlaps)} of them at times no other trajectory "
-                       "covers: t would only tell the trajectories apart")
+        return False, (
+            f"{K} trajectories, {sum(not o for o in overlaps)} of them at times no other trajectory "
+            "covers: t would only tell the trajectories apart"
+        )
     return False, f"only {K} trajectories (at least {CLOCK_MIN_TRAJ} overlapping in time are needed)"
 
 
@@ -326,29 +333,40 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
     sig = rule(zt, zs)
     bt, bs = trend.get("_bootstrap_z", []), shoot.get("_bootstrap_z", [])
     nb = max(len(bt), len(bs))
-    reps = [rule(bt[i] if i < len(bt) and zt is not None else zt, bs[i] if i < len(bs) and zs is not None else zs)
-            for i in range(nb)]
+    reps = [
+        rule(bt[i] if i < len(bt) and zt is not None else zt, bs[i] if i < len(bs) and zs is not None else zs)
+        for i in range(nb)
+    ]
     sign = np.sign(zt if zt is not None and (zs is None or abs(zt) >= abs(zs)) else (zs or 0.0))
     bound = None
     if trend.get("valid") and np.isfinite(trend.get("se", np.inf)):
         bound = abs(trend["rate"]) + 2 * trend["se"]
-    return {"significant": bool(sig), "z_energy": zt, "z_shooting": zs,
-            "direction": "loses energy" if sign > 0 else ("gains energy" if sign < 0 else "none"),
-            "valid": zt is not None or zs is not None,
-            "bootstrap_fraction": float(np.mean(reps)) if reps else None, "rate_bound": bound}
+    return {
+        "significant": bool(sig),
+        "z_energy": zt,
+        "z_shooting": zs,
+        "direction": "loses energy" if sign > 0 else ("gains energy" if sign < 0 else "none"),
+        "valid": zt is not None or zs is not None,
+        "bootstrap_fraction": float(np.mean(reps)) if reps else None,
+        "rate_bound": bound,
+    }
 
 
 def _effect(traj: dict, trend: dict, shoot: dict) -> str:
-    """"energy decays 3.2 %/period (r = 0.011/time unit), z = 41" from the evidence."""
+    """ "energy decays 3.2 %/period (r = 0.011/time unit), z = 41" from the evidence."""
     parts = []
     if trend.get("valid"):
         r, rp = trend["rate"], trend.get("rate_per_period", float("nan"))
         word = "decays" if r > 0 else "grows"
-        parts.append(f"the learned energy {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
-                     f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)")
+        parts.append(
+            f"the learned energy {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
+            f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)"
+        )
     if shoot.get("valid"):
-        parts.append(f"a fit of the positions by integration over {shoot['n_windows']} windows needs damping "
-                     f"d = {shoot['d_mean']:.3g} ± {shoot['se_d_mean']:.2g} per time unit (z = {shoot['z']:.1f})")
+        parts.append(
+            f"a fit of the positions by integration over {shoot['n_windows']} windows needs damping "
+            f"d = {shoot['d_mean']:.3g} ± {shoot['se_d_mean']:.2g} per time unit (z = {shoot['z']:.1f})"
+        )
     return "; ".join(parts) if parts else "no trajectory-level statistic could be computed"
 
 
@@ -366,46 +384,74 @@ def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tu
     if not quality["usable"]:
         return ("inconclusive", f"the data cannot decide: {quality['reason']}", 1.0)
     if tchk["significant"] and tchk["valid"]:
-        return ("detected", f"the force depends on t explicitly: time features cut the out-of-trajectory error of a "
-                f"regression of the conservative residual x{tchk['gain']:.2f} ({100 * tchk['abs_gain']:.1f}% of the "
-                f"force; better on {100 * tchk['improved_fraction']:.0f}% of {tchk['n_trajectories']} trajectories)",
-                1.0)
+        return (
+            "detected",
+            f"the force depends on t explicitly: time features cut the out-of-trajectory error of a "
+            f"regression of the conservative residual x{tchk['gain']:.2f} ({100 * tchk['abs_gain']:.1f}% of the "
+            f"force; better on {100 * tchk['improved_fraction']:.0f}% of {tchk['n_trajectories']} trajectories)",
+            1.0,
+        )
     if traj["significant"]:
         return ("detected", f"non-conservation accumulates along the record: {eff}", traj["bootstrap_fraction"] or 1.0)
     boot = drift["bootstrap_fraction"]
-    work = (f"median |∫P dt|/∫|P| dt = {drift['rho_median']:.2f} over {n_traj} trajector"
-            f"{'y' if n_traj == 1 else 'ies'}, net energy change {100 * drift['magnitude_median']:.1f}% of 2×kinetic")
+    work = (
+        f"median |∫P dt|/∫|P| dt = {drift['rho_median']:.2f} over {n_traj} trajector"
+        f"{'y' if n_traj == 1 else 'ies'}, net energy change {100 * drift['magnitude_median']:.1f}% of 2×kinetic"
+    )
     multi_ok = n_traj >= 3 and quality["pointwise_ok"]
     if drift["significant"] and multi_ok and (drift["valid"] or gap["large"]):
         return ("detected", f"the residual of the conservative fit does net work ({work})", boot)
-    clock = (f"t untested ({tchk['testable']})" if not tchk["valid"] else f"t does not help (x{tchk['gain']:.2f})")
-    no_traj = (f"no trend along the record ({eff})" if traj["valid"] else
-               "no trajectory-level statistic (too few oscillations or windows)")
+    clock = f"t untested ({tchk['testable']})" if not tchk["valid"] else f"t does not help (x{tchk['gain']:.2f})"
+    no_traj = (
+        f"no trend along the record ({eff})"
+        if traj["valid"]
+        else "no trajectory-level statistic (too few oscillations or windows)"
+    )
     if not quality["pointwise_ok"]:
-        return ("inconclusive", f"derivatives too noisy for a pointwise test ({quality['reason']}) and the "
-                f"trajectory-level evidence is weak: {no_traj}", traj["bootstrap_fraction"] or 1.0)
+        return (
+            "inconclusive",
+            f"derivatives too noisy for a pointwise test ({quality['reason']}) and the "
+            f"trajectory-level evidence is weak: {no_traj}",
+            traj["bootstrap_fraction"] or 1.0,
+        )
     if drift["significant"] and not multi_ok:
         return ("inconclusive", f"the pointwise residual does net work ({work}) but {no_traj}", boot)
     if gap["large"]:
-        fall = ("still falling with training (x" if cap["still_falling"] else "flat with training (x") + \
-            f"{1 - cap['relative_drop']:.2f} over the extra rounds)"
-        return ("inconclusive", f"the conservative model's training error is x{gap['gap_train']:.1f} the free "
-                f"model's: under-fitting, or a non-conservative force without net power (e.g. on a limit cycle); "
-                f"{no_traj}; {clock}; conservative held-out error {fall}", 1.0 - boot)
+        fall = (
+            "still falling with training (x" if cap["still_falling"] else "flat with training (x"
+        ) + f"{1 - cap['relative_drop']:.2f} over the extra rounds)"
+        return (
+            "inconclusive",
+            f"the conservative model's training error is x{gap['gap_train']:.1f} the free "
+            f"model's: under-fitting, or a non-conservative force without net power (e.g. on a limit cycle); "
+            f"{no_traj}; {clock}; conservative held-out error {fall}",
+            1.0 - boot,
+        )
     if not traj["valid"]:
-        return ("inconclusive", f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}) "
-                f"but {no_traj}, so a slow loss of energy cannot be excluded; {clock}", 1.0)
+        return (
+            "inconclusive",
+            f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}) "
+            f"but {no_traj}, so a slow loss of energy cannot be excluded; {clock}",
+            1.0,
+        )
     if n_traj < 3 and drift["slow_ratio_median"] >= Z_MIN:
-        return ("inconclusive", f"no trend of the energy along the record ({eff}), but the learned energy swings "
-                f"slowly from one oscillation to the next (slow ratio Z = {drift['slow_ratio_median']:.1f} ≥ "
-                f"{Z_MIN:g}): a force without net power (a drive, beats) or a Lagrangian that does not fit this "
-                f"orbit; with {n_traj} trajector{'y' if n_traj == 1 else 'ies'} the two cannot be told apart; "
-                f"{clock}", 1.0)
+        return (
+            "inconclusive",
+            f"no trend of the energy along the record ({eff}), but the learned energy swings "
+            f"slowly from one oscillation to the next (slow ratio Z = {drift['slow_ratio_median']:.1f} ≥ "
+            f"{Z_MIN:g}): a force without net power (a drive, beats) or a Lagrangian that does not fit this "
+            f"orbit; with {n_traj} trajector{'y' if n_traj == 1 else 'ies'} the two cannot be told apart; "
+            f"{clock}",
+            1.0,
+        )
     bound = traj.get("rate_bound")
     lim = f"; energy change below {bound:.2g} per time unit (95% bound)" if bound is not None else ""
     agree = traj["bootstrap_fraction"]
-    return ("none", f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}); {no_traj}"
-            f"{lim}; {clock}", 1.0 - agree if agree is not None else 1.0)
+    return (
+        "none",
+        f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}); {no_traj}{lim}; {clock}",
+        1.0 - agree if agree is not None else 1.0,
+    )
 
 
 # ------------------------------------------------------------------------------------------------------------------
@@ -425,22 +471,35 @@ def data_quality(period_samples: float, noise_rel, derivative_error=None) -> dic
     reasons, usable = [], True
     if np.all(noise_rel >= NOISE_REL_MAX):
         usable = False
-        reasons.append(f"the positions are mostly noise (noise/spread σ/std = {np.min(noise_rel):.2f} for every "
-                       f"coordinate, ≥ {NOISE_REL_MAX:g})")
+        reasons.append(
+            f"the positions are mostly noise (noise/spread σ/std = {np.min(noise_rel):.2f} for every "
+            f"coordinate, ≥ {NOISE_REL_MAX:g})"
+        )
     if period_samples < MIN_SAMPLES_PER_PERIOD:
         usable = False
-        reasons.append(f"the motion is sampled far below its time scale ({period_samples:.1f} samples per "
-                       f"oscillation, at least {MIN_SAMPLES_PER_PERIOD:g} are needed)")
-    err = None if derivative_error is None else np.asarray([np.nan if e is None else e for e in derivative_error],
-                                                           float)
+        reasons.append(
+            f"the motion is sampled far below its time scale ({period_samples:.1f} samples per "
+            f"oscillation, at least {MIN_SAMPLES_PER_PERIOD:g} are needed)"
+        )
+    err = (
+        None if derivative_error is None else np.asarray([np.nan if e is None else e for e in derivative_error], float)
+    )
     pointwise_ok = True
     if err is not None and np.all(np.isfinite(err)) and np.all(err >= QDD_ERR_MAX):
         pointwise_ok = False
         reasons.append(f"the estimated relative error of q̈ is {100 * np.min(err):.0f}% or more for every coordinate")
     if not usable:
         pointwise_ok = False
-    return {"usable": usable, "pointwise_ok": pointwise_ok, "reason": "; ".join(reasons),
-            "noise_relative": noise_rel.tolist(), "samples_per_period": float(period_samples),
-            "qdd_relative_error": None if err is None else [None if not np.isfinite(e) else float(e) for e in err],
-            "thresholds": {"noise_rel_max": NOISE_REL_MAX, "min_samples_per_period": MIN_SAMPLES_PER_PERIOD,
-                           "qdd_err_max": QDD_ERR_MAX}}
+    return {
+        "usable": usable,
+        "pointwise_ok": pointwise_ok,
+        "reason": "; ".join(reasons),
+        "noise_relative": noise_rel.tolist(),
+        "samples_per_period": float(period_samples),
+        "qdd_relative_error": None if err is None else [None if not np.isfinite(e) else float(e) for e in err],
+        "thresholds": {
+            "noise_rel_max": NOISE_REL_MAX,
+            "min_samples_per_period": MIN_SAMPLES_PER_PERIOD,
+            "qdd_err_max": QDD_ERR_MAX,
+        },
+    }

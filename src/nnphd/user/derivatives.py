@@ -45,6 +45,7 @@ point is larger than the trajectory-RMS R predicts; reported/actual 0.43), chaot
 22.0/21.7 % and 22.3/22.5 → 23.1/22.2 % (broadband motion: the Taylor model understates the bias, reported/actual
 0.5–0.8 before and now).  Geometric mean over these and the four cases above (three pendulum seeds): 4.3 % → 3.6 %.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -171,9 +172,11 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
         raise ValueError(f"method must be 'auto', 'savgol', 'local' or 'spline', got {method!r}")
     smp = _sampling(t)
     if method == "savgol" and smp.dt is None:
-        raise DataError("Savitzky–Golay needs uniform sampling: t deviates from a uniform grid by more than "
-                        f"{UNIFORM_RTOL:g}·dt (and more than the rounding of t); use method='local', 'spline' or "
-                        "'auto'")
+        raise DataError(
+            "Savitzky–Golay needs uniform sampling: t deviates from a uniform grid by more than "
+            f"{UNIFORM_RTOL:g}·dt (and more than the rounding of t); use method='local', 'spline' or "
+            "'auto'"
+        )
     time_base = "recorded"
     tg = t  # the times the derivatives are taken in
     noise = np.array([noise_level(t, q2[:, j]) for j in range(n)])
@@ -210,8 +213,9 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
             qd[:, j], qdd[:, j], e = _spline_coordinate(t, y, noise[j])
             win = (None, None)
         else:
-            qd[:, j], qdd[:, j], win, order, e = _poly_coordinate(tg, y, noise[j], trim,
-                                                                  smp.dt if method == "savgol" else None)
+            qd[:, j], qdd[:, j], win, order, e = _poly_coordinate(
+                tg, y, noise[j], trim, smp.dt if method == "savgol" else None
+            )
             orders[j] = order
         windows.append(win)
         err_rows[:, :, j] = e
@@ -224,18 +228,31 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
         if n_rows - lead - trail < 1:
             raise DataError(f"trimming {lead} + {trail} edge samples leaves none of {n_rows}; use trim=False")
         keep[:lead] = False
-        keep[n_rows - trail:] = False
+        keep[n_rows - trail :] = False
     std = q2.std(axis=0)
     return DerivativeEstimate(
-        qd=qd, qdd=qdd, keep=keep, method=method, dt=smp.dt if method == "savgol" else None, noise=noise,
+        qd=qd,
+        qdd=qdd,
+        keep=keep,
+        method=method,
+        dt=smp.dt if method == "savgol" else None,
+        noise=noise,
         noise_rel=np.divide(noise, std, out=np.zeros(n), where=std > 0),
         qd_err=np.sqrt(np.mean(err_rows[0][keep] ** 2, axis=0)),
         qdd_err=np.sqrt(np.mean(err_rows[1][keep] ** 2, axis=0)),
-        qd_rms=np.sqrt(np.mean(qd[keep] ** 2, axis=0)), qdd_rms=np.sqrt(np.mean(qdd[keep] ** 2, axis=0)),
-        window_qd=tuple(w[0] for w in windows), window_qdd=tuple(w[1] for w in windows),
-        order_qd=tuple(o[0] for o in orders), order_qdd=tuple(o[1] for o in orders),
-        qd_err_rows=err_rows[0], qdd_err_rows=err_rows[1], q_step=q_step, dt_median=smp.dt_median,
-        dt_ratio=smp.ratio, time_base=time_base)
+        qd_rms=np.sqrt(np.mean(qd[keep] ** 2, axis=0)),
+        qdd_rms=np.sqrt(np.mean(qdd[keep] ** 2, axis=0)),
+        window_qd=tuple(w[0] for w in windows),
+        window_qdd=tuple(w[1] for w in windows),
+        order_qd=tuple(o[0] for o in orders),
+        order_qdd=tuple(o[1] for o in orders),
+        qd_err_rows=err_rows[0],
+        qdd_err_rows=err_rows[1],
+        q_step=q_step,
+        dt_median=smp.dt_median,
+        dt_ratio=smp.ratio,
+        time_base=time_base,
+    )
 
 
 # ---- data set -----------------------------------------------------------------------------------------------------
@@ -248,12 +265,27 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
     qd, qdd = tr.qd.copy(), tr.qdd.copy()
     keep = np.ones(len(tr), dtype=bool)
     smp = _sampling(tr.t)
-    stats = {"noise": np.zeros(n), "noise_rel": np.zeros(n), "q_step": np.zeros(n), "qd_err": np.full(n, np.nan),
-             "qdd_err": np.full(n, np.nan), "qd_rms": np.full(n, np.nan), "qdd_rms": np.full(n, np.nan),
-             "window_qd": [None] * n, "window_qdd": [None] * n, "order_qd": [None] * n, "order_qdd": [None] * n,
-             "method": "given", "time_base": "recorded",
-             "dt": smp.dt, "dt_median": smp.dt_median, "dt_ratio": smp.ratio, "sampling": smp.kind,
-             "qd_err_rows": np.full((len(tr), n), np.nan), "qdd_err_rows": np.full((len(tr), n), np.nan)}
+    stats = {
+        "noise": np.zeros(n),
+        "noise_rel": np.zeros(n),
+        "q_step": np.zeros(n),
+        "qd_err": np.full(n, np.nan),
+        "qdd_err": np.full(n, np.nan),
+        "qd_rms": np.full(n, np.nan),
+        "qdd_rms": np.full(n, np.nan),
+        "window_qd": [None] * n,
+        "window_qdd": [None] * n,
+        "order_qd": [None] * n,
+        "order_qdd": [None] * n,
+        "method": "given",
+        "time_base": "recorded",
+        "dt": smp.dt,
+        "dt_median": smp.dt_median,
+        "dt_ratio": smp.ratio,
+        "sampling": smp.kind,
+        "qd_err_rows": np.full((len(tr), n), np.nan),
+        "qdd_err_rows": np.full((len(tr), n), np.nan),
+    }
     q = tr.q.copy()
     q[:, ud.is_angle] = np.unwrap(q[:, ud.is_angle], axis=0)
     if given_qd.all():  # positions are not differentiated: noise level only
@@ -263,8 +295,14 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
         stats["q_step"] = np.array([_grid_step(q[:, j]) for j in range(n)])
     else:
         est = estimate_derivatives(tr.t, q, method, trim=trim)
-        stats.update(noise=est.noise, noise_rel=est.noise_rel, q_step=est.q_step, method=est.method, dt=est.dt,
-                     time_base=est.time_base)
+        stats.update(
+            noise=est.noise,
+            noise_rel=est.noise_rel,
+            q_step=est.q_step,
+            method=est.method,
+            dt=est.dt,
+            time_base=est.time_base,
+        )
         keep &= est.keep
         for j in np.flatnonzero(~given_qd):
             qd[:, j] = est.qd[:, j]
@@ -322,14 +360,30 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
             raise DataError(f"{userdata.path}: trajectory {tr.id}: {e}") from None
         start = int(np.argmax(r["keep"]))
         stop = len(tr) - int(np.argmax(r["keep"][::-1]))
-        for name, arr in (("q", tr.q), ("qd", r["qd"]), ("qdd", r["qdd"]), ("t", tr.t),
-                          ("qd_err_rows", r["qd_err_rows"]), ("qdd_err_rows", r["qdd_err_rows"])):
+        for name, arr in (
+            ("q", tr.q),
+            ("qd", r["qd"]),
+            ("qdd", r["qdd"]),
+            ("t", tr.t),
+            ("qd_err_rows", r["qd_err_rows"]),
+            ("qdd_err_rows", r["qdd_err_rows"]),
+        ):
             parts[name].append(arr[start:stop])
         results.append(r)
         weights.append(stop - start)
-        per_traj.append({"id": tr.id, "n_samples": len(tr), "kept": [start, stop], "method": r["method"],
-                         "sampling": r["sampling"], "time_base": r["time_base"], "dt": r["dt"],
-                         "dt_median": r["dt_median"], "dt_ratio": r["dt_ratio"]})
+        per_traj.append(
+            {
+                "id": tr.id,
+                "n_samples": len(tr),
+                "kept": [start, stop],
+                "method": r["method"],
+                "sampling": r["sampling"],
+                "time_base": r["time_base"],
+                "dt": r["dt"],
+                "dt_median": r["dt_median"],
+                "dt_ratio": r["dt_ratio"],
+            }
+        )
     rows = {"qd_err": np.concatenate(parts.pop("qd_err_rows")), "qdd_err": np.concatenate(parts.pop("qdd_err_rows"))}
     ds = Dataset(**{k: np.concatenate(v) for k, v in parts.items()})
 
@@ -340,22 +394,32 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
 
     per_coord = {}
     for j, name in enumerate(userdata.coords):
-        entry = {"noise": pooled("noise", j), "noise_relative": pooled("noise_rel", j),
-                 "quantization_step": max(float(r["q_step"][j]) for r in results)}
+        entry = {
+            "noise": pooled("noise", j),
+            "noise_relative": pooled("noise_rel", j),
+            "quantization_step": max(float(r["q_step"][j]) for r in results),
+        }
         for key, given in (("qd", userdata.given_qd[j]), ("qdd", userdata.given_qdd[j])):
             if given:
-                entry[key] = {"source": "given", "error": None, "relative_error": None, "error_max": None,
-                              "windows": [], "orders": []}
+                entry[key] = {
+                    "source": "given",
+                    "error": None,
+                    "relative_error": None,
+                    "error_max": None,
+                    "windows": [],
+                    "orders": [],
+                }
                 continue
             err, size = pooled(f"{key}_err", j), pooled(f"{key}_rms", j)
             from_qd = key == "qdd" and userdata.given_qd[j]
-            entry[key] = {"source": "estimated from q_dot" if from_qd else "estimated from q", "error": err,
-                          "relative_error": err / size if size > 0 else None,
-                          "error_max": float(np.max(rows[f"{key}_err"][:, j])),
-                          "windows": sorted({int(r[f"window_{key}"][j]) for r in results
-                                             if r[f"window_{key}"][j] is not None}),
-                          "orders": sorted({int(r[f"order_{key}"][j]) for r in results
-                                            if r[f"order_{key}"][j] is not None})}
+            entry[key] = {
+                "source": "estimated from q_dot" if from_qd else "estimated from q",
+                "error": err,
+                "relative_error": err / size if size > 0 else None,
+                "error_max": float(np.max(rows[f"{key}_err"][:, j])),
+                "windows": sorted({int(r[f"window_{key}"][j]) for r in results if r[f"window_{key}"][j] is not None}),
+                "orders": sorted({int(r[f"order_{key}"][j]) for r in results if r[f"order_{key}"][j] is not None}),
+            }
         per_coord[name] = entry
     methods = sorted({p["method"] for p in per_traj})
     info = {

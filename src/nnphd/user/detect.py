@@ -6,6 +6,7 @@ trajectories, the checks that tell non-conservation from under-fitting, repeated
 the learned non-conservative force in the file's own coordinate names → ``report.json``, ``report.html`` and the
 figures in ``--out``. Every file is written atomically, and only after the whole analysis succeeded.
 """
+
 from __future__ import annotations
 
 import time
@@ -18,9 +19,20 @@ from nnphd.io.progress import Progress, Stages
 from nnphd.user.report import write_report
 
 
-def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed: int = 0, steps: int = 1000,
-                sr_time: float = 10.0, n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
-                laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> dict:
+def detect_file(
+    path: str | Path,
+    out: str | Path | None = None,
+    angles=(),
+    seed: int = 0,
+    steps: int = 1000,
+    sr_time: float = 10.0,
+    n_seeds: int = 2,
+    progress: Progress | None = None,
+    trim: bool | str = "auto",
+    laws: Sequence[str] = (),
+    law_level: str = "auto",
+    **assess_kw,
+) -> dict:
     """Load ``path``, assess it, find the law of f_n; write report.json / report.html / PNGs to ``out`` if given.
 
     ``laws``: user candidate laws (SymPy strings, :func:`nnphd.explain.families.parse_law`), ranked with the built-in
@@ -34,13 +46,35 @@ def detect_file(path: str | Path, out: str | Path | None = None, angles=(), seed
     if progress is not None:
         progress(0, 1, "reading the file")
     ud = load_trajectories(path, angles)
-    return detect_data(ud, out, seed=seed, steps=steps, sr_time=sr_time, n_seeds=n_seeds, progress=progress,
-                       trim=trim, laws=laws, law_level=law_level, **assess_kw)[0]
+    return detect_data(
+        ud,
+        out,
+        seed=seed,
+        steps=steps,
+        sr_time=sr_time,
+        n_seeds=n_seeds,
+        progress=progress,
+        trim=trim,
+        laws=laws,
+        law_level=law_level,
+        **assess_kw,
+    )[0]
 
 
-def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int = 1000, sr_time: float = 10.0,
-                n_seeds: int = 2, progress: Progress | None = None, trim: bool | str = "auto",
-                laws: Sequence[str] = (), law_level: str = "auto", **assess_kw) -> tuple[dict, dict]:
+def detect_data(
+    ud,
+    out: str | Path | None = None,
+    *,
+    seed: int = 0,
+    steps: int = 1000,
+    sr_time: float = 10.0,
+    n_seeds: int = 2,
+    progress: Progress | None = None,
+    trim: bool | str = "auto",
+    laws: Sequence[str] = (),
+    law_level: str = "auto",
+    **assess_kw,
+) -> tuple[dict, dict]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
@@ -72,15 +106,22 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     say("λ-sweep and trust checks")
     pc = info["per_coordinate"]
-    res = assess(data, traj, seed=seed, steps=steps, n_seeds=n_seeds,
-                 progress=training,
-                 angles=[bool(a) for a in ud.is_angle], position_noise=[pc[c]["noise"] for c in ud.coords],
-                 derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords], **assess_kw)
+    res = assess(
+        data,
+        traj,
+        seed=seed,
+        steps=steps,
+        n_seeds=n_seeds,
+        progress=training,
+        angles=[bool(a) for a in ud.is_angle],
+        position_noise=[pc[c]["noise"] for c in ud.coords],
+        derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
+        **assess_kw,
+    )
     coords = list(ud.coords)
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
-    law, law_fit = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed,
-                              lambda d, t, m: say(m))
+    law, law_fit = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, lambda d, t, m: say(m))
     status, new_physics, confidence, reasons = _reconcile(res, law)
     blind = {}
     if res["status"] == "detected" and law.get("law") is None:  # fallback: no candidate family fits
@@ -90,8 +131,9 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
         comps = [f"{c}_ddot" for c in coords]
         try:
             say("blind explanation (sparse regression)")
-            blind["sparse"] = sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in coords],
-                                             time="t").to_dict()
+            blind["sparse"] = sparse_formula(
+                inputs, fn, comps, velocities=[f"{c}_dot" for c in coords], time="t"
+            ).to_dict()
             if sr_time > 0:
                 say("blind explanation (genetic symbolic regression)")
                 blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
@@ -121,15 +163,30 @@ def detect_data(ud, out: str | Path | None = None, *, seed: int = 0, steps: int 
         "formula": best,
         "law": law,
         "blind": blind,
-        "settings": {"seed": seed, "steps": steps, "n_seeds": n_seeds, "sr_time_per_component_s": sr_time,
-                     "trim": trim, **assess_kw, **res.get("settings", {})},
+        "settings": {
+            "seed": seed,
+            "steps": steps,
+            "n_seeds": n_seeds,
+            "sr_time_per_component_s": sr_time,
+            "trim": trim,
+            **assess_kw,
+            **res.get("settings", {}),
+        },
         "units": "forces in the file's units (coordinate units / time unit²)",
         "wall_time_s": time.perf_counter() - t0,
     }
     if out is not None:
         write_report(out, report, data, traj, coords, fc, fn)
-    model = {"conservative": res.get("_conservative"), "law": law_fit if law.get("law") else None, "data": data,
-             "traj": traj, "coords": coords, "angles": [bool(a) for a in ud.is_angle], "fc": fc, "fn": fn}
+    model = {
+        "conservative": res.get("_conservative"),
+        "law": law_fit if law.get("law") else None,
+        "data": data,
+        "traj": traj,
+        "coords": coords,
+        "angles": [bool(a) for a in ud.is_angle],
+        "fc": fc,
+        "fn": fn,
+    }
     return report, model
 
 
@@ -142,11 +199,14 @@ def _warnings(info: dict, coords) -> list[str]:
     for c in coords:
         e = info["per_coordinate"][c]["qdd"].get("relative_error")
         if e is not None and e > WARN_QDD_ERR:
-            out.append(f"q̈ of {c!r} has an estimated relative error of {100 * e:.0f}%: pointwise tests (the λ-sweep, "
-                       "the fit gap) are weak for it; the verdict leans on the trajectory-level evidence")
+            out.append(
+                f"q̈ of {c!r} has an estimated relative error of {100 * e:.0f}%: pointwise tests (the λ-sweep, "
+                "the fit gap) are weak for it; the verdict leans on the trajectory-level evidence"
+            )
     if not info.get("trim") and info.get("n_samples", 0) > 0:
-        out.append("the ends of the trajectories were not trimmed (too short): their derivatives are the least "
-                   "accurate rows")
+        out.append(
+            "the ends of the trajectories were not trimmed (too short): their derivatives are the least accurate rows"
+        )
     return out
 
 
@@ -179,16 +239,24 @@ def _best_formula(blind: dict) -> dict | None:
     if not ok:
         return None
     _, _, name, b = min(ok)
-    return {"method": f"{name} (fallback: blind regression of the UAN output, not a candidate law)",
-            "formula": b["formula"], "rel_rms": b["rel_rms"]}
+    return {
+        "method": f"{name} (fallback: blind regression of the UAN output, not a candidate law)",
+        "formula": b["formula"],
+        "rel_rms": b["rel_rms"],
+    }
 
 
 def _law_formula(law: dict) -> dict | None:
     w = law.get("law")
     if not w:
         return None
-    return {"method": f"candidate law: {w['title']} ({w['method']} fit)", "formula": w["formula"],
-            "heldout_ratio": w["heldout_ratio"], "params": w["params"], "stderr": w["stderr"]}
+    return {
+        "method": f"candidate law: {w['title']} ({w['method']} fit)",
+        "formula": w["formula"],
+        "heldout_ratio": w["heldout_ratio"],
+        "params": w["params"],
+        "stderr": w["stderr"],
+    }
 
 
 LAW_CONFLICT_DIC = -10.0  # a candidate law this much better than none (held out) contradicts a verdict of "none"
@@ -202,9 +270,11 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
     status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
     cand = law.get("candidate_law")
     if status == "none" and cand and cand["delta_ic"] <= LAW_CONFLICT_DIC:
-        why = (f"conflicting evidence: the checks find no non-conservation, but a candidate law, {cand['title']}, "
-               f"lowers the held-out error by {100 * (1 - cand['heldout_ratio']):.1f}% (ΔIC = {cand['delta_ic']:.1f} "
-               f"against no law)")
+        why = (
+            f"conflicting evidence: the checks find no non-conservation, but a candidate law, {cand['title']}, "
+            f"lowers the held-out error by {100 * (1 - cand['heldout_ratio']):.1f}% (ΔIC = {cand['delta_ic']:.1f} "
+            f"against no law)"
+        )
         law["reason"] = why + " — no law is claimed"
         return "inconclusive", True, 0.5, [why, *reasons]
     return status, new, conf, reasons
@@ -217,23 +287,53 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
 
     cons = res.get("_conservative")
     if cons is None:
-        return {"law": None, "reason": "no law fitted: " + (res["quality"].get("reason") or "the data cannot decide"),
-                "candidates": []}, None
+        return {
+            "law": None,
+            "reason": "no law fitted: " + (res["quality"].get("reason") or "the data cannot decide"),
+            "candidates": [],
+        }, None
     fc = np.asarray(cons["fc"])
     ok = bool(np.all(np.isfinite(fc)))
-    table = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, fc=fc if ok else None,
-                     fc_fn=conservative_fn(cons) if ok else None, laws=laws, level=level, seed=seed, progress=progress)
+    table = find_law(
+        data,
+        traj,
+        coords,
+        [bool(a) for a in ud.is_angle],
+        info,
+        row_err,
+        fc=fc if ok else None,
+        fc_fn=conservative_fn(cons) if ok else None,
+        laws=laws,
+        level=level,
+        seed=seed,
+        progress=progress,
+    )
     out = table.to_dict()
     if res["status"] != "detected" and out["law"] is not None:
         out["candidate_law"] = out["law"]
         out["law"] = None
-        out["reason"] = (f"the verdict is {res['status']!r}, so no law is claimed (the best candidate, "
-                         f"{out['candidate_law']['title']}, would beat zero: {table.reason})")
+        out["reason"] = (
+            f"the verdict is {res['status']!r}, so no law is claimed (the best candidate, "
+            f"{out['candidate_law']['title']}, would beat zero: {table.reason})"
+        )
     return out, table.law
 
 
-def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn=None, laws=(), level="auto",
-             seed=0, progress: Progress | None = None):
+def find_law(
+    data,
+    traj,
+    coords,
+    is_angle,
+    info,
+    row_err=None,
+    *,
+    fc=None,
+    fc_fn=None,
+    laws=(),
+    level="auto",
+    seed=0,
+    progress: Progress | None = None,
+):
     """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
     (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
     the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
@@ -247,12 +347,33 @@ def find_law(data, traj, coords, is_angle, info, row_err=None, *, fc=None, fc_fn
     say = Stages(progress, 2)
     say("candidate laws (pointwise joint fits)")
     err = None if row_err is None else row_err["qdd_err"]
-    table = rank_laws(data.q, data.qd, data.qdd, data.t, traj, names=coords, angles=is_angle, qdd_err=err, fc=fc,
-                      user_laws=laws, seed=seed)
+    table = rank_laws(
+        data.q,
+        data.qd,
+        data.qdd,
+        data.t,
+        traj,
+        names=coords,
+        angles=is_angle,
+        qdd_err=err,
+        fc=fc,
+        user_laws=laws,
+        seed=seed,
+    )
     period = dominant_period(np.concatenate([data.q, data.qd], axis=1), data.t, _segments(traj))
     if level != "pointwise" and np.isfinite(period):
         say("candidate laws (trajectory level: multiple shooting on the positions)")
         sigma = [info["per_coordinate"][c]["noise"] for c in coords]
-        table = rank_trajectory(table, data.q, data.qd, data.t, traj, sigma=sigma, period=period, angles=is_angle,
-                                fc_fn=fc_fn if fc is not None else None, seed=seed)
+        table = rank_trajectory(
+            table,
+            data.q,
+            data.qd,
+            data.t,
+            traj,
+            sigma=sigma,
+            period=period,
+            angles=is_angle,
+            fc_fn=fc_fn if fc is not None else None,
+            seed=seed,
+        )
     return table

@@ -35,6 +35,7 @@ of :mod:`nnphd.user.derivatives` (the items referred to below are its).
    the interior rows (no end treatment); for the spline, the runs of end rows whose estimated error exceeds twice the
    median.
 """
+
 from __future__ import annotations
 
 import math
@@ -76,7 +77,7 @@ def _sg_weights(m: int, d: int, p: int = POLYORDER, edges: bool = True) -> tuple
     fit = np.linalg.pinv(u[:, None] ** np.arange(p + 1)[None, :])  # (p+1, m): samples -> coefficients
     ks = np.arange(d, p + 1)
     falling = np.array([math.factorial(k) / math.factorial(k - d) for k in ks])
-    at = u[: half + 1] if edges else u[half:half + 1]
+    at = u[: half + 1] if edges else u[half : half + 1]
     rows = at[:, None] ** (ks - d)[None, :] * falling  # d-th derivative of the monomials at rows 0…half
     w = rows @ fit[ks] / half**d
     return (w[half], w[:half]) if edges else (w[0], None)
@@ -92,8 +93,13 @@ def _sg_stats(m: int, d: int, p: int = POLYORDER):
     half = m // 2
     o = (np.arange(m)[None, :] - np.arange(half + 1)[:, None]).astype(np.float64)  # rows 0…half (half: interior)
     w = np.vstack([w_e, w_c])
-    mom = np.stack([np.sum(w * o ** (p + 1), axis=1) / math.factorial(p + 1),
-                    np.sum(w * o ** (p + 2), axis=1) / math.factorial(p + 2)], axis=1)
+    mom = np.stack(
+        [
+            np.sum(w * o ** (p + 1), axis=1) / math.factorial(p + 1),
+            np.sum(w * o ** (p + 2), axis=1) / math.factorial(p + 2),
+        ],
+        axis=1,
+    )
     return w_c, np.sum(w_e**2, axis=1), mom[half], mom[:half]
 
 
@@ -130,10 +136,10 @@ def _uniform_stencil(y: np.ndarray, m: int, h: float, p: int = POLYORDER) -> _St
         w_c, ns_e, mom_c, mom_e = _sg_stats(m, d, p)
         est[d - 1] = savgol_filter(y, m, p, deriv=d, delta=h, mode="interp")
         nsd = np.full(n, float(np.sum(w_c**2)))
-        nsd[:half], nsd[n - half:] = ns_e, ns_e[::-1]
+        nsd[:half], nsd[n - half :] = ns_e, ns_e[::-1]
         md = np.tile(mom_c, (n, 1))
         md[:half] = mom_e
-        md[n - half:] = mom_e[::-1] * [(-1.0) ** (d + p + 1), (-1.0) ** (d + p + 2)]
+        md[n - half :] = mom_e[::-1] * [(-1.0) ** (d + p + 1), (-1.0) ** (d + p + 2)]
         ns[d - 1] = nsd / h ** (2 * d)
         mom[d - 1] = md * [h ** (p + 1 - d), h ** (p + 2 - d)]
     return _Stencil(np.arange(n), est, ns, mom)
@@ -142,8 +148,15 @@ def _uniform_stencil(y: np.ndarray, m: int, h: float, p: int = POLYORDER) -> _St
 _CHUNK = 1 << 17  # rows × window elements per batch of the local fits
 
 
-def _local_fit(t: np.ndarray, y: np.ndarray, m: int, rows: np.ndarray | None = None, degree: int = POLYORDER,
-               derivs: Sequence[int] = (1, 2), ks: Sequence[int] | None = None):
+def _local_fit(
+    t: np.ndarray,
+    y: np.ndarray,
+    m: int,
+    rows: np.ndarray | None = None,
+    degree: int = POLYORDER,
+    derivs: Sequence[int] = (1, 2),
+    ks: Sequence[int] | None = None,
+):
     """Local polynomial regression (Savitzky–Golay generalised to the actual sample times) at ``rows`` (all if None).
 
     Row i uses the m samples nearest by index (one-sided at the ends, as savgol_filter's mode='interp'): the
@@ -222,8 +235,9 @@ def _stencil(tg: np.ndarray, y: np.ndarray, m: int, p: int, dt: float | None, ro
     return _Stencil(rows, *_local_fit(tg, y, m, rows, p))
 
 
-def _taylor_pair(sa: _Stencil, sb: _Stencil, a: int, b: int, d: int, sigma: float, r_lead: float, n: int,
-                 p: int = POLYORDER):
+def _taylor_pair(
+    sa: _Stencil, sb: _Stencil, a: int, b: int, d: int, sigma: float, r_lead: float, n: int, p: int = POLYORDER
+):
     """Richardson measurement of the bias of the order-p estimates (leading order k = p+1 for d=1, p+2 for d=2) from
     windows a < b: (a, b, excess, ⟨M_a²⟩, ⟨M_b²⟩, ⟨M_a M_b⟩) of the leading moments when significant, else None.
 
@@ -333,8 +347,9 @@ def _grow_windows(tg, y, sigma, dt, p, rows) -> _OrderFits:
     return _OrderFits(p, used, stencils, pairs)
 
 
-def _poly_coordinate(tg: np.ndarray, y: np.ndarray, sigma: float, trim: bool, dt: float | None = None,
-                     ends: bool = True):
+def _poly_coordinate(
+    tg: np.ndarray, y: np.ndarray, sigma: float, trim: bool, dt: float | None = None, ends: bool = True
+):
     """q̇, q̈ of one coordinate by local polynomials: order (4 or 6) and window chosen per derivative by the estimated
     RMS error over the interior rows of each window.
 
@@ -424,7 +439,7 @@ def _end_rows(tg, y, sigma, d, m_star, fits, r34, est, mse):
     e = m_star // 2
     if e == 0:
         return
-    rows = np.r_[0:e, n - e:n]
+    rows = np.r_[0:e, n - e : n]
     rows = rows[mse[rows] > 2.0 * np.median(mse)]  # only where the one-sided fit is clearly worse than the interior
     if rows.size == 0:
         return

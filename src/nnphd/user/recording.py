@@ -27,6 +27,7 @@ required when every ``_dot`` and ``_ddot`` is given), and all coordinates consta
 is accepted.  :func:`suggest_angles` lists coordinates not declared as angles that look like angles (name, wrapped
 values, whole turns), for a report.
 """
+
 from __future__ import annotations
 
 import csv
@@ -148,8 +149,9 @@ def _read_csv(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
     if header is None:
         raise DataError(f"{path}: the file is empty; expected a header line (e.g. 't,x') and data rows")
     if all(_is_number(f) for f in header):
-        raise DataError(f"{path}: line {header_line} holds numbers, not a header; the first line must name the "
-                        "columns (e.g. 't,x')")
+        raise DataError(
+            f"{path}: line {header_line} holds numbers, not a header; the first line must name the columns (e.g. 't,x')"
+        )
     for j, name in enumerate(header):
         if not name:
             raise DataError(f"{path}: column {j + 1} of the header has no name")
@@ -161,8 +163,9 @@ def _read_csv(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
     rows = _Rows(lines)
     for i, rec in enumerate(records):
         if len(rec) != len(header):
-            raise DataError(f"{path}: {rows(i)} has {len(rec)} fields; the header has {len(header)} "
-                            f"({','.join(header)})")
+            raise DataError(
+                f"{path}: {rows(i)} has {len(rec)} fields; the header has {len(header)} ({','.join(header)})"
+            )
     columns = {}
     for j, name in enumerate(header):
         cells = [rec[j] for rec in records]
@@ -193,8 +196,9 @@ def _read_npz(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
             n_rows = a.shape[0]
         elif a.shape[0] != n_rows:
             first = next(iter(arrays))
-            raise DataError(f"{path}: array {name!r} has {a.shape[0]} values but {first!r} has {n_rows}; "
-                            "expected equal lengths")
+            raise DataError(
+                f"{path}: array {name!r} has {a.shape[0]} values but {first!r} has {n_rows}; expected equal lengths"
+            )
         columns[name] = a.astype(np.float64)
     if n_rows == 0:
         raise DataError(f"{path}: the arrays are empty; expected at least one row")
@@ -220,8 +224,9 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
         if base not in coords:
             raise DataError(f"{path}: column {c!r} has no coordinate column {base!r}; expected '{base}' beside it")
     if not coords:
-        raise DataError(f"{path}: no coordinate column; expected at least one column besides 't', 'traj' and "
-                        "'*_dot'/'*_ddot'")
+        raise DataError(
+            f"{path}: no coordinate column; expected at least one column besides 't', 'traj' and '*_dot'/'*_ddot'"
+        )
     for a in angles:
         if a not in coords:
             raise DataError(f"{path}: angle {a!r} is not a coordinate column (coordinates: {', '.join(coords)})")
@@ -229,16 +234,19 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
         bad = ~np.isfinite(columns[name])
         if bad.any():
             i = int(np.argmax(bad))
-            raise DataError(f"{path}: column {name!r} {rows(i)}: {float(columns[name][i])!r} is not finite; "
-                            "expected a finite number (no NaN or inf)")
+            raise DataError(
+                f"{path}: column {name!r} {rows(i)}: {float(columns[name][i])!r} is not finite; "
+                "expected a finite number (no NaN or inf)"
+            )
     n_rows = columns["t"].shape[0]
     if "traj" in columns:
         ids = columns["traj"]
         bad = ids != np.round(ids)
         if bad.any():
             i = int(np.argmax(bad))
-            raise DataError(f"{path}: column 'traj' {rows(i)}: {float(ids[i])!r} is not an integer; expected integer "
-                            "trajectory ids")
+            raise DataError(
+                f"{path}: column 'traj' {rows(i)}: {float(ids[i])!r} is not an integer; expected integer trajectory ids"
+            )
         ids = ids.astype(np.int64)
     else:
         ids = np.zeros(n_rows, dtype=np.int64)
@@ -262,22 +270,35 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
         if (step <= 0).any():
             k = int(np.argmax(step <= 0)) + 1
             kind = "duplicate" if step[k - 1] == 0 else "decreasing"
-            raise DataError(f"{path}: {label}: t is not strictly increasing at {rows(idx[k])} ({kind} time "
-                            f"{float(t[k])!r} after {float(t[k - 1])!r}); expected strictly increasing t within a "
-                            "trajectory")
+            raise DataError(
+                f"{path}: {label}: t is not strictly increasing at {rows(idx[k])} ({kind} time "
+                f"{float(t[k])!r} after {float(t[k - 1])!r}); expected strictly increasing t within a "
+                "trajectory"
+            )
         if len(idx) == 1 and need_estimates:
-            raise DataError(f"{path}: {label} has a single sample ({rows(idx[0])}); at least {MIN_SAMPLES} samples "
-                            "per trajectory are needed to estimate derivatives")
+            raise DataError(
+                f"{path}: {label} has a single sample ({rows(idx[0])}); at least {MIN_SAMPLES} samples "
+                "per trajectory are needed to estimate derivatives"
+            )
         if len(idx) < MIN_SAMPLES and need_estimates:
-            raise DataError(f"{path}: {label} has {len(idx)} samples; at least {MIN_SAMPLES} per trajectory are "
-                            "needed to estimate derivatives (or give every '<coord>_dot' and '<coord>_ddot' column)")
+            raise DataError(
+                f"{path}: {label} has {len(idx)} samples; at least {MIN_SAMPLES} per trajectory are "
+                "needed to estimate derivatives (or give every '<coord>_dot' and '<coord>_ddot' column)"
+            )
         trajectories.append(Trajectory(id=int(tid), t=t, q=q_all[idx], qd=qd_all[idx], qdd=qdd_all[idx], rows=idx))
 
     if all(np.ptp(q_all[:, j]) == 0 for j in range(len(coords))):
-        raise DataError(f"{path}: all coordinates are constant ({', '.join(coords)}); expected motion in at least "
-                        "one coordinate")
-    return UserData(path=path, coords=coords, angles=tuple(a for a in coords if a in angles), given_qd=given_qd,
-                    given_qdd=given_qdd, trajectories=tuple(trajectories))
+        raise DataError(
+            f"{path}: all coordinates are constant ({', '.join(coords)}); expected motion in at least one coordinate"
+        )
+    return UserData(
+        path=path,
+        coords=coords,
+        angles=tuple(a for a in coords if a in angles),
+        given_qd=given_qd,
+        given_qdd=given_qdd,
+        trajectories=tuple(trajectories),
+    )
 
 
 # ---- angle hints --------------------------------------------------------------------------------------------------
@@ -336,15 +357,22 @@ def suggest_angles(userdata: UserData) -> list[tuple[str, str]]:
                 continue
             step = np.abs(np.diff(y))
             big = step > math.pi
-            if (wrapped is None and big.any() and np.all(np.abs(step[big] - two_pi) < 0.5 * math.pi)
-                    and np.ptp(y) <= 1.01 * two_pi and np.max(np.abs(np.diff(np.unwrap(y)))) < 0.5 * math.pi):
+            if (
+                wrapped is None
+                and big.any()
+                and np.all(np.abs(step[big] - two_pi) < 0.5 * math.pi)
+                and np.ptp(y) <= 1.01 * two_pi
+                and np.max(np.abs(np.diff(np.unwrap(y)))) < 0.5 * math.pi
+            ):
                 wrapped = (tr.id, int(big.sum()))
             if turns is None and np.ptp(y) > 2.0 * two_pi and not _CARTESIAN.match(name) and _grid_step(y) < 0.1:
                 turns = (tr.id, float(np.ptp(y)))
         if wrapped is not None:
             label = f" in trajectory {wrapped[0]}" if userdata.n_traj > 1 else ""
-            reasons.append(f"values jump by about 2π ({wrapped[1]} time{'s' if wrapped[1] > 1 else ''}{label}) "
-                           "within a 2π range: wrapped angle")
+            reasons.append(
+                f"values jump by about 2π ({wrapped[1]} time{'s' if wrapped[1] > 1 else ''}{label}) "
+                "within a 2π range: wrapped angle"
+            )
         if turns is not None:
             label = f" in trajectory {turns[0]}" if userdata.n_traj > 1 else ""
             reasons.append(f"values span {turns[1]:.3g} > 4π{label}: whole turns if this is an angle in radians")

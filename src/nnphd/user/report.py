@@ -1,5 +1,6 @@
 """The report of ``nnphd detect``: the figures (data, L_e(λ), energy trend, forces) and report.json, report.html and
 the PNGs in ``--out`` (:func:`write_report`), built with :mod:`nnphd.io.html`."""
+
 from __future__ import annotations
 
 import io
@@ -11,8 +12,18 @@ from nnphd.io.html import bullets, details, figure, figures, page, section, tabl
 from nnphd.io.html import escape as _e
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, subplots, write_json
 
-__all__ = ["fig_data", "fig_loss", "fig_energy", "fig_forces", "plot_data", "plot_loss", "plot_energy", "plot_forces",
-           "write_report", "render_html"]
+__all__ = [
+    "fig_data",
+    "fig_loss",
+    "fig_energy",
+    "fig_forces",
+    "plot_data",
+    "plot_loss",
+    "plot_energy",
+    "plot_forces",
+    "write_report",
+    "render_html",
+]
 
 
 # ---------------------------------------------------------------------------------------------------- figures
@@ -40,8 +51,9 @@ def fig_loss(table, naive_ratio=None):
     fig, ax = subplots(figsize=(6, 4))
     lam = [r["lam"] for r in table]
     ax.loglog(lam, [r["L_e"] for r in table], "o-", label="$L_e$ (held out)")
-    ax.loglog(lam, [max(r.get("L_e_train", float("nan")), 1e-16) for r in table], "^:", alpha=0.6,
-              label="$L_e$ (training)")
+    ax.loglog(
+        lam, [max(r.get("L_e_train", float("nan")), 1e-16) for r in table], "^:", alpha=0.6, label="$L_e$ (training)"
+    )
     if all("L_b" in r for r in table):
         ax.loglog(lam, [max(r["L_b"], 1e-16) for r in table], "s--", alpha=0.6, label="$L_b$")
     ax.axvline(1.0, color="k", lw=0.8, ls=":")
@@ -68,11 +80,21 @@ def fig_energy(trend: dict):
     ax.set_xlabel("t")
     ax.set_ylabel("learned energy above its minimum (per-period mean)")
     if trend.get("valid") and r is not None and np.isfinite(r):
-        ax.set_title(f"energy {'decays' if r > 0 else 'grows'} {100 * abs(trend['rate_per_period']):.2g}%/period, "
-                     f"z = {trend['z']:.1f}", fontsize=10)
+        ax.set_title(
+            f"energy {'decays' if r > 0 else 'grows'} {100 * abs(trend['rate_per_period']):.2g}%/period, "
+            f"z = {trend['z']:.1f}",
+            fontsize=10,
+        )
     else:
-        ax.set_title("energy trend not used: " + ("contradicted by the kinetic energy" if not trend.get(
-            "consistent", True) else "not enough whole periods"), fontsize=10)
+        ax.set_title(
+            "energy trend not used: "
+            + (
+                "contradicted by the kinetic energy"
+                if not trend.get("consistent", True)
+                else "not enough whole periods"
+            ),
+            fontsize=10,
+        )
     if len(trend["block_t"]) > 1:
         ax.legend(fontsize=8)
     return fig
@@ -142,46 +164,90 @@ def _evidence_rows(report: dict) -> list[list[str]]:
 
     rows = []
     if tr.get("valid"):
-        rows.append(row("energy trend of the learned Lagrangian (whole record)",
-                        f"{'decays' if tr['rate'] > 0 else 'grows'} {100 * abs(tr['rate_per_period']):.3g}%/period, "
-                        f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
-                        f"z = {tr['z']:.1f}", f"{tr['n_blocks']} whole periods of {tr['period']:.3g}"))
+        rows.append(
+            row(
+                "energy trend of the learned Lagrangian (whole record)",
+                f"{'decays' if tr['rate'] > 0 else 'grows'} {100 * abs(tr['rate_per_period']):.3g}%/period, "
+                f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
+                f"z = {tr['z']:.1f}",
+                f"{tr['n_blocks']} whole periods of {tr['period']:.3g}",
+            )
+        )
     else:
-        rows.append(row("energy trend of the learned Lagrangian", "not used", "—",
-                        tr.get("reason", f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4)")))
+        rows.append(
+            row(
+                "energy trend of the learned Lagrangian",
+                "not used",
+                "—",
+                tr.get("reason", f"{tr.get('n_blocks', 0)} whole periods (need ≥ 4)"),
+            )
+        )
     if sh.get("valid"):
-        rows.append(row("multiple shooting: positions integrated over windows, damping probe d",
-                        f"d = {sh['d_mean']:.4g} ± {sh['se_d_mean']:.2g} per time unit "
-                        f"(χ² {sh['chi2_conservative']:.4g} → {sh['chi2']:.4g})", f"z = {sh['z']:.1f}",
-                        f"{sh['n_windows']} windows of ~{sh['window_median_samples']} samples; se = max(jackknife over "
-                        f"{sh['jackknife_groups']} groups, model)"))
+        rows.append(
+            row(
+                "multiple shooting: positions integrated over windows, damping probe d",
+                f"d = {sh['d_mean']:.4g} ± {sh['se_d_mean']:.2g} per time unit "
+                f"(χ² {sh['chi2_conservative']:.4g} → {sh['chi2']:.4g})",
+                f"z = {sh['z']:.1f}",
+                f"{sh['n_windows']} windows of ~{sh['window_median_samples']} samples; se = max(jackknife over "
+                f"{sh['jackknife_groups']} groups, model)",
+            )
+        )
     else:
         rows.append(row("multiple shooting", "not computed", "—", sh.get("reason", "")))
     ratio = [x for x in c["naive"]["ratio"] if x is not None]
     if not report["table"]:
         return rows
-    rows.append(row("λ-sweep (paper): L_e above / below λ = 1, held out",
-                    ", ".join(f"×{x:.3g}" for x in ratio) or "—", "pointwise",
-                    "blind to forces below the q̈ error"))
-    rows.append(row("net power of the pointwise residual", ", ".join(f"{x:.2f}" for x in c["drift"]["rho_median"]),
-                    "significant" if any(c["drift"]["significant"]) else "not significant",
-                    "used as evidence only with ≥ 3 trajectories"))
-    rows.append(row("explicit time dependence (leave one trajectory out)",
-                    ", ".join(f"×{x:.2f}" for x in c["time"]["gain"]),
-                    "testable" if report["clock"]["testable"] else "untestable", report["clock"]["why"]))
-    rows.append(row("fit gap: conservative / free model, training data",
-                    ", ".join(f"×{x:.2f}" for x in c["gap"]["gap_train"]), "", "≥ 2 means the Lagrangian under-fits"))
+    rows.append(
+        row(
+            "λ-sweep (paper): L_e above / below λ = 1, held out",
+            ", ".join(f"×{x:.3g}" for x in ratio) or "—",
+            "pointwise",
+            "blind to forces below the q̈ error",
+        )
+    )
+    rows.append(
+        row(
+            "net power of the pointwise residual",
+            ", ".join(f"{x:.2f}" for x in c["drift"]["rho_median"]),
+            "significant" if any(c["drift"]["significant"]) else "not significant",
+            "used as evidence only with ≥ 3 trajectories",
+        )
+    )
+    rows.append(
+        row(
+            "explicit time dependence (leave one trajectory out)",
+            ", ".join(f"×{x:.2f}" for x in c["time"]["gain"]),
+            "testable" if report["clock"]["testable"] else "untestable",
+            report["clock"]["why"],
+        )
+    )
+    rows.append(
+        row(
+            "fit gap: conservative / free model, training data",
+            ", ".join(f"×{x:.2f}" for x in c["gap"]["gap_train"]),
+            "",
+            "≥ 2 means the Lagrangian under-fits",
+        )
+    )
     opt = c["optimisation"]
-    rows.append(row("optimisation check: L_e(λ<1) ≤ L_e(λ>1) on training data",
-                    ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_train_below"], opt["L_e_train_above"])),
-                    "ok" if all(opt["ok"]) else "violated",
-                    "retrained from the conservative solution" if any(opt["retrained"]) else ""))
+    rows.append(
+        row(
+            "optimisation check: L_e(λ<1) ≤ L_e(λ>1) on training data",
+            ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_train_below"], opt["L_e_train_above"])),
+            "ok" if all(opt["ok"]) else "violated",
+            "retrained from the conservative solution" if any(opt["retrained"]) else "",
+        )
+    )
     if opt.get("L_e_heldout_below"):
-        rows.append(row("generalisation check: L_e(λ<1) ≤ 1.5 × L_e(λ>1) on held-out data",
-                        ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_heldout_below"],
-                                                                         opt["L_e_heldout_above"])),
-                        "ok" if all(opt["heldout_ok"]) else "violated: the free UAN generalises worse than none",
-                        "t enters the UAN only where the clock is testable"))
+        rows.append(
+            row(
+                "generalisation check: L_e(λ<1) ≤ 1.5 × L_e(λ>1) on held-out data",
+                ", ".join(f"{a:.3g} vs {b:.3g}" for a, b in zip(opt["L_e_heldout_below"], opt["L_e_heldout_above"])),
+                "ok" if all(opt["heldout_ok"]) else "violated: the free UAN generalises worse than none",
+                "t enters the UAN only where the clock is testable",
+            )
+        )
     return rows
 
 
@@ -189,43 +255,76 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
     """The self-contained report.html: the verdict first, then the evidence, the data, the law, the figures (PNG bytes
     by file name: embedded and linked) and L_e(λ)."""
     status = report["status"]
-    lam_rows = [[f"{r['lam']:g}", f"{r['L_e']:.4g}", f"{r.get('L_e_train', float('nan')):.4g}",
-                 f"{r.get('L_b', float('nan')):.4g}"] for r in report["table"]]
-    noise = [[_e(c), f"{v['noise']:.3g}", f"{100 * v['noise_relative']:.3g}%",
-              f"{_e(v['qd']['source'])}, rel. error {_e(_fmt(v['qd'].get('relative_error')))}",
-              f"{_e(v['qdd']['source'])}, rel. error {_e(_fmt(v['qdd'].get('relative_error')))}"]
-             for c, v in report["noise"].items()]
+    lam_rows = [
+        [
+            f"{r['lam']:g}",
+            f"{r['L_e']:.4g}",
+            f"{r.get('L_e_train', float('nan')):.4g}",
+            f"{r.get('L_b', float('nan')):.4g}",
+        ]
+        for r in report["table"]
+    ]
+    noise = [
+        [
+            _e(c),
+            f"{v['noise']:.3g}",
+            f"{100 * v['noise_relative']:.3g}%",
+            f"{_e(v['qd']['source'])}, rel. error {_e(_fmt(v['qd'].get('relative_error')))}",
+            f"{_e(v['qdd']['source'])}, rel. error {_e(_fmt(v['qdd'].get('relative_error')))}",
+        ]
+        for c, v in report["noise"].items()
+    ]
     f = report["formula"]
-    formula = ("<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in f["formula"].items())
-               + f"<br><small>{_e(f['method'])}</small>") if f else \
-        ("nothing readable" if report["blind"] else "— (no law claimed)")
+    formula = (
+        (
+            "<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in f["formula"].items())
+            + f"<br><small>{_e(f['method'])}</small>"
+        )
+        if f
+        else ("nothing readable" if report["blind"] else "— (no law claimed)")
+    )
     formula += _law_html(report.get("law") or {})
     q = report["quality"]
     angles = ", ".join(report.get("angles", [])) or "none"
     sugg = report.get("angle_suggestions") or []
-    sugg_html = ("<p><b>Possibly angles, not treated as such:</b> " + "; ".join(
-        f"{_e(c)} ({_e(w)})" for c, w in sugg) + " — rerun with <code>--angles</code>.</p>") if sugg else ""
+    sugg_html = (
+        (
+            "<p><b>Possibly angles, not treated as such:</b> "
+            + "; ".join(f"{_e(c)} ({_e(w)})" for c, w in sugg)
+            + " — rerun with <code>--angles</code>.</p>"
+        )
+        if sugg
+        else ""
+    )
     n_traj = report["data"]["n_traj"]
-    data = (f"<p>{n_traj} trajector{'y' if n_traj == 1 else 'ies'}, {report['data']['n_rows']} rows; angles (sin/cos "
-            f"inside the networks): <b>{_e(angles)}</b>; {q['samples_per_period']:.1f} samples per oscillation; "
-            f"data usable: {'yes' if q['usable'] else 'no'}, pointwise test possible: "
-            f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
-            + table(["coordinate", "noise σ", "σ / std", "q̇", "q̈"], noise, left=1))
-    body = (f"<h1>nnphd detect: {_e(report['file'])}</h1>"
-            f"<p class='status st-{_e(status)}'><b>{_e(status.upper())}</b>"
-            f"{' — new physics' if status == 'detected' else ''}</p>"
-            f"<p><b>Effect:</b> {_e(report.get('effect') or '—')}</p>"
-            f"<p><b>Confidence</b> {_e(_fmt(report['confidence']))} <small>({_e(report.get('confidence_basis', ''))})"
-            "</small></p>" + bullets(_e(r) for r in report["reasons"])
-            + "".join(f"<p class='warn'><b>Warning:</b> {_e(w)}</p>" for w in report.get("warnings", []))
-            + sugg_html
-            + section("Evidence", table(["test", "value", "result", "note"], _evidence_rows(report), left=4))
-            + section("Data", data)
-            + section("Law of the non-conservative part", f"<p>{formula}</p>")
-            + section("Figures", figures(figure(png, name) for name, png in figs.items()))
-            + section("L_e(λ)", table(["λ", "L_e held out", "L_e training", "L_b"], lam_rows, left=0))
-            + details("all checks and settings", f"{json.dumps(report['checks'], indent=1, default=str)}\n"
-                                                 f"{json.dumps(report['settings'], indent=1, default=str)}"))
+    data = (
+        f"<p>{n_traj} trajector{'y' if n_traj == 1 else 'ies'}, {report['data']['n_rows']} rows; angles (sin/cos "
+        f"inside the networks): <b>{_e(angles)}</b>; {q['samples_per_period']:.1f} samples per oscillation; "
+        f"data usable: {'yes' if q['usable'] else 'no'}, pointwise test possible: "
+        f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
+        + table(["coordinate", "noise σ", "σ / std", "q̇", "q̈"], noise, left=1)
+    )
+    body = (
+        f"<h1>nnphd detect: {_e(report['file'])}</h1>"
+        f"<p class='status st-{_e(status)}'><b>{_e(status.upper())}</b>"
+        f"{' — new physics' if status == 'detected' else ''}</p>"
+        f"<p><b>Effect:</b> {_e(report.get('effect') or '—')}</p>"
+        f"<p><b>Confidence</b> {_e(_fmt(report['confidence']))} <small>({_e(report.get('confidence_basis', ''))})"
+        "</small></p>"
+        + bullets(_e(r) for r in report["reasons"])
+        + "".join(f"<p class='warn'><b>Warning:</b> {_e(w)}</p>" for w in report.get("warnings", []))
+        + sugg_html
+        + section("Evidence", table(["test", "value", "result", "note"], _evidence_rows(report), left=4))
+        + section("Data", data)
+        + section("Law of the non-conservative part", f"<p>{formula}</p>")
+        + section("Figures", figures(figure(png, name) for name, png in figs.items()))
+        + section("L_e(λ)", table(["λ", "L_e held out", "L_e training", "L_b"], lam_rows, left=0))
+        + details(
+            "all checks and settings",
+            f"{json.dumps(report['checks'], indent=1, default=str)}\n"
+            f"{json.dumps(report['settings'], indent=1, default=str)}",
+        )
+    )
     return page(f"nnphd detect: {report['file']}", body)
 
 
@@ -236,18 +335,38 @@ def _law_html(law: dict) -> str:
         return f"<p><small>{_e(law.get('reason', ''))}</small></p>"
     rows = []
     for c in cands:
-        params = "<br>".join(f"{_e(k)} = {v:.4g} ± {c['stderr'].get(k, float('nan')):.2g}"
-                             for k, v in c["params"].items())
+        params = "<br>".join(
+            f"{_e(k)} = {v:.4g} ± {c['stderr'].get(k, float('nan')):.2g}" for k, v in c["params"].items()
+        )
         formula = "<br>".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in c["formula"].items())
-        flag = "" if c.get("significant", True) else " (a term within 2 se of zero, or a parameter at the edge of its range: not eligible)"
-        rows.append([len(rows) + 1, f"{_e(c['title'])}{_e(flag)}", formula, params, f"{c['heldout_ratio']:.4f}",
-                     f"{c['delta_ic']:+.1f}", c["k"]])
-    return (f"<p><b>{_e(law.get('reason', ''))}</b></p><p><small>Each candidate is fitted jointly with the "
-            f"conservative model ({_e(law.get('settings', {}).get('method', ''))} fit); held-out error relative to no "
-            f"law, on {_e(law.get('folds', ''))}; ΔIC = IC − IC(no law), IC = N_eff log(held-out MSE) + k log N_eff, "
-            f"N_eff = {law.get('n_eff', float('nan')):.4g}; ± = bootstrap standard errors.</small></p>"
-            + table(["#", "law", "formula", "coefficients", "held-out error (rel.)", "ΔIC", "k"], rows, left=4,
-                    row_classes=["best"]))
+        flag = (
+            ""
+            if c.get("significant", True)
+            else " (a term within 2 se of zero, or a parameter at the edge of its range: not eligible)"
+        )
+        rows.append(
+            [
+                len(rows) + 1,
+                f"{_e(c['title'])}{_e(flag)}",
+                formula,
+                params,
+                f"{c['heldout_ratio']:.4f}",
+                f"{c['delta_ic']:+.1f}",
+                c["k"],
+            ]
+        )
+    return (
+        f"<p><b>{_e(law.get('reason', ''))}</b></p><p><small>Each candidate is fitted jointly with the "
+        f"conservative model ({_e(law.get('settings', {}).get('method', ''))} fit); held-out error relative to no "
+        f"law, on {_e(law.get('folds', ''))}; ΔIC = IC − IC(no law), IC = N_eff log(held-out MSE) + k log N_eff, "
+        f"N_eff = {law.get('n_eff', float('nan')):.4g}; ± = bootstrap standard errors.</small></p>"
+        + table(
+            ["#", "law", "formula", "coefficients", "held-out error (rel.)", "ΔIC", "k"],
+            rows,
+            left=4,
+            row_classes=["best"],
+        )
+    )
 
 
 def _fmt(x) -> str:

@@ -1,6 +1,7 @@
 """The training rounds of one seed of :func:`nnphd.user.assess.assess`: the λ-sweep of NNPhD with its optimisation
 check, the LNN alone continued to its floor, a free model of (q, q̇), the time regressions and the whole-record
 evidence, then the checks of :mod:`nnphd.user.checks` on them."""
+
 from __future__ import annotations
 
 import functools
@@ -52,13 +53,16 @@ def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
     p = tcfg.p
 
     if kind == "nnphd":
+
         def loss(params, q, qd, t, qdd):
             fn = free_force(params["uan"], q, qd, t, cfg)
             return pnorm(lnn_accel(params["lnn"], q, qd, cfg) + fn - qdd, p), pnorm(fn, p)
     elif kind == "lnn":
+
         def loss(params, q, qd, t, qdd):
             return pnorm(lnn_accel(params["lnn"], q, qd, cfg) - qdd, p), jnp.zeros((), q.dtype)
     elif kind == "free":
+
         def loss(params, q, qd, t, qdd):
             return pnorm(free_force(params["mlp"], q, qd, None, cfg) - qdd, p), jnp.zeros((), q.dtype)
     else:  # pragma: no cover
@@ -91,8 +95,10 @@ def _free_eval(params, q, qd, cfg):
 @functools.lru_cache(maxsize=64)
 def _accel_fn(cfg: ModelConfig):
     """f_c(params, q, q̇) of an LNN config: one function object per config, so the shooting fit compiles once."""
+
     def accel(lnn, q, qd):
         return lnn_accel(lnn, q, qd, cfg)
+
     return accel
 
 
@@ -135,14 +141,31 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
                 pts[lam], evals[lam] = p, ev
             return pts[lam]
 
-        lambda_sweep(train, pts[lams[-1]], A_tr, below, jax.random.fold_in(k_sweep, 1), "warm", descending=True,
-                     accept=keep_better)
+        lambda_sweep(
+            train,
+            pts[lams[-1]],
+            A_tr,
+            below,
+            jax.random.fold_in(k_sweep, 1),
+            "warm",
+            descending=True,
+            accept=keep_better,
+        )
         check["L_e_train_below_after"] = med_train(below)
     table = []
     for lam in lams:
         _, _, _, _, r, fnb = evals[lam]
-        table.append({"lam": lam, "L_e": _l1(r[te]), "L_b": _l1(fnb[te]), "L_e_train": _l1(r[tr]),
-                      "L_b_train": _l1(fnb[tr]), "L_e_rel": _l1(r[te]) / fnorm_te, "L_b_rel": _l1(fnb[te]) / fnorm_te})
+        table.append(
+            {
+                "lam": lam,
+                "L_e": _l1(r[te]),
+                "L_b": _l1(fnb[te]),
+                "L_e_train": _l1(r[tr]),
+                "L_b_train": _l1(fnb[tr]),
+                "L_e_rel": _l1(r[te]) / fnorm_te,
+                "L_b_rel": _l1(fnb[te]) / fnorm_te,
+            }
+        )
     check["ok"] = not below or not above or med_train(below) <= 1.1 * med_train(above)
     if below and above:  # the same comparison on held-out data: a free UAN that generalises worse than none
         held = [float(np.median([r["L_e"] for r in table if (r["lam"] < 1) == side])) for side in (True, False)]
@@ -171,8 +194,9 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
     params = {"lnn": init_lnn(k_lnn, cfg), "uan": init_free(k_uan, cfg, n_time=feats.shape[1], widths=(width, width))}
     train = _trainer("nnphd", cfg, tcfg)
-    pts, evals, table, opt_check = _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te,
-                                          fnorm_te, tick)
+    pts, evals, table, opt_check = _sweep(
+        params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick
+    )
     lams = sorted(lambdas)
     lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
     fc_rep, _, power_rep, kin_rep, _, fn_rep = evals[lam_rep]
@@ -219,8 +243,10 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
     # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
     resid = qdd - fc_l
-    X_s, X_t = time_design(np.concatenate([np.asarray(embed_periodic(jnp.asarray(q), cfg.periodic)), qd], axis=1),
-                           time_features(tp, float(tp.max() - tp.min()), oversample=2))
+    X_s, X_t = time_design(
+        np.concatenate([np.asarray(embed_periodic(jnp.asarray(q), cfg.periodic)), qd], axis=1),
+        time_features(tp, float(tp.max() - tp.min()), oversample=2),
+    )
     errs = {"state": [], "timed": []}
     if len(segs) > 1:
         for k, seg in enumerate(segs):
@@ -252,22 +278,39 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     drift["rho_from_energy"] = energy_net_fraction(E_l, segs).tolist()
     uan_drift = drift_check(rep[3], tp, segs, _seg_mean(rep[4], segs), osc, seed=seed)
     tchk = time_check(e_state, e_timed, fnorm, improved if len(segs) > 2 else None)
-    tchk.update(residual_state=e_state / fnorm, residual_timed=e_timed / fnorm, improved_fraction=improved,
-                valid=ctx["clock"][0], testable=ctx["clock"][1], n_trajectories=len(segs))
+    tchk.update(
+        residual_state=e_state / fnorm,
+        residual_timed=e_timed / fnorm,
+        improved_fraction=improved,
+        valid=ctx["clock"][0],
+        testable=ctx["clock"][1],
+        n_trajectories=len(segs),
+    )
     gap = gap_check(cons_tr, free_tr, cons_te, free_te)
-    gap.update(conservative_train=cons_tr / fnorm_tr, conservative_test=cons_te / fnorm_te,
-               free_train=free_tr / fnorm_tr, free_test=free_te / fnorm_te)
+    gap.update(
+        conservative_train=cons_tr / fnorm_tr,
+        conservative_test=cons_te / fnorm_te,
+        free_train=free_tr / fnorm_tr,
+        free_test=free_te / fnorm_te,
+    )
     cap = capacity_check(hist)
-    cap.update(errors_rel=(np.asarray(hist) / fnorm_te).tolist(),
-               train_errors_rel=(np.asarray(hist_tr) / fnorm_tr).tolist(), chosen_round=best[0])
+    cap.update(
+        errors_rel=(np.asarray(hist) / fnorm_te).tolist(),
+        train_errors_rel=(np.asarray(hist_tr) / fnorm_tr).tolist(),
+        chosen_round=best[0],
+    )
     traj = trajectory_evidence(trend, shoot)
     traj["effect"] = _effect(traj, trend, shoot)
 
     if np.all(np.isfinite(power_l)) and np.isfinite(cons_tr):
         status, reason, boot_agree = _seed_status(drift, tchk, gap, cap, traj, ctx["quality"], len(segs))
     else:
-        status, reason, boot_agree = ("inconclusive", "the conservative model diverged (non-finite forces): "
-                                      "lower the learning rates or standardise the data differently", 1.0)
+        status, reason, boot_agree = (
+            "inconclusive",
+            "the conservative model diverged (non-finite forces): "
+            "lower the learning rates or standardise the data differently",
+            1.0,
+        )
     return {
         "seed": seed,
         "status": status,

@@ -27,6 +27,7 @@ r"""Sampling grids and the noise level of one trajectory's samples: items 1 and 
      2.7 % in the nominal times vs 3.1 % in the recorded ones (median of 20; the spline 3.8 %).  ``time_base`` says
      which.
 """
+
 from __future__ import annotations
 
 import math
@@ -102,8 +103,10 @@ def _sampling(t: np.ndarray) -> _Sampling:
         res = t - (c + dt_ls * k)
         if np.max(np.abs(res)) < LATTICE_TOL * dt_ls:
             nominal = c + dt_ls * k
-            rounded = 0.0 < t_step <= 0.1 * med and \
-                0.5 * (res.max() - res.min()) <= ROUNDING_TOL * t_step + UNIFORM_RTOL * dt_ls
+            rounded = (
+                0.0 < t_step <= 0.1 * med
+                and 0.5 * (res.max() - res.min()) <= ROUNDING_TOL * t_step + UNIFORM_RTOL * dt_ls
+            )
             if rounded and k[-1] == n - 1:  # uniform up to the rounding of the recorded times
                 return _Sampling("uniform", float(dt_ls), med, ratio, ratio_min, t_step, nominal, True)
     kind = "irregular" if ratio > GROSS_RATIO or ratio_min < 1.0 / GROSS_RATIO else "near-uniform"

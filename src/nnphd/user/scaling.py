@@ -4,6 +4,7 @@ q' = (q − μ_q)/s_q per coordinate and t' = (t − t₀)/s_t (:class:`Scaling`
 free networks as τ = t'/std(t') plus Fourier features (:func:`time_features`). Rows are grouped into trajectories
 (:func:`segments`) and whole trajectories are held out (:func:`holdout`).
 """
+
 from __future__ import annotations
 
 import math
@@ -68,8 +69,9 @@ def fit_scaling(data: Dataset, is_angle=None) -> Scaling:
     return Scaling(mu, s_q, float(np.mean(data.t)), s_t)
 
 
-def time_features(tp, span: float, omega_max: float = OMEGA_MAX, max_terms: int = MAX_FOURIER,
-                  oversample: int = 1) -> np.ndarray:
+def time_features(
+    tp, span: float, omega_max: float = OMEGA_MAX, max_terms: int = MAX_FOURIER, oversample: int = 1
+) -> np.ndarray:
     """Time inputs from t' (N,): [t'/std, sin(ω_j t'), cos(ω_j t')], ω_j = 2πj/(oversample·span) ≤ omega_max."""
     tp = np.asarray(tp, float)
     sd = float(np.std(tp)) or 1.0

@@ -163,7 +163,7 @@ def test_version_and_short_help(capsys):
 
 def test_options_are_typed(capsys):
     """Ints are ints and choices are enums in --help; the discover choices are the discovery systems."""
-    from nnphd.cli import DiscoverySystem
+    from nnphd.cli.common import DiscoverySystem
     from nnphd.paper.discover import DISCOVERY_SYSTEMS
 
     assert tuple(s.value for s in DiscoverySystem) == tuple(DISCOVERY_SYSTEMS)

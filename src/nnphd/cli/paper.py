@@ -1,111 +1,25 @@
-"""Command line: ``nnphd systems``, ``nnphd sweep``. A thin shell over :mod:`nnphd.paper.sweep`.
-
-Bad input gives a one-line ``error: ...`` on stderr and exit code 2, with nothing written.
-"""
+"""The paper's commands: ``nnphd systems``, ``sweep``, ``discover``, ``predict``, ``study lambda-p``,
+``study data-quality``, ``reproduce`` and ``demo neptune`` — thin shells over :mod:`nnphd.paper` and
+:mod:`nnphd.astro`."""
 
 from __future__ import annotations
 
-import math
-import sys
-from contextlib import contextmanager
-from enum import StrEnum
-
 import typer
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-app = typer.Typer(
-    add_completion=False,
-    no_args_is_help=True,
-    pretty_exceptions_enable=False,
-    context_settings={"help_option_names": ["-h", "--help"]},
-    help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.",
+from nnphd.cli.common import (
+    DiscoverySystem,
+    InputError,
+    SweepMode,
+    _fraction,
+    _parse_csv,
+    _parse_lambdas,
+    _progress,
+    app,
+    console,
+    demo_app,
+    study_app,
 )
-console = Console()
-
-
-def _version(value: bool) -> None:
-    if value:
-        from nnphd import __version__
-
-        print(f"nnphd {__version__}")
-        raise typer.Exit()
-
-
-@app.callback()
-def _root(
-    version: bool = typer.Option(
-        False, "--version", "-V", is_eager=True, callback=_version, help="print the version and exit"
-    ),
-) -> None:
-    """nnphd — Neural New-Physics Detector: find the non-conservative part of a force field."""
-
-
-# typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
-_ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
-
-
-@contextmanager
-def _progress(title: str):
-    """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)``."""
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        transient=False,
-    ) as prog:
-        task = prog.add_task(title, total=None)
-        yield lambda done, total, message: prog.update(task, completed=done, total=total, description=message)
-
-
-class SweepMode(StrEnum):
-    warm = "warm"
-    vmap = "vmap"
-    scratch = "scratch"
-
-
-class DiscoverySystem(StrEnum):  # nnphd.paper.discover.DISCOVERY_SYSTEMS (a test keeps them equal)
-    double_pendulum = "double-pendulum"
-    neptune = "neptune"
-    gw = "gw"
-
-
-class LawLevel(StrEnum):
-    auto = "auto"
-    pointwise = "pointwise"
-    trajectory = "trajectory"
-
-
-class Trim(StrEnum):
-    auto = "auto"
-    yes = "yes"
-    no = "no"
-
-
-class InputError(Exception):
-    """Bad user input: reported as one line, exit code 2."""
-
-
-def _parse_lambdas(value: str | None):
-    from nnphd.engine.train import PAPER_LAMBDAS
-
-    if value is None:
-        return PAPER_LAMBDAS
-    out = []
-    for tok in value.split(","):
-        try:
-            x = float(tok)
-        except ValueError:
-            raise InputError(f"--lambdas must be comma-separated numbers > 0, got {tok.strip()!r}") from None
-        if not math.isfinite(x) or x <= 0:
-            raise InputError(f"λ must be > 0, got {tok.strip()}")
-        out.append(x)
-    if not any(x < 1 for x in out) or not any(x > 1 for x in out):
-        raise InputError("--lambdas must contain values both below and above 1 (the transition is read across λ=1)")
-    return tuple(out)
 
 
 @app.command()
@@ -371,35 +285,6 @@ def predict(
     console.print(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res['wall_time_s']:.1f} s)")
 
 
-# ---- nnphd study: the paper's λ/p study (Fig. 5) and data-quality study (Fig. 6) ----------------------------------
-study_app = typer.Typer(
-    no_args_is_help=True, help="Paper studies: λ and loss dependence (Fig. 5), data quality (Fig. 6)."
-)
-app.add_typer(study_app, name="study")
-
-
-def _parse_csv(name: str, value: str | None, conv, default):
-    if value is None:
-        return default
-    toks = [t.strip() for t in value.split(",")]
-    if not all(toks):
-        raise InputError(f"{name} must be a comma-separated list, got {value!r}")
-    return tuple(conv(t) for t in toks)
-
-
-def _fraction(name: str):
-    def conv(tok: str) -> float:
-        try:
-            x = float(tok)
-        except ValueError:
-            raise InputError(f"{name} must be comma-separated numbers in [0, 1], got {tok!r}") from None
-        if not (0.0 <= x <= 1.0):
-            raise InputError(f"{name} must be comma-separated numbers in [0, 1], got {tok!r}")
-        return x
-
-    return conv
-
-
 @study_app.command("lambda-p")
 def study_lambda_p(
     steps: int = typer.Option(2000, "--steps", min=4, help="training steps per λ (split over the 4 learning rates)"),
@@ -574,126 +459,6 @@ def reproduce(
     console.print(f"wrote {out}/report.html and {out}/summary.json")
 
 
-@app.command()
-def detect(
-    file: str = typer.Argument(
-        ..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"
-    ),
-    out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
-    angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
-    steps: int = typer.Option(1000, "--steps", min=4, help="training steps per λ (and per extra round of the checks)"),
-    repeats: int = typer.Option(
-        2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"
-    ),
-    sr_time: int = typer.Option(
-        10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"
-    ),
-    law: list[str] | None = typer.Option(
-        None,
-        "--law",
-        help="a candidate law of your own, as a formula in the "
-        "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
-        "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)",
-    ),
-    law_level: LawLevel = typer.Option(
-        LawLevel.auto,
-        "--law-fit",
-        help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
-    ),
-    lambdas: str | None = typer.Option(
-        None,
-        "--lambdas",
-        help="comma-separated λ of the sweep (default 0.05,0.1,0.2,0.5,2,5,10; values below and above 1)",
-    ),
-    width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
-    trim: Trim = typer.Option(
-        Trim.auto,
-        "--trim",
-        help="drop the ends of each trajectory, where the one-sided derivative estimates are ~20x worse",
-    ),
-):
-    """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
-    from nnphd.io.results import ensure_writable_dir
-    from nnphd.user.recording import DataError, load_trajectories
-
-    try:
-        extra = {"width": width}
-        if lambdas is not None:
-            extra["lambdas"] = _parse_lambdas(lambdas)
-        trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
-        ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
-        if any(not a for a in ang):
-            raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
-        ud = load_trajectories(file, ang)  # validate the file before anything is created
-        from nnphd.explain.families import parse_law
-
-        for x in law or []:
-            parse_law(x, ud.coords)
-        ensure_writable_dir(out)
-    except (ValueError, DataError) as e:
-        raise InputError(str(e)) from None
-
-    from nnphd.user.detect import detect_file
-
-    with _progress("detect: starting") as status:
-        rep = detect_file(
-            file,
-            out=out,
-            angles=ang,
-            seed=seed,
-            steps=steps,
-            n_seeds=repeats,
-            sr_time=sr_time,
-            progress=status,
-            laws=tuple(law or ()),
-            law_level=law_level.value,
-            trim=trim_v,
-            **extra,
-        )
-    colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
-    console.print(
-        f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
-        f"(confidence {rep['confidence']:.2g})",
-        highlight=False,
-    )
-    if rep.get("effect"):
-        console.print(f"  effect: {rep['effect']}", highlight=False)
-    for w in rep.get("warnings") or []:
-        console.print(f"  [yellow]warning:[/] {w}", highlight=False)
-    for c, why in rep.get("angle_suggestions") or []:
-        console.print(
-            f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one", highlight=False
-        )
-    for r in rep["reasons"]:
-        console.print(f"  • {r}", highlight=False)
-    f = rep["formula"]
-    lw = rep.get("law") or {}
-    if lw.get("law"):
-        w = lw["law"]
-        console.print(
-            f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items()), highlight=False
-        )
-        console.print(
-            "       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items()),
-            highlight=False,
-        )
-    elif f is not None:
-        console.print(
-            "  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()) + f"  [{f['method']}]",
-            highlight=False,
-        )
-    if lw.get("reason") and not lw.get("law"):
-        console.print(f"  law: none — {lw['reason']}", highlight=False)
-    elif rep["blind"] and f is None:
-        console.print("  formula: nothing readable", highlight=False)
-    console.print(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)")
-
-
-demo_app = typer.Typer(no_args_is_help=True, help="Demonstrations on real data.")
-app.add_typer(demo_app, name="demo")
-
-
 @demo_app.command("neptune")
 def demo_neptune(
     out: str = typer.Option("out/demo-neptune", "--out", help="output directory (results.json, figures)"),
@@ -721,40 +486,3 @@ def demo_neptune(
         raise InputError(str(e)) from None
     print_summary(res, console)
     console.print(f"wrote {out}/results.json ({res['wall_time_s']:.0f} s)")
-
-
-def main(argv: list[str] | None = None) -> int:
-    from nnphd import configure
-    from nnphd._extras import MissingExtra
-
-    configure()  # the command line owns its process: float64 and the fast XLA:CPU setting
-    cmd = typer.main.get_command(app)
-    try:
-        cmd.main(args=argv if argv is not None else sys.argv[1:], prog_name="nnphd", standalone_mode=False)
-    except InputError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except MissingExtra as e:  # an optional dependency of the command is not installed
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except typer.Exit as e:
-        return getattr(e, "exit_code", 0)
-    except typer.Abort:
-        print("error: aborted", file=sys.stderr)
-        return 130
-    except _ClickException as e:
-        if type(e).__name__ == "NoArgsIsHelpError":  # bare `nnphd`: show help
-            ctx = getattr(e, "ctx", None)
-            print(ctx.get_help() if ctx is not None else e.format_message())
-            return 2
-        print(f"error: {e.format_message()}", file=sys.stderr)
-        return getattr(e, "exit_code", 2) or 2
-    return 0
-
-
-if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
-
-
-def entry() -> None:  # console-script entry point
-    sys.exit(main())

@@ -1,0 +1,137 @@
+"""The command line's shared pieces: the typer apps, the console, the one progress bar, the choice enums and
+input parsing (bad input: a one-line ``error: ...`` on stderr, exit code 2, nothing written)."""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from enum import StrEnum
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+    help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.",
+)
+console = Console()
+
+
+def _version(value: bool) -> None:
+    if value:
+        from nnphd import __version__
+
+        print(f"nnphd {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: bool = typer.Option(
+        False, "--version", "-V", is_eager=True, callback=_version, help="print the version and exit"
+    ),
+) -> None:
+    """nnphd — Neural New-Physics Detector: find the non-conservative part of a force field."""
+
+
+# typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
+_ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+
+
+@contextmanager
+def _progress(title: str):
+    """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)``."""
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        transient=False,
+    ) as prog:
+        task = prog.add_task(title, total=None)
+        yield lambda done, total, message: prog.update(task, completed=done, total=total, description=message)
+
+
+class SweepMode(StrEnum):
+    warm = "warm"
+    vmap = "vmap"
+    scratch = "scratch"
+
+
+class DiscoverySystem(StrEnum):  # nnphd.paper.discover.DISCOVERY_SYSTEMS (a test keeps them equal)
+    double_pendulum = "double-pendulum"
+    neptune = "neptune"
+    gw = "gw"
+
+
+class LawLevel(StrEnum):
+    auto = "auto"
+    pointwise = "pointwise"
+    trajectory = "trajectory"
+
+
+class Trim(StrEnum):
+    auto = "auto"
+    yes = "yes"
+    no = "no"
+
+
+class InputError(Exception):
+    """Bad user input: reported as one line, exit code 2."""
+
+
+def _parse_lambdas(value: str | None):
+    from nnphd.engine.train import PAPER_LAMBDAS
+
+    if value is None:
+        return PAPER_LAMBDAS
+    out = []
+    for tok in value.split(","):
+        try:
+            x = float(tok)
+        except ValueError:
+            raise InputError(f"--lambdas must be comma-separated numbers > 0, got {tok.strip()!r}") from None
+        if not math.isfinite(x) or x <= 0:
+            raise InputError(f"λ must be > 0, got {tok.strip()}")
+        out.append(x)
+    if not any(x < 1 for x in out) or not any(x > 1 for x in out):
+        raise InputError("--lambdas must contain values both below and above 1 (the transition is read across λ=1)")
+    return tuple(out)
+
+
+# ---- nnphd study: the paper's λ/p study (Fig. 5) and data-quality study (Fig. 6) ----------------------------------
+study_app = typer.Typer(
+    no_args_is_help=True, help="Paper studies: λ and loss dependence (Fig. 5), data quality (Fig. 6)."
+)
+app.add_typer(study_app, name="study")
+
+
+def _parse_csv(name: str, value: str | None, conv, default):
+    if value is None:
+        return default
+    toks = [t.strip() for t in value.split(",")]
+    if not all(toks):
+        raise InputError(f"{name} must be a comma-separated list, got {value!r}")
+    return tuple(conv(t) for t in toks)
+
+
+def _fraction(name: str):
+    def conv(tok: str) -> float:
+        try:
+            x = float(tok)
+        except ValueError:
+            raise InputError(f"{name} must be comma-separated numbers in [0, 1], got {tok!r}") from None
+        if not (0.0 <= x <= 1.0):
+            raise InputError(f"{name} must be comma-separated numbers in [0, 1], got {tok!r}")
+        return x
+
+    return conv
+
+
+demo_app = typer.Typer(no_args_is_help=True, help="Demonstrations on real data.")
+app.add_typer(demo_app, name="demo")

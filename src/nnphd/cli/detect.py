@@ -1,0 +1,123 @@
+"""``nnphd detect FILE``: is there new physics in your trajectories? A thin shell over :mod:`nnphd.user.detect`."""
+
+from __future__ import annotations
+
+import typer
+
+from nnphd.cli.common import InputError, LawLevel, Trim, _parse_lambdas, _progress, app, console
+
+
+@app.command()
+def detect(
+    file: str = typer.Argument(
+        ..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"
+    ),
+    out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
+    angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
+    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
+    steps: int = typer.Option(1000, "--steps", min=4, help="training steps per λ (and per extra round of the checks)"),
+    repeats: int = typer.Option(
+        2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"
+    ),
+    sr_time: int = typer.Option(
+        10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"
+    ),
+    law: list[str] | None = typer.Option(
+        None,
+        "--law",
+        help="a candidate law of your own, as a formula in the "
+        "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
+        "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)",
+    ),
+    law_level: LawLevel = typer.Option(
+        LawLevel.auto,
+        "--law-fit",
+        help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
+    ),
+    lambdas: str | None = typer.Option(
+        None,
+        "--lambdas",
+        help="comma-separated λ of the sweep (default 0.05,0.1,0.2,0.5,2,5,10; values below and above 1)",
+    ),
+    width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
+    trim: Trim = typer.Option(
+        Trim.auto,
+        "--trim",
+        help="drop the ends of each trajectory, where the one-sided derivative estimates are ~20x worse",
+    ),
+):
+    """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
+    from nnphd.io.results import ensure_writable_dir
+    from nnphd.user.recording import DataError, load_trajectories
+
+    try:
+        extra = {"width": width}
+        if lambdas is not None:
+            extra["lambdas"] = _parse_lambdas(lambdas)
+        trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
+        ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
+        if any(not a for a in ang):
+            raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
+        ud = load_trajectories(file, ang)  # validate the file before anything is created
+        from nnphd.explain.families import parse_law
+
+        for x in law or []:
+            parse_law(x, ud.coords)
+        ensure_writable_dir(out)
+    except (ValueError, DataError) as e:
+        raise InputError(str(e)) from None
+
+    from nnphd.user.detect import detect_file
+
+    with _progress("detect: starting") as status:
+        rep = detect_file(
+            file,
+            out=out,
+            angles=ang,
+            seed=seed,
+            steps=steps,
+            n_seeds=repeats,
+            sr_time=sr_time,
+            progress=status,
+            laws=tuple(law or ()),
+            law_level=law_level.value,
+            trim=trim_v,
+            **extra,
+        )
+    colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
+    console.print(
+        f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
+        f"(confidence {rep['confidence']:.2g})",
+        highlight=False,
+    )
+    if rep.get("effect"):
+        console.print(f"  effect: {rep['effect']}", highlight=False)
+    for w in rep.get("warnings") or []:
+        console.print(f"  [yellow]warning:[/] {w}", highlight=False)
+    for c, why in rep.get("angle_suggestions") or []:
+        console.print(
+            f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one", highlight=False
+        )
+    for r in rep["reasons"]:
+        console.print(f"  • {r}", highlight=False)
+    f = rep["formula"]
+    lw = rep.get("law") or {}
+    if lw.get("law"):
+        w = lw["law"]
+        console.print(
+            f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items()), highlight=False
+        )
+        console.print(
+            "       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items()),
+            highlight=False,
+        )
+    elif f is not None:
+        console.print(
+            "  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()) + f"  [{f['method']}]",
+            highlight=False,
+        )
+    if lw.get("reason") and not lw.get("law"):
+        console.print(f"  law: none — {lw['reason']}", highlight=False)
+    elif rep["blind"] and f is None:
+        console.print("  formula: nothing readable", highlight=False)
+    console.print(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)")

@@ -178,6 +178,10 @@ class SweepPoint:
     m_n: float | None = None
     params: Params | None = None
 
+    def row(self) -> dict:
+        """The numbers of this point (no params), as in the results' tables."""
+        return {k: getattr(self, k) for k in ("lam", "L_e", "L_b", "L_e_train", "L_b_train", "m_c", "m_n")}
+
 
 SWEEP_MODES = ("warm", "vmap", "scratch")
 

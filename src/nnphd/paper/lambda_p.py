@@ -209,13 +209,7 @@ def _lambda_p_subrun(
         ev = evaluate(pt.params, test, cfg, tcfg.p)
         table.append(
             {
-                "lam": pt.lam,
-                "L_e": pt.L_e,
-                "L_b": pt.L_b,
-                "L_e_train": pt.L_e_train,
-                "L_b_train": pt.L_b_train,
-                "m_c": pt.m_c,
-                "m_n": pt.m_n,
+                **pt.row(),
                 "fn_rms": _rms(ev.fn),
                 # robust companions of m_c, m_n: the median |f^NN − f^PHY| over the test samples
                 "m_c_median": float(np.median(np.abs(ev.fc - test.fc))),

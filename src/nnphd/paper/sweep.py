@@ -121,8 +121,7 @@ def plan_sweep(
 
 
 def _save_checkpoint(cache: Cache, done: dict[float, SweepPoint]) -> None:
-    keys = ("L_e", "L_b", "L_e_train", "L_b_train", "m_c", "m_n")
-    cache.checkpoint({lam: ({k: getattr(pt, k) for k in keys}, pt.params) for lam, pt in done.items()})
+    cache.checkpoint({lam: ({k: v for k, v in pt.row().items() if k != "lam"}, pt.params) for lam, pt in done.items()})
 
 
 def run_sweep(
@@ -143,18 +142,7 @@ def run_sweep(
     plan = plan_sweep(system, out=outdir, **plan_kw)
     r = plan.run(progress)
     sysm, v, points = plan.system, r.verdict, r.points
-    table = [
-        {
-            "lam": pt.lam,
-            "L_e": pt.L_e,
-            "L_b": pt.L_b,
-            "L_e_train": pt.L_e_train,
-            "L_b_train": pt.L_b_train,
-            "m_c": pt.m_c,
-            "m_n": pt.m_n,
-        }
-        for pt in points
-    ]
+    table = [pt.row() for pt in points]
     aligned = [r for r in table if 0.1 <= r["lam"] <= 0.5 and r["m_c"] is not None]
     results = {
         "system": sysm.name,

@@ -20,45 +20,25 @@ from nnphd.user.report import write_report
 
 
 def detect_file(
-    path: str | Path,
-    out: str | Path | None = None,
-    angles=(),
-    seed: int = 0,
-    steps: int = 1000,
-    sr_time: float = 10.0,
-    n_seeds: int = 2,
-    progress: Progress | None = None,
-    trim: bool | str = "auto",
-    laws: Sequence[str] = (),
-    law_level: str = "auto",
-    **assess_kw,
+    path: str | Path, out: str | Path | None = None, angles=(), progress: Progress | None = None, **settings
 ) -> dict:
     """Load ``path``, assess it, find the law of f_n; write report.json / report.html / PNGs to ``out`` if given.
 
-    ``laws``: user candidate laws (SymPy strings, :func:`nnphd.explain.families.parse_law`), ranked with the built-in
-    ones; ``law_level``: "pointwise" (fits to the estimated q̈ only), "trajectory" (re-ranked by multiple shooting
-    on the positions) or "auto" (trajectory whenever the data oscillate enough for shooting windows).
+    ``settings`` as :func:`detect_data` (seed, steps, sr_time, n_seeds, trim, laws, law_level and the keywords of
+    :func:`nnphd.user.assess.assess`); the law level is checked before the file is read.
     """
     from nnphd.user.recording import load_trajectories
 
-    if law_level not in ("auto", "pointwise", "trajectory"):
-        raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
+    _check_law_level(settings.get("law_level", "auto"))
     if progress is not None:
         progress(0, 1, "reading the file")
     ud = load_trajectories(path, angles)
-    return detect_data(
-        ud,
-        out,
-        seed=seed,
-        steps=steps,
-        sr_time=sr_time,
-        n_seeds=n_seeds,
-        progress=progress,
-        trim=trim,
-        laws=laws,
-        law_level=law_level,
-        **assess_kw,
-    )[0]
+    return detect_data(ud, out, progress=progress, **settings)[0]
+
+
+def _check_law_level(law_level: str) -> None:
+    if law_level not in ("auto", "pointwise", "trajectory"):
+        raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
 
 
 def detect_data(
@@ -95,8 +75,7 @@ def detect_data(
         done[:] = [d, total]
         say(f"training: {message}")
 
-    if law_level not in ("auto", "pointwise", "trajectory"):
-        raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
+    _check_law_level(law_level)
     t0 = time.perf_counter()
     path = ud.path
     for x in laws:  # fail on a bad --law before any work

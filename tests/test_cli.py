@@ -60,6 +60,11 @@ BAD = [
     (["sweep", "--system", "ho+ld", "--mode", "fast"], "'fast' is not one of 'warm', 'vmap', 'scratch'"),
     (["sweep", "--system", "ho+ld", "--param", "zeta=1"], "unknown parameter(s) 'zeta'"),
     (["sweep", "--system", "ho+ld", "--param", "gamma"], "--param must look like name=value"),
+    (["sweep", "--system", "ho+ld", "--param", "gamma=nan"], "--param gamma must be a finite number"),
+    (["sweep", "--system", "ho+ld", "--param", "gamma=inf"], "--param gamma must be a finite number"),
+    (["sweep", "--system", "ho+ld", "--lambdas", "0.5,0.5,2"], "λ values must be distinct"),
+    (["sweep", "--system", "ho+ld", "--seed", str(2**64)], "Invalid value for '--seed'"),
+    (["sweep", "--system", "ho+ld", "--steps", str(10**12)], "Invalid value for '--steps'"),
     (["sweep", "--system", "ho+ld", "--wat"], "No such option"),
     (["sweep"], "Missing option"),
 ]
@@ -173,3 +178,34 @@ def test_options_are_typed(capsys):
     assert main(["detect", "-h"]) == 0
     out = capsys.readouterr().out
     assert "auto|point" in out and "auto|yes|no" in out
+
+
+def test_empty_out_is_refused(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["sweep", "--system", "ho+ld", "--out", ""]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "error: --out must name a directory, got an empty string"
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("checkpoint", [False, True])
+def test_interrupt_exits_130_and_says_how_to_resume(checkpoint, tmp_path, capsys, monkeypatch):
+    """Ctrl-C (KeyboardInterrupt in the run): exit 130, one line; a folder the run created and left empty is
+    removed; a kept checkpoint is named."""
+    import nnphd.paper.sweep as sweep_mod
+
+    out = tmp_path / "o"
+
+    def interrupted(*a, **k):
+        if checkpoint:
+            (out / ".checkpoint.npz").write_bytes(b"")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sweep_mod, "run_sweep", interrupted)
+    assert main(["sweep", "--system", "ho+ld", "--out", str(out)]) == 130
+    lines = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: interrupted")
+    if checkpoint:
+        assert "run the same command again to resume" in lines[0] and out.is_dir()
+    else:
+        assert not out.exists()

@@ -25,6 +25,8 @@ def test_result_cache_is_keyed_by_settings(tmp_path):
     assert Cache(tmp_path, {"seed": 1, "steps": 10}).load() is None  # other settings: not used
     (tmp_path / "results.json").write_text("{not json")
     assert c.load() is None  # unreadable: treated as absent
+    (tmp_path / "results.json").write_text("[1]")
+    assert c.load() is None  # valid JSON but not a result: absent, no crash
 
 
 def test_checkpoint_round_trip_without_pickle(tmp_path):

@@ -81,6 +81,10 @@ class Trim(StrEnum):
     no = "no"
 
 
+MAX_SEED = 2**32 - 1  # JAX and NumPy take seeds of up to 64 bits; 32 are plenty and portable
+MAX_STEPS = 10**7  # training steps per run: more would allocate the minibatch keys of the whole scan at once
+
+
 class InputError(Exception):
     """Bad user input: reported as one line, exit code 2."""
 
@@ -99,6 +103,8 @@ def _parse_lambdas(value: str | None):
         if not math.isfinite(x) or x <= 0:
             raise InputError(f"λ must be > 0, got {tok.strip()}")
         out.append(x)
+    if len(set(out)) != len(out):
+        raise InputError(f"--lambdas: λ values must be distinct, got {value}")
     if not any(x < 1 for x in out) or not any(x > 1 for x in out):
         raise InputError("--lambdas must contain values both below and above 1 (the transition is read across λ=1)")
     return tuple(out)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import typer
 
-from nnphd.cli.common import InputError, LawLevel, Trim, _parse_lambdas, _progress, app, console
+from nnphd.cli.common import MAX_SEED, MAX_STEPS, InputError, LawLevel, Trim, _parse_lambdas, _progress, app, console
 
 
 @app.command()
@@ -14,8 +14,10 @@ def detect(
     ),
     out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
     angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
-    steps: int = typer.Option(1000, "--steps", min=4, help="training steps per λ (and per extra round of the checks)"),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed"),
+    steps: int = typer.Option(
+        1000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (and per extra round of the checks)"
+    ),
     repeats: int = typer.Option(
         2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"
     ),

@@ -4,10 +4,14 @@
 
 from __future__ import annotations
 
+import math
+
 import typer
 from rich.table import Table
 
 from nnphd.cli.common import (
+    MAX_SEED,
+    MAX_STEPS,
     DiscoverySystem,
     InputError,
     SweepMode,
@@ -44,8 +48,10 @@ def sweep(
     p: str = typer.Option(
         "1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"
     ),
-    steps: int = typer.Option(2000, "--steps", min=4, help="training steps per λ (split over the 4 learning rates)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
+    steps: int = typer.Option(
+        2000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (split over the 4 learning rates)"
+    ),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (data and initialisation)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
     mode: SweepMode = typer.Option(
         SweepMode.warm,
@@ -79,6 +85,8 @@ def sweep(
                 overrides[k.strip()] = float(v)
             except ValueError:
                 raise InputError(f"--param {k.strip()} must be a number, got {v!r}") from None
+            if not math.isfinite(overrides[k.strip()]):
+                raise InputError(f"--param {k.strip()} must be a finite number, got {v!r}")
         sysm = get_system(system, **overrides)
         pp = parse_p(p)
         lams = _parse_lambdas(lambdas)
@@ -128,10 +136,14 @@ def sweep(
 def discover(
     system: DiscoverySystem | None = typer.Option(None, "--system", "-s", help="one Table I system"),
     all_: bool = typer.Option(False, "--all", help="all three systems, our Table II beside the paper's, and Fig. 3"),
-    steps: int = typer.Option(2000, "--steps", min=4, help="training steps of the constrained Lagrangian + UAN"),
-    sweep_steps: int = typer.Option(2000, "--sweep-steps", min=4, help="training steps per λ of the detection sweep"),
+    steps: int = typer.Option(
+        2000, "--steps", min=4, max=MAX_STEPS, help="training steps of the constrained Lagrangian + UAN"
+    ),
+    sweep_steps: int = typer.Option(
+        2000, "--sweep-steps", min=4, max=MAX_STEPS, help="training steps per λ of the detection sweep"
+    ),
     lam: float = typer.Option(0.2, "--lam", help="λ of the constrained training, in (0, 1) (paper: 0.2)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed"),
     standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
     n_steps: int = typer.Option(
         0, "--n-steps", min=0, help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"
@@ -230,9 +242,9 @@ def _print_claims(claims) -> None:
 @app.command()
 def predict(
     steps: int = typer.Option(
-        2000, "--steps", min=4, help="training steps of each model (split over the 4 learning rates)"
+        2000, "--steps", min=4, max=MAX_STEPS, help="training steps of each model (split over the 4 learning rates)"
     ),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed (initialisation and minibatches)"),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (initialisation and minibatches)"),
     uan_time: bool = typer.Option(
         False,
         "--uan-time/--no-uan-time",
@@ -287,8 +299,10 @@ def predict(
 
 @study_app.command("lambda-p")
 def study_lambda_p(
-    steps: int = typer.Option(2000, "--steps", min=4, help="training steps per λ (split over the 4 learning rates)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
+    steps: int = typer.Option(
+        2000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (split over the 4 learning rates)"
+    ),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (data and initialisation)"),
     systems_: str | None = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
     ps: str | None = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
@@ -359,9 +373,9 @@ def study_lambda_p(
 @study_app.command("data-quality")
 def study_data_quality(
     steps: int = typer.Option(
-        2000, "--steps", min=4, help="training steps per data set (split over the 4 learning rates)"
+        2000, "--steps", min=4, max=MAX_STEPS, help="training steps per data set (split over the 4 learning rates)"
     ),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed (data and initialisation)"),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (data and initialisation)"),
     alphas: str | None = typer.Option(
         None, "--alphas", help="comma-separated pie coverages α in [0,1] (default 0, 0.125, …, 1)"
     ),
@@ -418,7 +432,7 @@ def reproduce(
     quick: bool = typer.Option(
         False, "--quick", help="fewer training steps, same code (a smoke-scale run, ≤ 10 min on 2 cores)"
     ),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed of every experiment"),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed of every experiment"),
     out: str | None = typer.Option(
         None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"
     ),
@@ -462,7 +476,7 @@ def reproduce(
 @demo_app.command("neptune")
 def demo_neptune(
     out: str = typer.Option("out/demo-neptune", "--out", help="output directory (results.json, figures)"),
-    seed: int = typer.Option(0, "--seed", min=0, help="random seed"),
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed"),
 ):
     """Le Verrier again: Neptune located from Uranus' real JPL DE405 orbit by NNPhD."""
     from nnphd.astro.ephemeris import EphemerisUnavailable, available

@@ -164,6 +164,8 @@ def validate_lambdas(lambdas: Sequence[float]) -> tuple[float, ...]:
     for x in lams:
         if not np.isfinite(x) or x <= 0:
             raise ValueError(f"λ must be > 0, got {x:g}")
+    if len(set(lams)) != len(lams):
+        raise ValueError(f"λ values must be distinct, got {', '.join(f'{x:g}' for x in lams)}")
     return lams
 
 

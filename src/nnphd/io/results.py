@@ -13,6 +13,8 @@ import numpy as np
 
 def ensure_writable_dir(path: str | os.PathLike) -> Path:
     """Create ``path`` if needed and check a file can be written there; ValueError with a one-line reason if not."""
+    if not str(path).strip():
+        raise ValueError("--out must name a directory, got an empty string")
     p = Path(path)
     try:
         p.mkdir(parents=True, exist_ok=True)

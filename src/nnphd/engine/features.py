@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 import jax
 import jax.numpy as jnp
@@ -106,9 +107,12 @@ class ConstrainedModel:
     def trainer(self):
         return make_trainer(self.cfg, self.tcfg, loss_fn=self.loss)
 
+    @cached_property
+    def _forces_and_loss(self):  # compiled once per model: fit() is called for every λ of a sweep
+        return jax.jit(lambda params, q, qd, t, qdd: (self.forces(params, q, qd, t), self.loss(params, q, qd, t, qdd)))
+
     def fit(self, params) -> ConstrainedFit:
-        fc, fn = jax.jit(self.forces)(params, *self.arrays[:3])
-        le, lb = self.loss(params, *self.arrays)
+        (fc, fn), (le, lb) = self._forces_and_loss(params, *self.arrays)
         return ConstrainedFit(np.asarray(self.coefs(params)), np.asarray(fc), np.asarray(fn), float(le), float(lb))
 
 

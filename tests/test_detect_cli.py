@@ -42,7 +42,7 @@ BAD = {
         "t is not strictly increasing",
     ),
     "duplicate_t": (lambda p: _csv(p, "t,x", [(i - 1 if i == 6 else i, i * i) for i in range(20)]), "duplicate time"),
-    "too_few": (lambda p: _csv(p, "t,x", [(i, i * i) for i in range(4)]), "has 4 samples; at least 7"),
+    "too_few": (lambda p: _csv(p, "t,x", [(i, i * i) for i in range(4)]), "has 4 samples; at least 8"),
     "single": (lambda p: _csv(p, "t,x", [(0, 1)]), "single sample"),
     "constant": (lambda p: _csv(p, "t,x,y", [(i, 1, 2) for i in range(20)]), "all coordinates are constant"),
     "unreadable": (lambda p: _write(p.with_suffix(".npz"), b"not a zip file"), "cannot read as .npz"),

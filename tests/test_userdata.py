@@ -31,7 +31,7 @@ from scipy.signal import savgol_filter
 
 import nnphd  # noqa: F401  (enables float64)
 from nnphd.user.derivatives import estimate_derivatives, to_dataset
-from nnphd.user.recording import MIN_SAMPLES, DataError, load_trajectories
+from nnphd.user.recording import MIN_ROWS, DataError, load_trajectories
 from nnphd.user.sampling import noise_level
 
 BOUNDS = {  # relative RMS error bounds (q̇, q̈), untrimmed and trimmed q̈
@@ -279,14 +279,14 @@ BAD_CSV = [  # (file content, angles, substrings of the message)
     (
         _csv("traj,t,x", *[f"0,{r}" for r in TEN], *[f"3,{r}" for r in TEN[:4]]),
         (),
-        ["trajectory 3 has 4 samples", f"at least {MIN_SAMPLES}"],
+        ["trajectory 3 has 4 samples", f"at least {MIN_ROWS}"],
     ),
     (
         _csv("traj,t,x", *[f"0,{r}" for r in TEN], "2,0,5"),
         (),
-        ["trajectory 2 has a single sample", "row 11 (line 12)", f"at least {MIN_SAMPLES}"],
+        ["trajectory 2 has a single sample", "row 11 (line 12)", f"at least {MIN_ROWS}"],
     ),
-    (_csv("t,x", "0,1"), (), ["single sample", f"at least {MIN_SAMPLES}"]),
+    (_csv("t,x", "0,1"), (), ["single sample", f"at least {MIN_ROWS}"]),
     (_csv("t,x,y", *[f"{i},1,-2" for i in range(10)]), (), ["all coordinates are constant", "x, y"]),
     (_csv("t,traj", *[f"{i},0" for i in range(10)]), (), ["no coordinate column"]),
     (_csv("t,x,y_ddot", *[f"{r},0" for r in TEN]), (), ["'y_ddot' has no coordinate column 'y'"]),
@@ -343,13 +343,18 @@ def test_bad_files_and_npz_arrays(tmp_path):
     raises(tmp_path / "g.npz", "empty")
 
 
-def test_short_trajectories_allowed_when_all_derivatives_are_given(tmp_path):
+def test_given_derivatives_used_verbatim_and_short_trajectories_refused_even_with_them(tmp_path):
+    """Given q̇, q̈ are used as they are; a trajectory still needs MIN_ROWS rows (the training holds rows out)."""
+    rows = [f"0,{k},{k},1,0" for k in range(MIN_ROWS)] + [f"1,{k},{5 - k * k / 2},{-k},-1" for k in range(MIN_ROWS)]
     path = tmp_path / "given.csv"
-    path.write_text("traj,t,x,x_dot,x_ddot\n0,0,0,1,0\n0,1,1,1,0\n1,0,5,0,-1\n")
+    path.write_text("traj,t,x,x_dot,x_ddot\n" + "\n".join(rows) + "\n")
     ds, info = to_dataset(load_trajectories(path))
-    np.testing.assert_array_equal(ds.qd[:, 0], [1, 1, 0])
-    np.testing.assert_array_equal(ds.qdd[:, 0], [0, 0, -1])
-    assert info["method"] == "given" and info["n_samples"] == 3
+    np.testing.assert_array_equal(ds.qd[:, 0], [1] * MIN_ROWS + [-k for k in range(MIN_ROWS)])
+    np.testing.assert_array_equal(ds.qdd[:, 0], [0] * MIN_ROWS + [-1] * MIN_ROWS)
+    assert info["method"] == "given" and info["n_samples"] == 2 * MIN_ROWS
+    path.write_text("traj,t,x,x_dot,x_ddot\n0,0,0,1,0\n0,1,1,1,0\n" + "\n".join(rows[MIN_ROWS:]) + "\n")
+    with pytest.raises(DataError, match=f"trajectory 0 has 2 samples; at least {MIN_ROWS} per trajectory"):
+        load_trajectories(path)
 
 
 # ---- real sampling: jitter, gaps, rounded timestamps, integer pixels ------------------------------------------------

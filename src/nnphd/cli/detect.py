@@ -5,6 +5,7 @@ from __future__ import annotations
 import typer
 
 from nnphd.cli.common import MAX_SEED, MAX_STEPS, InputError, LawLevel, Trim, _parse_lambdas, _progress, app, console
+from nnphd.user.limits import MAX_ROWS, MIN_ROWS
 
 
 @app.command()
@@ -42,6 +43,9 @@ def detect(
         help="comma-separated λ of the sweep (default 0.05,0.1,0.2,0.5,2,5,10; values below and above 1)",
     ),
     width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
+    max_rows: int = typer.Option(
+        MAX_ROWS, "--max-rows", min=MIN_ROWS, help="refuse files with more data rows than this (memory: see the README)"
+    ),
     trim: Trim = typer.Option(
         Trim.auto,
         "--trim",
@@ -49,7 +53,7 @@ def detect(
     ),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
     from nnphd.user.recording import DataError, load_trajectories
 
     try:
@@ -60,22 +64,21 @@ def detect(
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
-        ud = load_trajectories(file, ang)  # validate the file before anything is created
+        ud = load_trajectories(file, ang, max_rows=max_rows)  # validate the file before anything is created
         from nnphd.explain.families import parse_law
 
         for x in law or []:
             parse_law(x, ud.coords)
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except (ValueError, DataError) as e:
         raise InputError(str(e)) from None
 
-    from nnphd.user.detect import detect_file
+    from nnphd.user.detect import detect_data
 
     with _progress("detect: starting") as status:
-        rep = detect_file(
-            file,
+        rep, _ = detect_data(
+            ud,  # read once, above
             out=out,
-            angles=ang,
             seed=seed,
             steps=steps,
             n_seeds=repeats,

@@ -71,6 +71,7 @@ from nnphd.user.checks import (
     clock_testable,
     data_quality,
 )
+from nnphd.user.limits import MIN_ROWS
 from nnphd.user.rounds import (
     _accel_fn,
     _one_seed,
@@ -391,8 +392,8 @@ def _validate(data, traj, steps, lambdas, n_seeds):
     if traj is not None and np.shape(traj) != data.t.shape:
         raise ValueError(f"traj must have one id per row ({len(data)}), got shape {np.shape(traj)}")
     for s in segments(traj, data.t):
-        if len(s) < 8:
-            raise ValueError(f"every trajectory needs at least 8 samples, one has {len(s)}")
+        if len(s) < MIN_ROWS:
+            raise ValueError(f"every trajectory needs at least {MIN_ROWS} samples, one has {len(s)}")
     if int(steps) != steps or steps < 4:
         raise ValueError(f"steps must be an integer ≥ 4, got {steps}")
     lams = [float(x) for x in lambdas]

@@ -15,24 +15,32 @@ from pathlib import Path
 
 import numpy as np
 
+from nnphd.io.errors import DataError
 from nnphd.io.progress import Progress, Stages
+from nnphd.user.limits import MIN_ROWS
 from nnphd.user.report import write_report
 
 
 def detect_file(
-    path: str | Path, out: str | Path | None = None, angles=(), progress: Progress | None = None, **settings
+    path: str | Path,
+    out: str | Path | None = None,
+    angles=(),
+    progress: Progress | None = None,
+    max_rows: int | None = None,
+    **settings,
 ) -> dict:
     """Load ``path``, assess it, find the law of f_n; write report.json / report.html / PNGs to ``out`` if given.
 
     ``settings`` as :func:`detect_data` (seed, steps, sr_time, n_seeds, trim, laws, law_level and the keywords of
-    :func:`nnphd.user.assess.assess`); the law level is checked before the file is read.
+    :func:`nnphd.user.assess.assess`); the law level is checked before the file is read.  ``max_rows``: the row
+    limit of :func:`nnphd.user.recording.load_trajectories`.
     """
     from nnphd.user.recording import load_trajectories
 
     _check_law_level(settings.get("law_level", "auto"))
     if progress is not None:
         progress(0, 1, "reading the file")
-    ud = load_trajectories(path, angles)
+    ud = load_trajectories(path, angles, max_rows=max_rows)
     return detect_data(ud, out, progress=progress, **settings)[0]
 
 
@@ -83,6 +91,13 @@ def detect_data(
     data, info, trim = _dataset(ud, trim)
     row_err = info.pop("_rows", None)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
+    for tr in info["trajectories"]:
+        kept = tr["kept"][1] - tr["kept"][0]
+        if kept < MIN_ROWS:  # only an explicit trim=True gets here: "auto" does not trim so far
+            raise DataError(
+                f"{path}: trimming the ends of trajectory {tr['id']} leaves {kept} of its "
+                f"{tr['n_samples']} rows; at least {MIN_ROWS} are needed: do not trim (--trim no)"
+            )
     say("λ-sweep and trust checks")
     pc = info["per_coordinate"]
     res = assess(

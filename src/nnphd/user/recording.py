@@ -22,8 +22,13 @@ Every problem raises :class:`DataError` (a ``ValueError``) with a one-line messa
 unreadable file, extension other than .csv/.npz, empty file or header only, a header of numbers, ragged rows,
 duplicate names, no ``t``, no coordinate, ``_dot``/``_ddot`` without its coordinate, an angle that is not a
 coordinate, non-numeric or empty cells, NaN/inf, non-integer ``traj``, t not strictly increasing within a trajectory,
-fewer than ``MIN_SAMPLES`` = 7 samples in a trajectory (two windows, 5 and 7, are needed to measure the bias; not
-required when every ``_dot`` and ``_ddot`` is given), and all coordinates constant.  Any strictly increasing sampling
+fewer than ``MIN_ROWS`` = 8 samples in a trajectory (two windows, 5 and 7, are needed to measure the bias, and the
+training holds rows out), and all coordinates constant.  Units: any, as long as the numbers stay in the ranges
+checked by :func:`_check_scales` (values within ±1e30, a time span within 1e±15, every moving coordinate's spread
+within 1e±30 and at least 1e-12 of its values); outside them the message says which column to rescale.  Trajectory
+ids are parsed exactly and must lie within ±2⁵³.  A file with one field per line that holds ``;``, tabs or ``|`` is
+reported as separated by that character (only commas are read).  CSV files are streamed into arrays
+``CSV_CHUNK`` rows at a time.  Any strictly increasing sampling
 is accepted.  :func:`suggest_angles` lists coordinates not declared as angles that look like angles (name, wrapped
 values, whole turns), for a report.
 """
@@ -40,14 +45,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nnphd.io.errors import DataError
+from nnphd.user.limits import MAX_ABS, MAX_ID, MAX_ROWS, MIN_RESOLUTION, MIN_ROWS, Q_SPREAD, T_SPAN
 from nnphd.user.localpoly import MIN_SAMPLES
 from nnphd.user.sampling import _grid_step
 
-__all__ = ["DataError", "Trajectory", "UserData", "MIN_SAMPLES", "load_trajectories", "suggest_angles"]
-
-
-class DataError(ValueError):
-    """A user data file that cannot be used; the message is one line naming what is wrong and what was expected."""
+__all__ = ["DataError", "Trajectory", "UserData", "MIN_SAMPLES", "MIN_ROWS", "load_trajectories", "suggest_angles"]
 
 
 # ---- records ------------------------------------------------------------------------------------------------------
@@ -99,21 +102,24 @@ class UserData:
 class _Rows:
     """How to name data row i in messages: CSV rows are 1-based with their file line, NPZ rows 0-based indices."""
 
-    def __init__(self, lines: list[int] | None):
-        self.lines = lines
+    def __init__(self, lines, offset: int = 0):
+        self.lines = lines  # file line of each data row from ``offset`` on (None for NPZ)
+        self.offset = offset
 
     def __call__(self, i: int) -> str:
         i = int(i)
         if self.lines is None:
             return f"index {i}"
-        return f"row {i + 1} (line {self.lines[i]})"
+        return f"row {i + 1} (line {int(self.lines[i - self.offset])})"
 
 
-def load_trajectories(path, angles: Sequence[str] = ()) -> UserData:
+def load_trajectories(path, angles: Sequence[str] = (), max_rows: int | None = None) -> UserData:
     """Read and validate a CSV (header required) or NPZ trajectory file; see the module docstring for the format.
 
-    ``angles`` names the angular coordinates.  Raises :class:`DataError` on any problem.
+    ``angles`` names the angular coordinates.  A file of more than ``max_rows`` data rows (default MAX_ROWS) is
+    refused as soon as the reader gets there.  Raises :class:`DataError` on any problem.
     """
+    max_rows = MAX_ROWS if max_rows is None else int(max_rows)
     path = os.fspath(path)
     if isinstance(angles, str):
         angles = (angles,)
@@ -124,30 +130,86 @@ def load_trajectories(path, angles: Sequence[str] = ()) -> UserData:
         raise DataError(f"{path}: file not found")
     if os.path.isdir(path):
         raise DataError(f"{path}: is a directory, expected a .csv or .npz file")
-    columns, rows = _read_csv(path) if ext == ".csv" else _read_npz(path)
+    columns, rows = _read_csv(path, max_rows) if ext == ".csv" else _read_npz(path, max_rows)
     return _validate(path, columns, rows, tuple(angles))
 
 
-def _read_csv(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
+def _read_csv(path: str, max_rows: int) -> tuple[dict[str, np.ndarray], _Rows]:
+    """Stream the file into float64 columns, CSV_CHUNK rows at a time: memory is the arrays (8 bytes per cell and
+    one line number per row), never the text of the whole file."""
+    header, header_line, lines = None, 0, []
+    chunks: dict[str, list[np.ndarray]] = {}
+    pending: list[list[str]] = []
+    pending_lines: list[int] = []
+    n_done = 0
+
+    def flush() -> None:
+        nonlocal n_done
+        if not pending:
+            return
+        rows = _Rows(pending_lines, offset=n_done)
+        for j, name in enumerate(header):
+            cells = [rec[j] for rec in pending]
+            chunks[name].append(_csv_ids(path, cells, rows) if name == "traj" else _csv_floats(path, name, cells, rows))
+        lines.append(np.asarray(pending_lines, dtype=np.int64))
+        n_done += len(pending)
+        pending.clear()
+        pending_lines.clear()
+
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             reader = csv.reader(fh)
-            header, records, lines = None, [], []
             for rec in reader:
                 if not rec or all(not f.strip() for f in rec):
                     continue  # blank line
                 if header is None:
                     header = [f.strip() for f in rec]
                     header_line = reader.line_num
+                    _check_header(path, header, header_line)
+                    chunks = {name: [] for name in header}
                     continue
-                records.append(rec)
-                lines.append(reader.line_num)
+                if len(rec) != len(header):
+                    where = _Rows([reader.line_num], offset=n_done + len(pending))(n_done + len(pending))
+                    raise DataError(
+                        f"{path}: {where} has {len(rec)} fields; the header has {len(header)} ({','.join(header)})"
+                    )
+                if n_done + len(pending) >= max_rows:
+                    raise DataError(_too_many(path, max_rows))
+                pending.append(rec)
+                pending_lines.append(reader.line_num)
+                if len(pending) >= CSV_CHUNK:
+                    flush()
+            flush()
     except UnicodeDecodeError:
         raise DataError(f"{path}: not a UTF-8 text file; expected a CSV file with a header line") from None
     except (OSError, csv.Error) as e:
         raise DataError(f"{path}: cannot read the file ({e.__class__.__name__}: {e})") from None
     if header is None:
         raise DataError(f"{path}: the file is empty; expected a header line (e.g. 't,x') and data rows")
+    if n_done == 0:
+        raise DataError(f"{path}: no data rows after the header; expected at least one row of numbers")
+    columns = {name: np.concatenate(parts) for name, parts in chunks.items()}
+    return columns, _Rows(np.concatenate(lines))
+
+
+def _too_many(path: str, max_rows: int) -> str:
+    return (
+        f"{path}: more than {max_rows:,} data rows; expected at most {max_rows:,} (thin the file, e.g. keep every "
+        "k-th row, or split it into shorter recordings; --max-rows raises the limit)"
+    )
+
+
+CSV_CHUNK = 65536  # rows converted to arrays at a time while reading a CSV file
+
+
+def _check_header(path: str, header: list[str], header_line: int) -> None:
+    if len(header) == 1:
+        for sep, name in ((";", "semicolon"), ("\t", "tab"), ("|", "vertical bar")):
+            if sep in header[0]:
+                raise DataError(
+                    f"{path}: the header {header[0]!r} is one field holding {name}s: the file seems {name}-separated; "
+                    "expected comma-separated values (e.g. 't,x')"
+                )
     if all(_is_number(f) for f in header):
         raise DataError(
             f"{path}: line {header_line} holds numbers, not a header; the first line must name the columns (e.g. 't,x')"
@@ -158,28 +220,52 @@ def _read_csv(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
     dup = sorted({h for h in header if header.count(h) > 1})
     if dup:
         raise DataError(f"{path}: duplicate column name {dup[0]!r} in the header")
-    if not records:
-        raise DataError(f"{path}: no data rows after the header; expected at least one row of numbers")
-    rows = _Rows(lines)
-    for i, rec in enumerate(records):
-        if len(rec) != len(header):
-            raise DataError(
-                f"{path}: {rows(i)} has {len(rec)} fields; the header has {len(header)} ({','.join(header)})"
-            )
-    columns = {}
-    for j, name in enumerate(header):
-        cells = [rec[j] for rec in records]
-        try:
-            columns[name] = np.array(cells, dtype=np.float64)
-        except ValueError:
-            i = next(i for i, c in enumerate(cells) if not _is_number(c))
-            what = "is empty" if not cells[i].strip() else f"{cells[i].strip()!r} is not a number"
-            raise DataError(f"{path}: column {name!r} {rows(i)}: {what}; expected a number") from None
-    return columns, rows
 
 
-def _read_npz(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
+def _csv_floats(path: str, name: str, cells: list[str], rows: _Rows) -> np.ndarray:
     try:
+        return np.array(cells, dtype=np.float64)
+    except ValueError:
+        i = next(i for i, c in enumerate(cells) if not _is_number(c))
+        what = "is empty" if not cells[i].strip() else f"{cells[i].strip()!r} is not a number"
+        raise DataError(f"{path}: column {name!r} {rows(rows.offset + i)}: {what}; expected a number") from None
+
+
+def _csv_ids(path: str, cells: list[str], rows: _Rows) -> np.ndarray:
+    """Trajectory ids parsed exactly (an integer literal as an int, not through float64, so 2⁵³ and 2⁵³+1 differ)."""
+    out = np.empty(len(cells), dtype=np.int64)
+    for i, c in enumerate(cells):
+        c = c.strip()
+        try:
+            v = int(c)
+        except ValueError:
+            try:
+                x = float(c)
+            except ValueError:
+                what = "is empty" if not c else f"{c!r} is not a number"
+                raise DataError(
+                    f"{path}: column 'traj' {rows(rows.offset + i)}: {what}; expected an integer trajectory id"
+                ) from None
+            if not math.isfinite(x) or x != round(x):
+                raise DataError(
+                    f"{path}: column 'traj' {rows(rows.offset + i)}: {c} is not an integer; "
+                    "expected integer trajectory ids"
+                ) from None
+            v = int(x)
+            if abs(v) >= MAX_ID:  # a float this large stands for several integers
+                v = MAX_ID + 1
+        if abs(v) > MAX_ID:
+            raise DataError(
+                f"{path}: column 'traj' {rows(rows.offset + i)}: trajectory id {c} is beyond ±2**53 = {MAX_ID}; "
+                "expected smaller integer ids (renumber the trajectories)"
+            )
+        out[i] = v
+    return out
+
+
+def _read_npz(path: str, max_rows: int) -> tuple[dict[str, np.ndarray], _Rows]:
+    try:
+        _npz_row_limit(path, max_rows)  # from the array headers, before any array is loaded
         with np.load(path, allow_pickle=False) as z:
             arrays = {name: z[name] for name in z.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
@@ -199,10 +285,78 @@ def _read_npz(path: str) -> tuple[dict[str, np.ndarray], _Rows]:
             raise DataError(
                 f"{path}: array {name!r} has {a.shape[0]} values but {first!r} has {n_rows}; expected equal lengths"
             )
-        columns[name] = a.astype(np.float64)
+        columns[name] = _npz_ids(path, a) if name == "traj" else a.astype(np.float64)
     if n_rows == 0:
         raise DataError(f"{path}: the arrays are empty; expected at least one row")
+    if n_rows > max_rows:
+        raise DataError(_too_many(path, max_rows))
     return columns, _Rows(None)
+
+
+def _npz_row_limit(path: str, max_rows: int) -> None:
+    with zipfile.ZipFile(path) as zf:
+        for member in zf.namelist():
+            if not member.endswith(".npy"):
+                continue
+            with zf.open(member) as fp:
+                version = np.lib.format.read_magic(fp)
+                read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                shape = read(fp)[0]
+            if shape and shape[0] > max_rows:
+                raise DataError(_too_many(path, max_rows))
+
+
+def _npz_ids(path: str, a: np.ndarray) -> np.ndarray:
+    """An NPZ 'traj' array as exact int64 ids (integers within ±2⁵³; floats must be whole numbers below 2⁵³)."""
+    if a.dtype.kind == "f":
+        bad = ~np.isfinite(a) | (a != np.round(a)) | (np.abs(a) >= MAX_ID)
+    else:
+        bad = (a > MAX_ID) | (a < -MAX_ID) if a.dtype.kind == "i" else a > np.uint64(MAX_ID)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DataError(
+            f"{path}: array 'traj' index {i}: {a[i]!r} is not an integer id within ±2**53 = {MAX_ID}; "
+            "expected integer trajectory ids (renumber the trajectories)"
+        )
+    return a.astype(np.int64)
+
+
+def _check_scales(path: str, columns: dict[str, np.ndarray], coords: tuple[str, ...], rows: _Rows) -> None:
+    """Units: nnphd works in any units whose numbers stay within the ranges it was checked on (MAX_ABS, T_SPAN,
+    Q_SPREAD, MIN_RESOLUTION; the same verdict and law at scales 1e±30 of q and 1e±15 of t, see the README).
+    Outside them, powers and squares of the data over- or underflow float64: refuse, naming the column and a fix."""
+    fix = "express it in other units (multiply the column by a power of ten)"
+    for name, v in columns.items():
+        if name == "traj" or not len(v):
+            continue
+        i = int(np.argmax(np.abs(v)))
+        if abs(v[i]) > MAX_ABS:
+            raise DataError(
+                f"{path}: column {name!r} {rows(i)}: {float(v[i]):.3g} is beyond ±{MAX_ABS:.0e}; "
+                f"expected values within ±{MAX_ABS:.0e}: {fix}"
+            )
+    span = float(np.ptp(columns["t"]))
+    if span > 0 and not (T_SPAN[0] <= span <= T_SPAN[1]):
+        raise DataError(
+            f"{path}: column 't' spans {span:.3g}; expected a time span within [{T_SPAN[0]:.0e}, {T_SPAN[1]:.0e}]: "
+            f"{fix}"
+        )
+    for c in coords:
+        v = columns[c]
+        spread = float(np.ptp(v))
+        if spread == 0:
+            continue
+        if not (Q_SPREAD[0] <= spread <= Q_SPREAD[1]):
+            raise DataError(
+                f"{path}: column {c!r} varies by {spread:.3g}; expected a spread (max − min) within "
+                f"[{Q_SPREAD[0]:.0e}, {Q_SPREAD[1]:.0e}]: {fix}"
+            )
+        big = float(np.max(np.abs(v)))
+        if spread < MIN_RESOLUTION * big:
+            raise DataError(
+                f"{path}: column {c!r} varies by only {spread:.3g} around {big:.3g} (float64 keeps ~16 digits); "
+                f"expected a spread of at least {MIN_RESOLUTION:.0e} of its values: subtract a constant offset"
+            )
 
 
 def _is_number(s: str) -> bool:
@@ -238,16 +392,10 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
                 f"{path}: column {name!r} {rows(i)}: {float(columns[name][i])!r} is not finite; "
                 "expected a finite number (no NaN or inf)"
             )
+    _check_scales(path, columns, coords, rows)
     n_rows = columns["t"].shape[0]
     if "traj" in columns:
-        ids = columns["traj"]
-        bad = ids != np.round(ids)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise DataError(
-                f"{path}: column 'traj' {rows(i)}: {float(ids[i])!r} is not an integer; expected integer trajectory ids"
-            )
-        ids = ids.astype(np.int64)
+        ids = columns["traj"]  # exact int64, checked by the reader
     else:
         ids = np.zeros(n_rows, dtype=np.int64)
     _, first = np.unique(ids, return_index=True)
@@ -255,7 +403,6 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
 
     given_qd = tuple(f"{c}_dot" in columns for c in coords)
     given_qdd = tuple(f"{c}_ddot" in columns for c in coords)
-    need_estimates = not (all(given_qd) and all(given_qdd))
     q_all = np.stack([columns[c] for c in coords], axis=1)
     nan = np.full(n_rows, np.nan)
     qd_all = np.stack([columns.get(f"{c}_dot", nan) for c in coords], axis=1)
@@ -275,15 +422,11 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
                 f"{float(t[k])!r} after {float(t[k - 1])!r}); expected strictly increasing t within a "
                 "trajectory"
             )
-        if len(idx) == 1 and need_estimates:
+        if len(idx) < MIN_ROWS:
+            what = f"a single sample ({rows(idx[0])})" if len(idx) == 1 else f"{len(idx)} samples"
             raise DataError(
-                f"{path}: {label} has a single sample ({rows(idx[0])}); at least {MIN_SAMPLES} samples "
-                "per trajectory are needed to estimate derivatives"
-            )
-        if len(idx) < MIN_SAMPLES and need_estimates:
-            raise DataError(
-                f"{path}: {label} has {len(idx)} samples; at least {MIN_SAMPLES} per trajectory are "
-                "needed to estimate derivatives (or give every '<coord>_dot' and '<coord>_ddot' column)"
+                f"{path}: {label} has {what}; at least {MIN_ROWS} per trajectory are needed (derivative "
+                "estimates and the training's held-out rows)"
             )
         trajectories.append(Trajectory(id=int(tid), t=t, q=q_all[idx], qd=qd_all[idx], qdd=qdd_all[idx], rows=idx))
 

@@ -2,11 +2,15 @@
 ``demo`` (the commands in :mod:`nnphd.cli.paper` and :mod:`nnphd.cli.detect`, shared pieces in
 :mod:`nnphd.cli.common`).
 
-Bad input gives a one-line ``error: ...`` on stderr and exit code 2, with nothing written.
+Bad input gives a one-line ``error: ...`` on stderr and exit code 2, with nothing written (an ``--out`` folder the run
+created is removed again); an interrupt exits 130; a defect of nnphd gives one ``error: internal error ...`` line and
+exit code 1 (``NNPHD_TRACEBACK=1`` shows the traceback).  Each command claims its ``--out`` folder
+(:func:`nnphd.io.outdir.claim_out_dir`): a second run into the same folder is refused while the first runs.
 """
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -15,6 +19,8 @@ import typer
 from nnphd.cli import detect as _detect  # noqa: F401  (registers the command)
 from nnphd.cli import paper as _paper  # noqa: F401  (registers the commands)
 from nnphd.cli.common import InputError, _ClickException, app
+from nnphd.io.errors import DataError
+from nnphd.io.outdir import release_out_dirs
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -31,12 +37,8 @@ def main(argv: list[str] | None = None) -> int:
             return _interrupted(args, out_before)
         if isinstance(rc, int) and rc:
             return rc
-    except InputError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except MissingExtra as e:  # an optional dependency of the command is not installed
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    except (InputError, DataError, MissingExtra) as e:  # bad input (also found mid-run), a missing optional extra
+        return _failed(args, out_before, str(e), 2)
     except typer.Exit as e:
         return getattr(e, "exit_code", 0)
     except (typer.Abort, KeyboardInterrupt):
@@ -48,7 +50,28 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         print(f"error: {e.format_message()}", file=sys.stderr)
         return getattr(e, "exit_code", 2) or 2
+    except MemoryError:
+        return _failed(args, out_before, "out of memory; use a smaller file (fewer rows) or fewer --steps", 1)
+    except Exception as e:  # a defect of nnphd: one line and exit 1; NNPHD_TRACEBACK=1 shows the traceback
+        if os.environ.get("NNPHD_TRACEBACK"):
+            raise
+        msg = f"internal error ({type(e).__name__}: {_one_line(e)}); please report it, with NNPHD_TRACEBACK=1 output"
+        return _failed(args, out_before, msg, 1)
+    finally:
+        release_out_dirs()
     return 0
+
+
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split())
+    return text[:300] + ("…" if len(text) > 300 else "")
+
+
+def _failed(args: list[str], out_existed: bool | None, message: str, code: int) -> int:
+    """One ``error: ...`` line and ``code``; an --out folder this run created and left empty is removed."""
+    _remove_if_created_and_empty(args, out_existed)
+    print(f"error: {_one_line(message)}", file=sys.stderr)
+    return code
 
 
 def _out_dir(args: list[str]) -> Path | None:
@@ -69,14 +92,22 @@ def _interrupted(args: list[str], out_existed: bool | None) -> int:
     checkpoint is named (the same command resumes from it)."""
     d = _out_dir(args)
     msg = "error: interrupted"
-    if d is not None and d.is_dir():
-        left = list(d.iterdir())
-        if not left and out_existed is False:
-            d.rmdir()
-        elif any(f.name == ".checkpoint.npz" for f in left):
+    if not _remove_if_created_and_empty(args, out_existed) and d is not None and d.is_dir():
+        if any(f.name == ".checkpoint.npz" for f in d.iterdir()):
             msg += f"; the finished steps are kept in {d}: run the same command again to resume"
     print(msg, file=sys.stderr)
     return 130
+
+
+def _remove_if_created_and_empty(args: list[str], out_existed: bool | None) -> bool:
+    d = _out_dir(args)
+    if out_existed is False and d is not None and d.is_dir() and not any(d.iterdir()):
+        try:
+            d.rmdir()
+        except OSError:
+            return False
+        return True
+    return False
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -72,7 +72,7 @@ def sweep(
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
     from nnphd.engine.systems import get_system
     from nnphd.engine.train import parse_p
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
 
     # --- validate everything before any work
     try:
@@ -90,7 +90,7 @@ def sweep(
         sysm = get_system(system, **overrides)
         pp = parse_p(p)
         lams = _parse_lambdas(lambdas)
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -154,7 +154,7 @@ def discover(
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
     from nnphd.paper.discover import DISCOVERY_SYSTEMS
 
     try:
@@ -165,7 +165,7 @@ def discover(
         lam_v = lam
         if not (0 < lam_v < 1):
             raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {lam!r}")
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -253,10 +253,10 @@ def predict(
     out: str = typer.Option("out/predict", "--out", help="output directory for results.json and the figures"),
 ):
     """Extrapolate the damped double pendulum with NNPhD, an LNN and a black box (paper Fig. 4)."""
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
 
     try:
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -312,7 +312,7 @@ def study_lambda_p(
 ):
     """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
     from nnphd.engine.train import parse_p
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
     from nnphd.paper.lambda_p import LOSSES, TOY_SYSTEMS, p_label
 
     try:
@@ -327,7 +327,7 @@ def study_lambda_p(
         if len(set(syss)) != len(syss) or len({p_label(p) for p in pvals}) != len(pvals):
             raise InputError("--systems and --ps must not repeat an entry")
         lams = _parse_lambdas(lambdas)
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -385,13 +385,13 @@ def study_data_quality(
     out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
     from nnphd.paper.data_quality import DQ_GRID
 
     try:
         al = _parse_csv("--alphas", alphas, _fraction("--alphas"), DQ_GRID)
         be = _parse_csv("--betas", betas, _fraction("--betas"), DQ_GRID)
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -438,11 +438,11 @@ def reproduce(
     ),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
 
     out = out or ("out/reproduce-quick" if quick else "out/reproduce")
     try:
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -480,7 +480,7 @@ def demo_neptune(
 ):
     """Le Verrier again: Neptune located from Uranus' real JPL DE405 orbit by NNPhD."""
     from nnphd.astro.ephemeris import EphemerisUnavailable, available
-    from nnphd.io.results import ensure_writable_dir
+    from nnphd.io.outdir import claim_out_dir
 
     try:
         if not available():
@@ -488,7 +488,7 @@ def demo_neptune(
                 "the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
                 "(python3 dev.py setup installs them)"
             )
-        ensure_writable_dir(out)
+        claim_out_dir(out)
     except ValueError as e:
         raise InputError(str(e)) from None
     from nnphd.astro.neptune import print_summary, run_neptune_demo

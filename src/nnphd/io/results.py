@@ -10,20 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-
-def ensure_writable_dir(path: str | os.PathLike) -> Path:
-    """Create ``path`` if needed and check a file can be written there; ValueError with a one-line reason if not."""
-    if not str(path).strip():
-        raise ValueError("--out must name a directory, got an empty string")
-    p = Path(path)
-    try:
-        p.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".nnphd-probe-", dir=p)
-        os.close(fd)
-        os.unlink(tmp)
-    except OSError as e:
-        raise ValueError(f"--out {str(path)!r} is not a writable directory ({e.strerror or e})") from None
-    return p
+from nnphd.io.outdir import ensure_writable_dir  # noqa: F401  (re-exported: the writers' folder check)
 
 
 def _json_default(o):

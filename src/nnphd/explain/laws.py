@@ -39,6 +39,9 @@ from nnphd.explain.table import (
 __all__ = ["rank_laws"]
 
 
+LS_CELLS = 2**21  # t × ω cells per Lomb–Scargle call (16 MB per temporary)
+
+
 def _drive_omegas(t, r, segs, n_peaks: int = 3) -> list[float]:
     """Angular frequencies of the largest peaks of the residual's Lomb–Scargle spectrum (all components)."""
     from scipy.signal import lombscargle
@@ -53,7 +56,10 @@ def _drive_omegas(t, r, segs, n_peaks: int = 3) -> list[float]:
     for j in range(r.shape[1]):
         y = r[:, j] - r[:, j].mean()
         if np.any(y):
-            P += lombscargle(t, y, w, normalize=False)
+            # scipy evaluates the t × ω outer products at once (N·M·8 bytes per temporary: 3 GB each at 20000²):
+            # frequencies in chunks keep it to ~LS_CELLS cells; each frequency is computed alone, so P is unchanged
+            step = max(1, LS_CELLS // len(t))
+            P += np.concatenate([lombscargle(t, y, w[i : i + step], normalize=False) for i in range(0, len(w), step)])
     peaks = [i for i in range(1, len(w) - 1) if P[i] >= P[i - 1] and P[i] >= P[i + 1]]
     peaks.sort(key=lambda i: -P[i])
     return [float(w[i]) for i in peaks[:n_peaks]] or [float(w[int(np.argmax(P))])]

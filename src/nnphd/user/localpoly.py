@@ -126,23 +126,25 @@ class _Stencil:
     mom: np.ndarray
 
 
-def _uniform_stencil(y: np.ndarray, m: int, h: float, p: int = POLYORDER) -> _Stencil:
+def _uniform_stencil(y: np.ndarray, m: int, h: float, p: int = POLYORDER, rows: np.ndarray | None = None) -> _Stencil:
     """Savitzky–Golay (scipy's savgol_filter, mode='interp') with window m, order p on a uniform grid of spacing h,
-    at every row."""
+    at ``rows`` (every row if None)."""
     n = y.shape[0]
     half = m // 2
-    est, ns, mom = np.empty((2, n)), np.empty((2, n)), np.empty((2, n, 2))
+    rows = np.arange(n) if rows is None else np.asarray(rows)
+    R = rows.size
+    est, ns, mom = np.empty((2, R)), np.empty((2, R)), np.empty((2, R, 2))
     for d in (1, 2):
         w_c, ns_e, mom_c, mom_e = _sg_stats(m, d, p)
-        est[d - 1] = savgol_filter(y, m, p, deriv=d, delta=h, mode="interp")
+        est[d - 1] = savgol_filter(y, m, p, deriv=d, delta=h, mode="interp")[rows]
         nsd = np.full(n, float(np.sum(w_c**2)))
         nsd[:half], nsd[n - half :] = ns_e, ns_e[::-1]
         md = np.tile(mom_c, (n, 1))
         md[:half] = mom_e
         md[n - half :] = mom_e[::-1] * [(-1.0) ** (d + p + 1), (-1.0) ** (d + p + 2)]
-        ns[d - 1] = nsd / h ** (2 * d)
-        mom[d - 1] = md * [h ** (p + 1 - d), h ** (p + 2 - d)]
-    return _Stencil(np.arange(n), est, ns, mom)
+        ns[d - 1] = nsd[rows] / h ** (2 * d)
+        mom[d - 1] = md[rows] * [h ** (p + 1 - d), h ** (p + 2 - d)]
+    return _Stencil(rows, est, ns, mom)
 
 
 _CHUNK = 1 << 17  # rows × window elements per batch of the local fits
@@ -230,7 +232,7 @@ def _stencil(tg: np.ndarray, y: np.ndarray, m: int, p: int, dt: float | None, ro
     """Order-p q̇, q̈ with window m: Savitzky–Golay at every row on a uniform grid (dt given), else the local
     polynomial at ``rows`` (all if None)."""
     if dt is not None:
-        return _uniform_stencil(y, m, dt, p)
+        return _uniform_stencil(y, m, dt, p, rows)
     rows = np.arange(y.shape[0]) if rows is None else rows
     return _Stencil(rows, *_local_fit(tg, y, m, rows, p))
 
@@ -318,8 +320,12 @@ def _pair_r(rec) -> float:
 _SEARCH_ROWS = 2048  # on non-uniform grids, the window search uses at most this many rows (evenly spread)
 
 
-def _search_rows(n: int) -> np.ndarray | None:
-    return None if n <= _SEARCH_ROWS else np.unique(np.linspace(0, n - 1, _SEARCH_ROWS).round().astype(int))
+_SEARCH_ROWS_UNIFORM = 200_000  # on uniform grids (Savitzky–Golay, cheap), at most this many rows: memory bounded
+
+
+def _search_rows(n: int, uniform: bool = False) -> np.ndarray | None:
+    cap = _SEARCH_ROWS_UNIFORM if uniform else _SEARCH_ROWS
+    return None if n <= cap else np.unique(np.linspace(0, n - 1, cap).round().astype(int))
 
 
 def _grow_windows(tg, y, sigma, dt, p, rows) -> _OrderFits:
@@ -363,7 +369,7 @@ def _poly_coordinate(
     when ``ends`` is False.  Returns (qd, qdd, (m1, m2), (p1, p2), err_rows (2, N)).
     """
     n = y.shape[0]
-    rows = _search_rows(n) if dt is None else None
+    rows = _search_rows(n, uniform=dt is not None)
     fits = [_grow_windows(tg, y, sigma, dt, p, rows) for p in ORDERS if len(_window_grid(n, p)) >= 2]
     fits = [f for f in fits if f.p == POLYORDER or (f.decline() or 0.0) >= MIN_DECLINE_HIGH]
     interior = trim or (ends and (fits[0].decline() or 0.0) >= ROUGH_DECLINE)

@@ -10,6 +10,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from nnphd.engine.batching import by_rows
 from nnphd.engine.evidence import energy_trend
 from nnphd.engine.models import (
     ModelConfig,
@@ -102,6 +103,21 @@ def _accel_fn(cfg: ModelConfig):
     return accel
 
 
+RIDGE_ROWS = 20000  # rows of the time-dependence regressions (check d); more are thinned evenly
+
+
+def _thin(n: int, cap: int):
+    """(selected rows, map of row indices → positions among them): all rows up to ``cap``, else ``cap`` evenly
+    spaced ones (a trajectory keeps its evenly spaced rows)."""
+    if n <= cap:
+        return slice(None), lambda idx: idx
+    sel = np.unique(np.linspace(0, n - 1, cap).round().astype(int))
+    keep = np.zeros(n, bool)
+    keep[sel] = True
+    pos = np.cumsum(keep) - 1
+    return sel, lambda idx: pos[np.asarray(idx)[keep[np.asarray(idx)]]]
+
+
 def _l1(r) -> float:
     return float(np.mean(np.abs(r))) if np.size(r) else float("nan")
 
@@ -119,7 +135,7 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
     pts = lambda_sweep(train, params, A_tr, lams, k_sweep, "warm", progress=lambda *_: tick())
 
     def evaluate(p):
-        fc, fn, power, kin = (np.asarray(x) for x in _nnphd_eval(p, *arrays[:3], cfg))
+        fc, fn, power, kin = by_rows(_nnphd_eval, p, *arrays[:3], cfg=cfg)
         return fc, fn, power, kin, back(fc + fn - qdd), back(fn)
 
     evals = {lam: evaluate(pts[lam]) for lam in lams}
@@ -218,7 +234,7 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
         if k is not None:
             lp, _ = lnn_train(lp, A_tr, jnp.asarray(0.0, jnp.float64), k)
             tick()
-        ev = tuple(np.asarray(x) for x in _lnn_eval(lp["lnn"], *arrays[:2], arrays[3], cfg))
+        ev = by_rows(_lnn_eval, lp["lnn"], *arrays[:2], arrays[3], cfg=cfg)
         r = back(ev[0] - qdd)
         hist.append(_l1(r[te]))
         hist_tr.append(_l1(r[tr]) if np.all(np.isfinite(r[tr])) else np.inf)
@@ -237,26 +253,29 @@ def _one_seed(ctx: dict, seed: int, tick) -> dict:
     for k in jax.random.split(k_free, 1 + long_factor):
         fp, _ = ft(fp, A_tr, jnp.asarray(0.0, jnp.float64), k)
         tick()
-    r_free = back(np.asarray(_free_eval(fp, *arrays[:2], cfg)) - qdd)
+    r_free = back(by_rows(_free_eval, fp, *arrays[:2], cfg=cfg) - qdd)
     free_tr, free_te = _l1(r_free[tr]), _l1(r_free[te])
 
     # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
     # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
-    resid = qdd - fc_l
+    # the design has hundreds of columns: beyond RIDGE_ROWS rows it is built on rows thinned evenly (memory bounded)
+    sel, sub = _thin(len(q), RIDGE_ROWS)
+    resid = (qdd - fc_l)[sel]
     X_s, X_t = time_design(
-        np.concatenate([np.asarray(embed_periodic(jnp.asarray(q), cfg.periodic)), qd], axis=1),
-        time_features(tp, float(tp.max() - tp.min()), oversample=2),
+        np.concatenate([np.asarray(embed_periodic(jnp.asarray(q[sel]), cfg.periodic)), qd[sel]], axis=1),
+        time_features(tp[sel], float(tp.max() - tp.min()), oversample=2),
     )
     errs = {"state": [], "timed": []}
+    segs_s, tr_s, te_s = [sub(x) for x in segs], sub(tr), sub(te)
     if len(segs) > 1:
-        for k, seg in enumerate(segs):
-            rest = np.concatenate([x for j, x in enumerate(segs) if j != k])
+        for k, seg in enumerate(segs_s):
+            rest = np.concatenate([x for j, x in enumerate(segs_s) if j != k])
             for name, X in (("state", X_s), ("timed", X_t)):
                 errs[name].append(_l1(back(resid[seg] - ridge_fit_predict(X[rest], resid[rest], X[seg]))))
     else:
         for name, X in (("state", X_s), ("timed", X_t)):
-            errs[name].append(_l1(back(resid[te] - ridge_fit_predict(X[tr], resid[tr], X[te]))))
-    w = np.asarray([len(x) for x in (segs if len(segs) > 1 else [te])], float)
+            errs[name].append(_l1(back(resid[te_s] - ridge_fit_predict(X[tr_s], resid[tr_s], X[te_s]))))
+    w = np.asarray([len(x) for x in (segs_s if len(segs) > 1 else [te_s])], float)
     e_state, e_timed = (float(np.average(errs[k], weights=w)) for k in ("state", "timed"))
     improved = float(np.mean(np.asarray(errs["timed"]) < np.asarray(errs["state"])))
 

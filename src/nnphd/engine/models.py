@@ -87,7 +87,7 @@ class ModelConfig:
         """This config with input standardisation set from data (per-column mean and std; std 0 → 1)."""
         x = np.concatenate([np.asarray(q, float), np.asarray(qd, float), np.asarray(t, float)[:, None]], axis=1)
         mu, sd = x.mean(axis=0), x.std(axis=0)
-        sd = np.where(sd > 1e-12 * max(1.0, float(np.max(np.abs(mu)))), sd, 1.0)
+        sd = np.where((sd > 0) & (sd > 1e-12 * np.abs(mu)), sd, 1.0)  # per column, relative: units must not matter
         return replace(self, input_shift=tuple(float(v) for v in mu), input_scale=tuple(float(v) for v in sd))
 
 

@@ -63,8 +63,10 @@ def _sym_diag(n, per):
 
 def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
     """The built-in candidate families for n coordinates (names for the parameters; v_rms (n,) the rms speeds)."""
-    eps = np.maximum(COULOMB_EPS * np.asarray(v_rms, float), 1e-12)
-    eps_all = float(max(COULOMB_EPS * np.sqrt(np.sum(np.square(v_rms))), 1e-12))
+    v_rms = np.asarray(v_rms, float)
+    eps = np.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)  # relative to the speeds: units must not matter
+    v_all = float(np.sqrt(np.sum(np.square(v_rms))))
+    eps_all = COULOMB_EPS * v_all if v_all > 0 else 1.0
     nm = list(names)
     out: list[Family] = []
     one = n == 1

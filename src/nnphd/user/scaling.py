@@ -56,7 +56,7 @@ def fit_scaling(data: Dataset, is_angle=None) -> Scaling:
     q, qd, qdd = data.q, data.qd, data.qdd
     mu = q.mean(axis=0)
     s_q = q.std(axis=0)
-    s_q = np.where(s_q > 1e-12 * np.maximum(1.0, np.abs(mu)), s_q, 1.0)
+    s_q = np.where((s_q > 0) & (s_q > 1e-12 * np.abs(mu)), s_q, 1.0)  # relative: units must not matter
     if is_angle is not None:
         ang = np.asarray(is_angle, bool)
         mu = np.where(ang, 0.0, mu)

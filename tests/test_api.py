@@ -66,7 +66,7 @@ def test_configure_sets_float64_and_the_flag(tmp_path):
         env={"XLA_FLAGS": ""},
     )
     assert r.returncode == 0, r.stderr
-    assert r.stdout.split() == ["True", nnphd.XLA_FLAG]
+    assert r.stdout.split() == ["True", *nnphd.ONE_THREAD_FLAGS.split(), nnphd.XLA_FLAG]
 
 
 CHECKS = """

@@ -9,6 +9,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "nnphd"
 # lower number = lower layer; a module may import its own layer and the layers below
 LAYERS = {
     "_extras": 0,
+    "parallel": 0,
     "io": 0,
     "engine": 1,
     "explain": 2,

@@ -21,22 +21,30 @@ __version__ = "0.1.0"
 __all__ = ["Law", "NNPhD", "Trajectories", "Verdict", "__version__", "configure", "load"]
 
 XLA_FLAG = "--xla_cpu_experimental_ynn_fusion_type="
+ONE_THREAD_FLAGS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 
 
-def configure(x64: bool = True, fast_cpu: bool = True) -> None:
-    """Process-wide settings for nnphd's own programs (the CLI, the tests, the benchmarks).
+def configure(x64: bool = True, fast_cpu: bool = True, one_thread: bool = True) -> None:
+    """Process-wide settings for nnphd's own programs (the CLI, the tests, the benchmarks, the Dask workers).
 
     ``x64``: turn on JAX float64 everywhere (the low-level modules, e.g. :mod:`nnphd.user.assess`, expect it).
     ``fast_cpu``: add ``--xla_cpu_experimental_ynn_fusion_type=`` to XLA_FLAGS — XLA:CPU (jax 0.10) routes small
-    matrix products through YNNPACK, 1.8–2.5× slower for these models (benchmarks/bench_speed.py); it only takes
-    effect if JAX has not started its backend yet, and NNPHD_KEEP_XLA_FLAGS=1 vetoes it.
+    matrix products through YNNPACK, 1.8–2.5× slower for these models (benchmarks/bench_speed.py).
+    ``one_thread``: one XLA thread (no Eigen thread pool). Eigen splits a matrix product's sums differently with
+    more threads, which changes the last bits and, after thousands of training steps, the 5th digit; with one
+    thread here and in every Dask worker (:mod:`nnphd.parallel`) the same seed gives the same numbers whatever the
+    number of workers. More cores are used through workers; one sweep alone runs ~20% slower than with the Eigen
+    pool on 2 cores (14.0 → 16.9 s, ``nnphd sweep --steps 500``).
+    The XLA flags only take effect if JAX has not started its backend yet; NNPHD_KEEP_XLA_FLAGS=1 vetoes both.
     """
-    if (
-        fast_cpu
-        and not os.environ.get("NNPHD_KEEP_XLA_FLAGS")
-        and "ynn_fusion_type" not in os.environ.get("XLA_FLAGS", "")
-    ):
-        os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " " + XLA_FLAG).strip()
+    flags = os.environ.get("XLA_FLAGS", "")
+    if not os.environ.get("NNPHD_KEEP_XLA_FLAGS"):
+        if one_thread and "multi_thread_eigen" not in flags:
+            flags += " " + ONE_THREAD_FLAGS
+        if fast_cpu and "ynn_fusion_type" not in flags:  # last: a flag after its empty value would be lost
+            flags += " " + XLA_FLAG
+        if flags.strip():
+            os.environ["XLA_FLAGS"] = flags.strip()
     if x64:
         import jax
 

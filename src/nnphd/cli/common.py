@@ -85,6 +85,24 @@ MAX_SEED = 2**32 - 1  # JAX and NumPy take seeds of up to 64 bits; 32 are plenty
 MAX_STEPS = 10**7  # training steps per run: more would allocate the minibatch keys of the whole scan at once
 
 
+def workers_option():
+    return typer.Option(
+        None,
+        "--workers",
+        min=1,
+        max=4096,
+        help="local Dask worker processes, one XLA thread each (default: one per core; 1: all in this process)",
+    )
+
+
+def scheduler_option():
+    return typer.Option(
+        None,
+        "--scheduler",
+        help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead of local workers",
+    )
+
+
 class InputError(Exception):
     """Bad user input: reported as one line, exit code 2."""
 

@@ -2,16 +2,33 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import typer
 
-from nnphd.cli.common import MAX_SEED, MAX_STEPS, InputError, LawLevel, Trim, _parse_lambdas, _progress, app, console
+from nnphd.cli.common import (
+    MAX_SEED,
+    MAX_STEPS,
+    InputError,
+    LawLevel,
+    Trim,
+    _parse_lambdas,
+    _progress,
+    app,
+    console,
+    scheduler_option,
+    workers_option,
+)
 from nnphd.user.limits import MAX_ROWS, MIN_ROWS
 
 
 @app.command()
 def detect(
-    file: str = typer.Argument(
-        ..., help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ"
+    files: list[str] = typer.Argument(
+        ...,
+        help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ; several files or a "
+        "folder: a batch (one report per file in OUT/<name>/, summary.csv/html)",
+        show_default=False,
     ),
     out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
     angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
@@ -51,6 +68,8 @@ def detect(
         "--trim",
         help="drop the ends of each trajectory, where the one-sided derivative estimates are ~20x worse",
     ),
+    workers: int | None = workers_option(),
+    scheduler: str | None = scheduler_option(),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
     from nnphd.io.outdir import claim_out_dir
@@ -64,6 +83,29 @@ def detect(
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
+        if len(files) > 1 or Path(files[0]).is_dir():
+            from nnphd.user.batch import expand_paths
+
+            paths = expand_paths(files)
+            claim_out_dir(out)
+        else:
+            paths = None
+            file = files[0]
+    except (ValueError, DataError) as e:
+        raise InputError(str(e)) from None
+    settings = dict(
+        seed=seed,
+        steps=steps,
+        n_seeds=repeats,
+        sr_time=sr_time,
+        laws=tuple(law or ()),
+        law_level=law_level.value,
+        trim=trim_v,
+        **extra,
+    )
+    if paths is not None:
+        return _batch(paths, out, ang, max_rows, workers, scheduler, settings)
+    try:
         ud = load_trajectories(file, ang, max_rows=max_rows)  # validate the file before anything is created
         from nnphd.explain.families import parse_law
 
@@ -76,19 +118,7 @@ def detect(
     from nnphd.user.detect import detect_data
 
     with _progress("detect: starting") as status:
-        rep, _ = detect_data(
-            ud,  # read once, above
-            out=out,
-            seed=seed,
-            steps=steps,
-            n_seeds=repeats,
-            sr_time=sr_time,
-            progress=status,
-            laws=tuple(law or ()),
-            law_level=law_level.value,
-            trim=trim_v,
-            **extra,
-        )
+        rep, _ = detect_data(ud, out=out, progress=status, **settings)  # the file is read once, above
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(
         f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
@@ -126,3 +156,40 @@ def detect(
     elif rep["blind"] and f is None:
         console.print("  formula: nothing readable", highlight=False)
     console.print(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)")
+
+
+def _batch(paths, out, angles, max_rows, workers, scheduler, settings) -> None:
+    """Several files: one report each, a summary table; exit 1 when a file failed (its error is in the summary)."""
+    import sys
+
+    from rich.table import Table
+
+    from nnphd.user.batch import detect_batch
+
+    with _progress(f"detect: {len(paths)} files") as status:
+        s = detect_batch(
+            paths, out, angles, max_rows=max_rows, workers=workers, scheduler=scheduler, progress=status, **settings
+        )
+    t = Table(title=f"nnphd detect — {s['n_files']} files (workers: {s['workers']})")
+    for col in ("file", "verdict", "confidence", "law", "time (s)", "error"):
+        t.add_column(col, justify="left")
+    for r in s["rows"]:
+        t.add_row(
+            r["file"],
+            r["status"],
+            "" if r["confidence"] is None else f"{r['confidence']:.2g}",
+            r["law"] or "",
+            "" if r["wall_time_s"] is None else f"{r['wall_time_s']:.0f}" + (" (cached)" if r["cached"] else ""),
+            r["error"] or "",
+        )
+    console.print(t)
+    console.print(
+        f"wrote {out}/summary.csv, summary.html, summary.json and one folder per file ({s['wall_time_s']:.0f} s)"
+    )
+    if s["failed"]:
+        first = next(r for r in s["rows"] if r["status"] == "error")
+        print(
+            f"error: {s['failed']} of {s['n_files']} files failed ({first['error']}); see {out}/summary.csv",
+            file=sys.stderr,
+        )
+        raise typer.Exit(1)

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import math
+import sys
 
 import typer
 from rich.table import Table
@@ -22,7 +23,9 @@ from nnphd.cli.common import (
     app,
     console,
     demo_app,
+    scheduler_option,
     study_app,
+    workers_option,
 )
 
 
@@ -309,6 +312,8 @@ def study_lambda_p(
     out: str = typer.Option(
         "out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"
     ),
+    workers: int | None = workers_option(),
+    scheduler: str | None = scheduler_option(),
 ):
     """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
     from nnphd.engine.train import parse_p
@@ -334,7 +339,17 @@ def study_lambda_p(
     from nnphd.paper.lambda_p import lambda_p_study
 
     with _progress("λ/p study (each sweep compiles first)") as bar:
-        res = lambda_p_study(steps=steps, seed=seed, lambdas=lams, ps=pvals, systems=syss, out=out, progress=bar)
+        res = lambda_p_study(
+            steps=steps,
+            seed=seed,
+            lambdas=lams,
+            ps=pvals,
+            systems=syss,
+            out=out,
+            progress=bar,
+            workers=workers,
+            scheduler=scheduler,
+        )
     t = Table(title=f"verdicts — {steps} steps per λ, seed {seed}, L_e on the test set")
     for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
         t.add_column(col, justify="right")
@@ -436,6 +451,8 @@ def reproduce(
     out: str | None = typer.Option(
         None, "--out", help="output directory (default out/reproduce or out/reproduce-quick)"
     ),
+    workers: int | None = workers_option(),
+    scheduler: str | None = scheduler_option(),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
     from nnphd.io.outdir import claim_out_dir
@@ -449,7 +466,7 @@ def reproduce(
     from nnphd.paper.reproduce import reproduce as run_reproduce
 
     with _progress("reproduce: starting") as bar:
-        s = run_reproduce(out=out, quick=quick, seed=seed, progress=bar)
+        s = run_reproduce(out=out, quick=quick, seed=seed, progress=bar, workers=workers, scheduler=scheduler)
     from nnphd.paper.reproduce import EXPERIMENTS, TITLES
 
     t = Table(title=f"nnphd reproduce ({s['mode']}, seed {seed}): the paper's claims (details in the report)")
@@ -471,6 +488,11 @@ def reproduce(
         f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s)"
     )
     console.print(f"wrote {out}/report.html and {out}/summary.json")
+    if s["failed"]:
+        k, e = next(iter(s["failed"].items()))
+        msg = f"{len(s['failed'])} units failed ({k}: {e}); the others are cached in {out}: rerun to resume"
+        print(f"error: {msg}", file=sys.stderr)
+        raise typer.Exit(1)
 
 
 @demo_app.command("neptune")

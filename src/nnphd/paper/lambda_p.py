@@ -58,10 +58,11 @@ from nnphd.engine.train import (
     validate_lambdas,
 )
 from nnphd.engine.verdict import MIN_RATIO
-from nnphd.io.progress import Progress
+from nnphd.io.progress import Progress, nested
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig5, plot_fig5_forces
 from nnphd.paper.sweep import plan_sweep
+from nnphd.parallel import Unit, run_units, runs_here
 
 __all__ = [
     "TOY_SYSTEMS",
@@ -238,6 +239,89 @@ def _lambda_p_subrun(
     return res
 
 
+def _validated(systems, ps, steps, seed, lambdas) -> tuple:
+    """(systems, losses, steps, seed, λ grid) of a λ/p study, checked and normalised."""
+    lams = tuple(sorted(set(validate_lambdas(lambdas))))
+    if not any(x < 1 for x in lams) or not any(x > 1 for x in lams):
+        raise ValueError("lambdas must contain values both below and above 1 (the transition is read across λ=1)")
+    if isinstance(steps, bool) or int(steps) != steps or steps < 4:
+        raise ValueError(f"steps must be an integer ≥ 4, got {steps!r}")
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise ValueError(f"seed must be an integer ≥ 0, got {seed!r}")
+    steps, seed = int(steps), int(seed)
+    pvals = [parse_p(p) for p in ps]
+    labels = [p_label(p) for p in pvals]
+    if not pvals or len(set(labels)) != len(labels):
+        raise ValueError(f"ps must be distinct losses, got {list(ps)!r}")
+    systems = tuple(systems)
+    for s in systems:
+        if s not in SYSTEMS or SYSTEMS[s].data != "gaussian":
+            raise ValueError(f"systems must be toy systems ({', '.join(TOY_SYSTEMS)}), got {s!r}")
+    if not systems or len(set(systems)) != len(systems):
+        raise ValueError(f"systems must be distinct, got {list(systems)!r}")
+
+    return systems, pvals, steps, seed, lams
+
+
+def study_units(
+    seed: int,
+    out: str | Path,
+    steps: int = 2000,
+    lambdas: Sequence[float] = PAPER_LAMBDAS,
+    ps: Sequence = LOSSES,
+    systems: Sequence[str] = TOY_SYSTEMS,
+    n_train: int = 1000,
+    n_test: int = 1000,
+    force_lambdas: Sequence[float] = FORCE_LAMBDAS,
+) -> list[Unit]:
+    """The sweeps of ``lambda_p_study(seed=seed, out=out, ...)`` as units (``nnphd reproduce`` runs them beside its
+    other units; the study then loads them from ``out``'s cache)."""
+    systems, pvals, steps, seed, lams = _validated(systems, ps, steps, seed, lambdas)
+    return lambda_p_units(systems, pvals, steps, seed, lams, Path(out), force_lambdas, n_train, n_test)
+
+
+def lambda_p_units(
+    systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress=None
+) -> list[Unit]:
+    """One :class:`nnphd.parallel.Unit` per (system, p) sweep, keyed ``"<system>/p=<p>"``; ``progress`` (for
+    in-process runs) follows every λ of every sweep."""
+    total = len(systems) * len(pvals) * len(lams)
+    units = []
+    for s in systems:
+        for p in pvals:
+            l = p_label(p)
+            base = len(units) * len(lams)
+            sub = outdir / "runs" / f"{s}_p{l}" if outdir is not None else None
+            kw = dict(
+                system=s, p=p, steps=steps, seed=seed, lambdas=lams, subdir=sub, force_lams=force_lambdas,
+                n_train=n_train, n_test=n_test, progress=nested(progress, f"{s} p={l}: done ", base, total),
+            )  # fmt: skip
+            units.append(Unit(f"{s}/p={l}", _lambda_p_subrun, kw))
+    return units
+
+
+def run_lambda_p_sweeps(
+    systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress, workers, scheduler
+) -> dict[str, dict[str, dict]]:
+    """Every (system, p) sweep (trained, or loaded from ``outdir``'s cache): {system: {p label: sub-run}}."""
+    here = runs_here(workers, scheduler, len(systems) * len(pvals))
+    units = lambda_p_units(
+        systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress if here else None
+    )
+    outs = run_units(units, workers, scheduler, progress=None if here else progress)
+    failed = [o for o in outs.values() if not o.ok]
+    if failed:
+        where = (
+            f"; the {len(units) - len(failed)} finished ones are cached in {outdir}: rerun to resume" if outdir else ""
+        )
+        raise RuntimeError(f"{len(failed)} of {len(units)} sweeps failed ({failed[0].key}: {failed[0].error}){where}")
+    runs: dict[str, dict[str, dict]] = {s: {} for s in systems}
+    for u in units:
+        s, l = u.key.split("/p=")
+        runs[s][l] = outs[u.key].value
+    return runs
+
+
 def _fmt(x, nd=3) -> str:
     return "—" if x is None else f"{x:.{nd}g}"
 
@@ -378,6 +462,8 @@ def lambda_p_study(
     n_train: int = 1000,
     n_test: int = 1000,
     force_lambdas: Sequence[float] = FORCE_LAMBDAS,
+    workers: int | None = 1,
+    scheduler: str | None = None,
 ) -> dict:
     """Fig. 5: λ-sweeps of the toy systems for every loss, verdicts, HO+LD alignment and forces, claims.
 
@@ -387,47 +473,23 @@ def lambda_p_study(
     (the sub-runs loaded from ``out`` instead of trained) and "wall_time_s". With ``out``: writes results.json,
     fig5.png (a–d L_e(λ) per loss; e, f learned vs true forces of HO+LD, p=1; g, h m_c, m_n vs λ) and
     fig5_forces.png (learned forces for every loss), and caches each sweep in out/runs/<system>_p<p>/.
+
+    The (system, p) sweeps are independent units of :func:`nnphd.parallel.run_units`: ``workers`` local worker
+    processes (1: here, in this process; None: one per core) or an existing Dask ``scheduler``. The numbers do not
+    depend on the number of workers. A sweep that fails is reported after the others have finished (and been cached).
     """
     t0 = time.perf_counter()
-    lams = tuple(sorted(set(validate_lambdas(lambdas))))
-    if not any(x < 1 for x in lams) or not any(x > 1 for x in lams):
-        raise ValueError("lambdas must contain values both below and above 1 (the transition is read across λ=1)")
-    if isinstance(steps, bool) or int(steps) != steps or steps < 4:
-        raise ValueError(f"steps must be an integer ≥ 4, got {steps!r}")
-    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be an integer ≥ 0, got {seed!r}")
-    steps, seed = int(steps), int(seed)
-    pvals = [parse_p(p) for p in ps]
+    systems, pvals, steps, seed, lams = _validated(systems, ps, steps, seed, lambdas)
     labels = [p_label(p) for p in pvals]
-    if not pvals or len(set(labels)) != len(labels):
-        raise ValueError(f"ps must be distinct losses, got {list(ps)!r}")
-    systems = tuple(systems)
-    for s in systems:
-        if s not in SYSTEMS or SYSTEMS[s].data != "gaussian":
-            raise ValueError(f"systems must be toy systems ({', '.join(TOY_SYSTEMS)}), got {s!r}")
-    if not systems or len(set(systems)) != len(systems):
-        raise ValueError(f"systems must be distinct, got {list(systems)!r}")
     outdir = ensure_writable_dir(out) if out is not None else None
 
-    total = len(systems) * len(pvals) * len(lams)
-    runs: dict[str, dict[str, dict]] = {}
-    k = 0
+    runs = run_lambda_p_sweeps(
+        systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress, workers, scheduler
+    )
     for s in systems:
-        runs[s] = {}
-        for p, l in zip(pvals, labels):
-            base = k
-
-            def prog(j, _n, msg, base=base, s=s, l=l):
-                if progress:
-                    progress(base + j, total, f"{s} p={l}: done {msg}")
-
-            if progress:
-                progress(base, total, f"{s} p={l}: training")
-            sub = outdir / "runs" / f"{s}_p{l}" if outdir is not None else None
-            r = _lambda_p_subrun(s, p, steps, seed, lams, sub, force_lambdas, n_train, n_test, prog)
+        for l in labels:
+            r = runs[s][l]
             r["transition"] = transition_sharpness([x["lam"] for x in r["table"]], [x["L_e"] for x in r["table"]])
-            runs[s][l] = r
-            k += len(lams)
 
     curves = {s: {l: runs[s][l]["table"] for l in labels} for s in systems}
     verdicts = []

@@ -33,8 +33,9 @@ from pathlib import Path
 from nnphd.io.cache import Cache
 from nnphd.io.html import bullets, details, figure_file, figures, page, section, table
 from nnphd.io.html import escape as _e
-from nnphd.io.progress import Progress
+from nnphd.io.progress import Progress, nested
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
+from nnphd.parallel import Outcome, Unit, n_workers, run_units, runs_here
 
 EXPERIMENTS = ("discover", "predict", "lambda-p", "data-quality")
 MARKER = "reproduce.json"
@@ -120,66 +121,127 @@ def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dic
     return res
 
 
+def _run_experiment(exp: str, name: str | None, d: Path, seed: int, kw: dict, progress: Progress | None) -> dict:
+    """Run one experiment (``name``: the discovery system) into ``d``; returns its results."""
+    if exp == "discover":
+        from nnphd.paper.discover import discover, write_discovery
+
+        r = discover(name, seed=seed, progress=progress, **kw)
+        write_discovery(r, d)
+        return r
+    if exp == "predict":
+        from nnphd.paper.predict import run_prediction
+
+        return run_prediction(seed=seed, out=d, progress=progress, **kw)
+    if exp == "lambda-p":
+        from nnphd.paper.lambda_p import lambda_p_study
+
+        return lambda_p_study(seed=seed, out=d, progress=progress, **kw)
+    from nnphd.paper.data_quality import data_quality_study
+
+    return data_quality_study(seed=seed, out=d, progress=progress, **kw)
+
+
+def experiment_unit(
+    exp: str, name: str | None, d: str, settings: dict, seed: int, kw: dict, progress: Progress | None = None
+) -> dict:
+    """One unit of ``reproduce`` (a module-level function, so a Dask worker can run it): the experiment's results
+    from ``d``'s cache when its marker records ``settings``, else computed, written and marked.
+    Returns {"result", "log"}."""
+    log: dict = {}
+    path = ensure_writable_dir(d)
+    res = _run_unit(path, settings, lambda: _run_experiment(exp, name, path, seed, kw, progress), log)
+    return {"result": res, "log": log}
+
+
+def _spread(units: list[Unit], outdir: Path, seed: int, lp_kw: dict) -> list[Unit]:
+    """For workers: the λ/p study (most of the time) as its 20 sweeps, unless its results are cached already; the
+    longest units first (the discovery systems, then the sweeps, then predict and data quality)."""
+    from nnphd.paper.lambda_p import study_units
+
+    lp = next(u for u in units if u.key == "lambda-p")
+    if Cache(outdir / "lambda-p", lp.kwargs["settings"]).load(MARKER) is not None:
+        return units
+    sweeps = [Unit(f"lambda-p/{u.key}", u.fn, u.kwargs) for u in study_units(seed, outdir / "lambda-p", **lp_kw)]
+    disc = [u for u in units if u.key.startswith("discover/")]
+    return disc + sweeps + [u for u in units if u.key not in ("lambda-p",) and not u.key.startswith("discover/")]
+
+
 def reproduce(
     out: str | Path = "out/reproduce",
     quick: bool = False,
     seed: int = 0,
     overrides: dict[str, dict] | None = None,
     progress: Progress | None = None,
+    workers: int | None = 1,
+    scheduler: str | None = None,
 ) -> dict:
-    """Run (or load from the cache) every experiment, write ``report.html`` and ``summary.json``; return the summary."""
+    """Run (or load from the cache) every experiment, write ``report.html`` and ``summary.json``; return the summary.
+
+    The experiments' units — each discovery system, predict, data quality and each (system, p) sweep of the λ/p
+    study — run through :func:`nnphd.parallel.run_units`: ``workers`` local processes (1: here; None: one per core)
+    or an existing Dask ``scheduler``. A unit that fails is reported in the summary (``failed``) and the report,
+    the others finish and are cached, and a rerun resumes.
+    """
     outdir = ensure_writable_dir(out)
     kw = plan(quick, overrides)
     t_start = time.perf_counter()
     runs: dict[str, dict] = {}
     results: dict[str, object] = {}
 
-    n_units = len(kw["discover"]["systems"]) + 3
-
-    def part(i: int, label: str) -> Progress | None:  # the progress of unit i, counted in units of the whole
-        if progress is None:
-            return None
-        return lambda done, tot, msg: progress(i, n_units, f"{label} ({done}/{tot}): {msg}")
-
-    # Fig. 3 / Table II: one unit per system
-    from nnphd.paper.discover import discover, write_discovery, write_table2
-
     dk = dict(kw["discover"])
     systems = list(dk.pop("systems"))
-    disc = []
-    for i, name in enumerate(systems):
+    specs = [  # (key, experiment, discovery system, folder, settings, keyword arguments)
         # "table2": how Table II is read (results cached by an older way are recomputed)
-        settings = {"system": name, "seed": seed, "table2": "joint law fit", **dk}
-        log: dict = {}
-        d = outdir / "discover" / name
+        (f"discover/{n}", "discover", n, outdir / "discover" / n, {"system": n, "seed": seed, "table2": "joint law fit", **dk}, dk)
+        for n in systems
+    ] + [(e, e, None, outdir / e, {"seed": seed, **kw[e]}, kw[e]) for e in EXPERIMENTS[1:]]  # fmt: skip
+    labels = {"predict": "predict", "lambda-p": "λ/p study", "data-quality": "data-quality study"}
+    here = runs_here(workers, scheduler, len(specs))
+    units = []
+    for i, (key, exp, name, d, settings, k) in enumerate(specs):
+        part = nested(progress, f"{labels.get(exp, key)}: ", i, len(specs)) if here else None
+        units.append(Unit(key, experiment_unit, dict(exp=exp, name=name, d=str(d), settings=settings, seed=seed, kw=k, progress=part)))  # fmt: skip
+    if not here:
+        units = _spread(units, outdir, seed, kw["lambda-p"])
+    outs = run_units(units, workers, scheduler, progress=None if here else progress)
+    if not here:  # the λ/p study itself, from its sweeps (cached by the units above): figures and claims, here
+        lp = [u for u in units if u.key == "lambda-p"][0] if "lambda-p" in outs else None
+        spec = next(sp for sp in specs if sp[0] == "lambda-p")
+        failed_sweeps = [o for key, o in outs.items() if key.startswith("lambda-p/") and not o.ok]
+        if lp is None and not failed_sweeps:
+            t0 = time.perf_counter()
+            try:
+                value = experiment_unit("lambda-p", None, str(spec[3]), spec[4], seed, spec[5])
+                value["log"]["cached"] = False
+                wall = sum(o.wall_time_s for key, o in outs.items() if key.startswith("lambda-p/"))
+                value["log"]["compute_time_s"] = wall + time.perf_counter() - t0
+                outs["lambda-p"] = Outcome("lambda-p", True, value, wall_time_s=time.perf_counter() - t0)
+            except Exception as e:  # contained like a unit's failure
+                outs["lambda-p"] = Outcome("lambda-p", False, error=f"{type(e).__name__}: {e}")
+        elif lp is None:
+            o = failed_sweeps[0]
+            outs["lambda-p"] = Outcome(
+                "lambda-p", False, error=f"{len(failed_sweeps)} sweeps failed ({o.key}: {o.error})"
+            )
+    failed = {}
+    disc = []
+    for key, exp, *_ in specs:
+        o = outs[key]
+        if not o.ok:
+            failed[key] = o.error
+            runs[key] = {"cached": False, "compute_time_s": o.wall_time_s, "error": o.error}
+            continue
+        runs[key] = {**o.value["log"], "where": o.where}
+        if exp == "discover":
+            disc.append(o.value["result"])
+        else:
+            results[exp] = o.value["result"]
+    from nnphd.paper.discover import write_table2
 
-        def run_one(name=name, d=d, i=i):
-            r = discover(name, seed=seed, progress=part(i, f"discover {name}"), **dk)
-            write_discovery(r, d)
-            return r
-
-        disc.append(_run_unit(d, settings, run_one, log))
-        runs[f"discover/{name}"] = log
-    write_table2(disc, outdir / "discover")
+    if disc:
+        write_table2(disc, outdir / "discover")
     results["discover"] = disc
-
-    from nnphd.paper.data_quality import data_quality_study
-    from nnphd.paper.lambda_p import lambda_p_study
-    from nnphd.paper.predict import run_prediction
-
-    others = {
-        "predict": lambda d, k: run_prediction(seed=seed, out=d, progress=part(len(systems), "predict"), **k),
-        "lambda-p": lambda d, k: lambda_p_study(seed=seed, out=d, progress=part(len(systems) + 1, "λ/p study"), **k),
-        "data-quality": lambda d, k: data_quality_study(
-            seed=seed, out=d, progress=part(len(systems) + 2, "data-quality study"), **k
-        ),
-    }
-    for exp, fn in others.items():
-        d = ensure_writable_dir(outdir / exp)
-        settings = {"seed": seed, **kw[exp]}
-        log = {}
-        results[exp] = _run_unit(d, settings, lambda fn=fn, d=d, k=kw[exp]: fn(d, k), log)
-        runs[exp] = log
 
     wall = time.perf_counter() - t_start
     claims = collect_claims(results)
@@ -193,6 +255,8 @@ def reproduce(
         "claims": claims,
         "claims_met": sum(c["met"] for c in claims),
         "claims_total": len(claims),
+        "failed": failed,  # unit → its error (the unit's experiment is missing from the claims and the report)
+        "workers": "in-process" if here else (scheduler or n_workers(workers, None, len(units))),
         "report": "report.html",
     }
     write_json(outdir / "summary.json", summary)
@@ -230,9 +294,9 @@ def _discover_claims(disc: list[dict]) -> list[dict]:
 
 def collect_claims(results: dict) -> list[dict]:
     """Every judged claim of every experiment as {experiment, claim, paper, ours, met}."""
-    claims = _discover_claims(results["discover"])
+    claims = _discover_claims(results.get("discover", []))
     for exp in EXPERIMENTS[1:]:
-        for c in results[exp]["claims"]:
+        for c in results[exp]["claims"] if exp in results else []:
             claims.append(
                 {
                     "experiment": exp,
@@ -395,12 +459,14 @@ def _data_quality_body(res: dict) -> str:
 
 def render_html(outdir: Path, summary: dict, results: dict) -> str:
     """The self-contained report: one section per experiment, figures embedded as data URIs and linked."""
-    bodies = {
-        "discover": _discover_body(results["discover"]),
-        "predict": _predict_body(results["predict"]),
-        "lambda-p": _lambda_p_body(results["lambda-p"]),
-        "data-quality": _data_quality_body(results["data-quality"]),
+    render = {
+        "discover": _discover_body,
+        "predict": _predict_body,
+        "lambda-p": _lambda_p_body,
+        "data-quality": _data_quality_body,
     }
+    bodies = {e: render[e](results[e]) for e in EXPERIMENTS if results.get(e)}
+    failed = summary.get("failed") or {}
     parts = ["<h1>nnphd — reproduction of the paper's experiments</h1>"]
     if summary["mode"] == "quick":
         parts.append(
@@ -417,7 +483,16 @@ def render_html(outdir: Path, summary: dict, results: dict) -> str:
         f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p>"
     )
     parts.append(bullets(f'<a href="#{e}">{_e(TITLES[e])}</a>' for e in EXPERIMENTS))
+    if failed:
+        parts.append(
+            '<p class="quick"><b>Failed units</b> (the others finished and are cached; run the same command again '
+            "to resume): " + "; ".join(f"<code>{_e(k)}</code>: {_e(v)}" for k, v in failed.items()) + "</p>"
+        )
     for exp in EXPERIMENTS:
+        if exp not in bodies:
+            errs = "; ".join(f"{k}: {v}" for k, v in failed.items() if k.split("/")[0] == exp)
+            parts.append(section(TITLES[exp], f'<p class="miss">Not run to the end: {_e(errs)}</p>', exp))
+            continue
         claims = [c for c in summary["claims"] if c["experiment"] == exp]
         settings = json.dumps(summary["settings"][exp], indent=1)
         units = {k: v for k, v in summary["runs"].items() if k.split("/")[0] == exp}

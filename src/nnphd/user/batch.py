@@ -1,0 +1,221 @@
+"""Many recordings at once (``nnphd detect a.csv b.csv …`` or a folder): one report per file, one summary table.
+
+Each file is one unit of :func:`nnphd.parallel.run_units` (local Dask workers, an existing cluster, or here in this
+process).  Its report goes to ``out/<name>/`` (report.json, report.html, figures; ``<name>`` is the file's stem, made
+unique); ``out/summary.csv``, ``summary.html`` and ``summary.json`` list every file's verdict, confidence, effect
+size and law — or the one-line error of a file that could not be used (a bad file does not stop the others).
+
+Resume: a finished file leaves ``out/<name>/batch.json`` with the file's SHA-256 and the settings; a rerun with the
+same settings skips every file whose content has not changed and runs the rest.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+from nnphd.io.cache import Cache
+from nnphd.io.html import escape, page, table
+from nnphd.io.progress import Progress
+from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
+from nnphd.parallel import Unit, n_workers, run_units
+
+__all__ = ["SUFFIXES", "expand_paths", "detect_batch", "detect_one"]
+
+SUFFIXES = (".csv", ".npz")
+MARKER = "batch.json"
+COLUMNS = ("name", "file", "status", "confidence", "effect", "law", "params", "wall_time_s", "cached", "error")
+
+
+def expand_paths(paths: Sequence[str | Path]) -> list[Path]:
+    """Files as given, folders as their ``*.csv`` / ``*.npz`` files (sorted; not recursive); an error names a path
+    that does not exist, a folder with no such file, and a file given twice."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES)
+            if not found:
+                raise ValueError(f"{p}: the folder holds no .csv or .npz file")
+            out.extend(found)
+        elif p.exists():
+            out.append(p)
+        else:
+            raise ValueError(f"{p}: no such file or folder")
+    seen = set()
+    for p in out:
+        r = p.resolve()
+        if r in seen:
+            raise ValueError(f"{p}: the file is given twice")
+        seen.add(r)
+    return out
+
+
+def _names(paths: Sequence[Path]) -> list[str]:
+    """A unique folder name per file: its stem, with ``-2``, ``-3`` … where stems repeat."""
+    names, used = [], set()
+    for p in paths:
+        base = "".join(c if c.isalnum() or c in "-_.+" else "_" for c in p.stem) or "file"
+        name, k = base, 1
+        while name.lower() in used or name.lower() in ("summary",):
+            k += 1
+            name = f"{base}-{k}"
+        used.add(name.lower())
+        names.append(name)
+    return names
+
+
+def _sha256(path: str | Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _row(name: str, path: str, rep: dict, cached: bool) -> dict:
+    law = (rep.get("law") or {}).get("law") or {}
+    formula = law.get("formula") or (rep.get("formula") or {}).get("formula") or {}
+    return {
+        "name": name,
+        "file": path,
+        "status": rep["status"],
+        "confidence": rep["confidence"],
+        "effect": rep.get("effect"),
+        "law": "; ".join(f"{k} = {v}" for k, v in formula.items()),
+        "params": {k: [v, law.get("stderr", {}).get(k)] for k, v in (law.get("params") or {}).items()},
+        "wall_time_s": rep.get("wall_time_s"),
+        "cached": cached,
+        "error": None,
+    }
+
+
+def detect_one(path: str, out: str, name: str, angles: tuple = (), max_rows: int | None = None, **settings) -> dict:
+    """One file of a batch (a module-level function, so a Dask worker can run it): its report in ``out`` (or the
+    cached one when ``out/batch.json`` records the same file content and settings); returns its summary row."""
+    from nnphd.user.detect import detect_file
+
+    key = {"file_sha256": _sha256(path), "angles": list(angles), "max_rows": max_rows, **settings}
+    cache = Cache(out, key)
+    if cache.load(MARKER) is not None:
+        try:
+            return _row(name, path, json.loads((Path(out) / "report.json").read_text()), True)
+        except (OSError, ValueError, KeyError, TypeError):
+            pass  # a damaged report: run the file again
+    rep = detect_file(path, out, angles=angles, max_rows=max_rows, **settings)
+    cache.save({"settings": key, "finished": time.time()}, MARKER)
+    return _row(name, path, rep, False)
+
+
+def detect_batch(
+    paths: Sequence[str | Path],
+    out: str | Path,
+    angles: Sequence[str] = (),
+    max_rows: int | None = None,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: Progress | None = None,
+    **settings,
+) -> dict:
+    """Run :func:`nnphd.user.detect.detect_file` on every file (folders expanded by :func:`expand_paths`), each into
+    ``out/<name>/``, as units on ``workers`` local processes (None: one per core; 1: here) or a Dask ``scheduler``;
+    write ``summary.csv``, ``summary.html`` and ``summary.json`` to ``out`` and return the summary (``rows`` in the
+    files' order, ``failed``: how many files gave an error)."""
+    t0 = time.perf_counter()
+    files = expand_paths(paths)
+    outdir = ensure_writable_dir(out)
+    names = _names(files)
+    units = [
+        Unit(
+            n,
+            detect_one,
+            dict(path=str(p), out=str(outdir / n), name=n, angles=tuple(angles), max_rows=max_rows, **settings),
+        )  # fmt: skip
+        for n, p in zip(names, files)
+    ]
+    outs = run_units(units, workers, scheduler, progress=progress)
+    rows = []
+    for u in units:
+        o = outs[u.key]
+        if o.ok:
+            rows.append({**o.value, "where": o.where})
+        else:
+            rows.append({c: None for c in COLUMNS} | {"name": u.key, "file": u.kwargs["path"], "status": "error", "error": o.error, "cached": False, "where": o.where})  # fmt: skip
+    summary = {
+        "rows": rows,
+        "n_files": len(rows),
+        "failed": sum(r["status"] == "error" for r in rows),
+        "counts": {s: sum(r["status"] == s for r in rows) for s in ("detected", "none", "inconclusive", "error")},
+        "workers": scheduler or n_workers(workers, None, len(units)),
+        "settings": {"angles": list(angles), "max_rows": max_rows, **settings},
+        "wall_time_s": time.perf_counter() - t0,
+        "compute_time_s": sum(outs[u.key].wall_time_s for u in units),
+    }
+    _write_summary(outdir, summary)
+    return summary
+
+
+def _cell(v) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, dict):
+        return "; ".join(f"{k} = {_cell(x[0])} ± {_cell(x[1])}" if isinstance(x, list) else f"{k} = {x}" for k, x in v.items())  # fmt: skip
+    return str(v)
+
+
+def _write_summary(outdir: Path, summary: dict) -> None:
+    buf = io.StringIO()
+    w = csv.writer(buf)
+    w.writerow(COLUMNS)
+    for r in summary["rows"]:
+        w.writerow([_cell(r.get(c)) for c in COLUMNS])
+    atomic_write_bytes(outdir / "summary.csv", buf.getvalue().encode())
+    write_json(outdir / "summary.json", summary)
+    rows = []
+    for r in summary["rows"]:
+        link = f'<a href="{escape(r["name"])}/report.html">{escape(r["name"])}</a>' if r["status"] != "error" else escape(r["name"])  # fmt: skip
+        st = escape(r["status"])
+        rows.append(
+            [
+                link,
+                escape(r["file"]),
+                f'<span class="st-{st}">{st}</span>',
+                escape(_cell(r["confidence"])),
+                escape(_cell(r["effect"])),
+                f"<code>{escape(r['law'])}</code>" if r.get("law") else "",
+                escape(_cell(r["params"])),
+                escape(_cell(r["wall_time_s"])),
+                "yes" if r["cached"] else "",
+                escape(r["error"] or ""),
+            ]
+        )
+    c = summary["counts"]
+    body = (
+        "<h1>nnphd detect — batch summary</h1>"
+        f"<p>{summary['n_files']} files: {c['detected']} detected, {c['none']} none, {c['inconclusive']} "
+        f"inconclusive, {c['error']} errors; workers: {escape(summary['workers'])}; wall time "
+        f"{summary['wall_time_s']:.0f} s (compute time of the files {summary['compute_time_s']:.0f} s).</p>"
+        + table(
+            [
+                "report",
+                "file",
+                "verdict",
+                "confidence",
+                "effect",
+                "law",
+                "parameters ± stderr",
+                "time (s)",
+                "cached",
+                "error",
+            ],  # fmt: skip
+            rows,
+            left=3,
+        )
+    )
+    atomic_write_bytes(outdir / "summary.html", page("nnphd detect — batch summary", body).encode())

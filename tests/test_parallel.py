@@ -1,0 +1,117 @@
+"""The execution layer (nnphd.parallel, Dask distributed): failures contained, the same numbers with 1 and 2 workers,
+a real local cluster that loses a worker mid-run and still delivers every result."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+import pytest
+
+from nnphd.paper.sweep import run_sweep
+from nnphd.parallel import WORKER_ENV, Outcome, Unit, n_workers, run_units, runs_here
+
+GRID = [("ho+ld", 0), ("ho+mf", 0), ("ho+ld", 1), ("ho+pf", 2)]
+SMALL = dict(p=1, steps=60, lambdas=(0.5, 2.0), n_train=64, n_test=64)
+
+
+def _units():
+    return [Unit(f"{s}/{seed}", run_sweep, dict(system=s, seed=seed, **SMALL)) for s, seed in GRID]
+
+
+def _numbers(outs: dict[str, Outcome]) -> dict[str, list[float]]:
+    return {k: [(r["L_e"], r["L_b"]) for r in o.value["table"]] for k, o in outs.items()}
+
+
+@pytest.fixture(scope="module")
+def in_process():
+    outs = run_units(_units(), workers=1)
+    assert all(o.ok and o.where == "in-process" for o in outs.values())
+    return _numbers(outs)
+
+
+def _boom(x):
+    if x == 2:
+        raise ValueError("unit two\nis broken")
+    return x * 10
+
+
+def test_in_process_failures_are_contained():
+    seen = []
+    outs = run_units([Unit(f"u{i}", _boom, {"x": i}) for i in range(4)], workers=1, on_outcome=seen.append)
+    assert list(outs) == ["u0", "u1", "u2", "u3"]  # the units' order
+    assert [outs[k].value for k in ("u0", "u1", "u3")] == [0, 10, 30]
+    bad = outs["u2"]
+    assert not bad.ok and bad.value is None
+    assert bad.error == "ValueError: unit two is broken"  # one line
+    assert [o.key for o in seen] == ["u0", "u1", "u2", "u3"]
+
+
+def test_argument_checks():
+    with pytest.raises(ValueError, match="unique"):
+        run_units([Unit("a", _boom, {"x": 0}), Unit("a", _boom, {"x": 1})], workers=1)
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="workers must be an integer"):
+            run_units([Unit("a", _boom, {"x": 0})], workers=bad)
+    assert run_units([], workers=3) == {}
+    # never more workers than units; an existing cluster is "0 local workers"
+    assert n_workers(8, None, 3) == 3 and n_workers(2, None, 10) == 2 and n_workers(4, "tcp://x:1", 9) == 0
+    assert runs_here(5, None, 1) and not runs_here(2, None, 2) and not runs_here(1, "tcp://x:1", 3)
+
+
+def test_two_workers_same_numbers(in_process):
+    """A local cluster of 2 single-threaded worker processes gives every unit bit for bit the numbers of the run in
+    this process (nnphd.configure() holds XLA to one thread here too)."""
+    outs = run_units(_units(), workers=2)
+    assert all(o.ok for o in outs.values()), {k: o.error for k, o in outs.items()}
+    assert {o.where for o in outs.values()} != {"in-process"}
+    assert len({o.where for o in outs.values()}) == 2  # both workers took units
+    assert _numbers(outs) == in_process
+
+
+def test_killed_worker_every_result_still_comes(in_process):
+    """A worker process SIGKILLed while the grid runs: its nanny starts a new one, the scheduler reruns the lost
+    unit, and every result arrives identical to the 1-worker run."""
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, env=dict(WORKER_ENV), silence_logs=50
+    ) as cluster:
+        with Client(cluster) as client:
+            pids = list(client.run(os.getpid).values())
+        assert len(pids) == 2
+        killed = []
+
+        def kill_one(_outcome):
+            if not killed:  # after the first unit finished, both workers are busy with the next ones
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        # the first unit's compile takes seconds: kill a worker while it is surely mid-unit, too
+        timer = threading.Timer(2.0, lambda: kill_one(None))
+        timer.start()
+        try:
+            outs = run_units(_units(), scheduler=cluster.scheduler_address, on_outcome=kill_one)
+        finally:
+            timer.cancel()
+        with Client(cluster) as client:
+            after = set(client.run(os.getpid).values())
+    assert killed and killed[0] not in after  # the worker was really killed (and replaced)
+    assert all(o.ok for o in outs.values()), {k: o.error for k, o in outs.items()}
+    assert _numbers(outs) == in_process
+
+
+def test_a_failing_unit_on_workers_is_reported_the_others_finish():
+    import sys
+
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this test module
+    try:
+        outs = run_units([Unit(f"u{i}", _boom, {"x": i}) for i in range(3)], workers=2)
+    finally:
+        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    assert [outs[k].ok for k in ("u0", "u1", "u2")] == [True, True, False]
+    assert [outs[k].value for k in ("u0", "u1")] == [0, 10]
+    assert outs["u2"].error == "ValueError: unit two is broken"

@@ -118,3 +118,29 @@ def test_cli_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--seed" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "r").exists()
+
+
+def test_two_workers_same_claims(run, tmp_path):
+    """On 2 local worker processes (the λ/p study's sweeps as units of their own) the claims — every number in
+    them — are those of the run in this process."""
+    _, summary, _ = run
+    two = reproduce(out=tmp_path, quick=True, seed=0, overrides=TINY, workers=2)
+    assert two["failed"] == {} and two["workers"] == 2
+    assert two["claims"] == summary["claims"]
+    assert set(two["runs"]) == set(summary["runs"])
+    assert (tmp_path / "lambda-p" / "runs" / "ho+ld_p1" / "results.json").is_file()  # the sweep ran as a unit
+    assert {r["where"] for k, r in two["runs"].items() if k != "lambda-p"} != {"in-process"}
+
+
+def test_a_failing_unit_is_reported_the_others_finish(run, tmp_path):
+    import shutil
+
+    out, summary, _ = run
+    shutil.copytree(out, tmp_path / "r")
+    bad = {**TINY, "data-quality": {**TINY["data-quality"], "alphas": [2.0]}}  # α outside [0, 1]: the unit raises
+    s = reproduce(out=tmp_path / "r", quick=True, seed=0, overrides=bad)
+    assert list(s["failed"]) == ["data-quality"] and "alphas" in s["failed"]["data-quality"]
+    assert all(s["runs"][k]["cached"] for k in s["runs"] if k != "data-quality")
+    assert {c["experiment"] for c in s["claims"]} == set(EXPERIMENTS) - {"data-quality"}
+    page = (tmp_path / "r" / "report.html").read_text()
+    assert "Failed units" in page and "Not run to the end" in page

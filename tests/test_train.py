@@ -166,6 +166,21 @@ def test_phase_transition_reduced(name):
         assert v["ratio"] < 2
 
 
+@pytest.mark.parametrize("name", ["ho+ld", "ho+cd", "ho+pf", "ho+mf", "ho+cg"])
+def test_phase_transition_reduced_float32(name):
+    """float32 training (what a GPU user may choose): the same verdicts, within the same bands, as float64."""
+    s = get_system(name)
+    cfg = ModelConfig(n=s.n, dtype="float32")
+    res = run_sweep(s, p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000, model_cfg=cfg)
+    assert res["settings"]["model"]["dtype"] == "float32"
+    v = res["verdict"]
+    assert v["new_physics"] == (not s.conservative), v
+    if not s.conservative:
+        assert v["ratio"] > 3 and v["L_above"] > 0.1
+    else:
+        assert v["ratio"] < 2
+
+
 def test_verdict_exact_fit_below_one():
     v = verdict(_pts([0.0, 0.0, 0.0, 0.0, 0.3, 0.3, 0.3]), force_norm=1.0)
     assert v.L_below == 0.0 and v.new_physics and v.ratio > 1e9

@@ -187,7 +187,9 @@ class NNPhD:
     ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``laws``: your candidate
     laws (SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``); ``law_fit``: "auto" / "pointwise" / "trajectory";
     ``sr_time``: seconds of genetic symbolic regression for the fallback (0: none); ``trim``: drop the ends of
-    each trajectory ("auto"); further keywords go to :func:`nnphd.user.assess.assess`.
+    each trajectory ("auto"); ``workers``: train the seeds on that many local Dask worker processes (default 1:
+    here; the numbers are the same), ``scheduler``: on an existing Dask cluster; further keywords go to
+    :func:`nnphd.user.assess.assess`.
 
     After ``fit``: ``verdict_`` (:class:`Verdict`), ``status_``, ``confidence_``, ``new_physics_``, ``law_``
     (:class:`Law` or None), ``report_`` (the JSON-ready report dict), ``names_``, ``angles_``.

@@ -41,7 +41,17 @@ from typing import Any
 from nnphd import ONE_THREAD_FLAGS, XLA_FLAG
 from nnphd.io.progress import Progress
 
-__all__ = ["Unit", "Outcome", "run_units", "runs_here", "n_workers", "default_workers", "WORKER_ENV", "worker_pids"]
+__all__ = [
+    "CompileClock",
+    "Unit",
+    "Outcome",
+    "run_units",
+    "runs_here",
+    "n_workers",
+    "default_workers",
+    "WORKER_ENV",
+    "worker_pids",
+]
 
 # each worker process: one XLA thread (no Eigen thread pool), one BLAS/OpenMP thread; the faster XLA:CPU setting of
 # nnphd.configure() too (set before the worker imports JAX, so it takes effect)
@@ -76,6 +86,7 @@ class Outcome:
     error: str | None = None
     wall_time_s: float = 0.0
     where: str = "in-process"
+    compile_time_s: float = 0.0  # of wall_time_s: JAX tracing, lowering and XLA compilation
 
     def to_dict(self) -> dict:
         return {
@@ -83,8 +94,43 @@ class Outcome:
             "ok": self.ok,
             "error": self.error,
             "wall_time_s": self.wall_time_s,
+            "compile_time_s": self.compile_time_s,
             "where": self.where,
         }
+
+
+# JAX's own duration events of a compilation (jax.monitoring): trace to a jaxpr, lower to MLIR, compile with XLA
+COMPILE_EVENTS = frozenset(
+    {
+        "/jax/core/compile/jaxpr_trace_duration",
+        "/jax/core/compile/jaxpr_to_mlir_module_duration",
+        "/jax/core/compile/backend_compile_duration",
+    }
+)
+
+
+class CompileClock:
+    """Seconds JAX spends compiling while the clock runs (``with CompileClock() as c: ...; c.seconds``), from
+    :mod:`jax.monitoring`'s duration events. Process-wide: exact when one unit runs at a time in the process (a
+    worker has one thread)."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+
+    def _listen(self, event: str, duration: float, **_kw) -> None:
+        if event in COMPILE_EVENTS:
+            self.seconds += float(duration)
+
+    def __enter__(self) -> CompileClock:
+        import jax.monitoring
+
+        jax.monitoring.register_event_duration_secs_listener(self._listen)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import jax.monitoring
+
+        jax.monitoring.unregister_event_duration_listener(self._listen)
 
 
 def default_workers() -> int:
@@ -115,15 +161,16 @@ def _one_line(e: BaseException) -> str:
     return text[:500] + ("…" if len(text) > 500 else "")
 
 
-def _call(fn: Callable[..., Any], kwargs: dict) -> tuple[Any, float, str]:
+def _call(fn: Callable[..., Any], kwargs: dict) -> tuple[Any, float, float, str]:
     """Run one unit in a worker: nnphd's process-wide settings (float64; the XLA flags came with the worker's
-    environment), then ``fn(**kwargs)``; returns (value, seconds, worker pid)."""
+    environment), then ``fn(**kwargs)``; returns (value, seconds, seconds of compilation, worker pid)."""
     from nnphd import configure
 
     configure()
     t0 = time.perf_counter()
-    value = fn(**kwargs)
-    return value, time.perf_counter() - t0, f"worker pid {os.getpid()}"
+    with CompileClock() as clock:
+        value = fn(**kwargs)
+    return value, time.perf_counter() - t0, clock.seconds, f"worker pid {os.getpid()}"
 
 
 def run_units(
@@ -160,8 +207,11 @@ def _run_here(units, progress, on_outcome) -> dict[str, Outcome]:
         if progress:
             progress(i, len(units), f"{u.key}: running")
         t0 = time.perf_counter()
+        clock = CompileClock()
         try:
-            oc = Outcome(u.key, True, u.fn(**u.kwargs), wall_time_s=time.perf_counter() - t0)
+            with clock:
+                value = u.fn(**u.kwargs)
+            oc = Outcome(u.key, True, value, wall_time_s=time.perf_counter() - t0, compile_time_s=clock.seconds)
         except (KeyboardInterrupt, SystemExit, MemoryError):
             raise
         except Exception as e:  # contained: reported in the outcome, the other units go on
@@ -206,8 +256,8 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
             for fut in as_completed(list(futures)):
                 key = futures[fut]
                 try:
-                    value, wall, where = fut.result()
-                    oc = Outcome(key, True, value, wall_time_s=wall, where=where)
+                    value, wall, compile_s, where = fut.result()
+                    oc = Outcome(key, True, value, wall_time_s=wall, where=where, compile_time_s=compile_s)
                 except (KeyboardInterrupt, SystemExit):
                     raise
                 except Exception as e:  # the unit raised, or its worker died more than `retries` times

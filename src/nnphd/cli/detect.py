@@ -118,7 +118,7 @@ def detect(
     from nnphd.user.detect import detect_data
 
     with _progress("detect: starting") as status:
-        rep, _ = detect_data(ud, out=out, progress=status, **settings)  # the file is read once, above
+        rep, _ = detect_data(ud, out=out, progress=status, workers=workers, scheduler=scheduler, **settings)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(
         f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
@@ -184,7 +184,8 @@ def _batch(paths, out, angles, max_rows, workers, scheduler, settings) -> None:
         )
     console.print(t)
     console.print(
-        f"wrote {out}/summary.csv, summary.html, summary.json and one folder per file ({s['wall_time_s']:.0f} s)"
+        f"wrote {out}/summary.csv, summary.html, summary.json and one folder per file ({s['wall_time_s']:.0f} s; "
+        f"JAX compilation {s['compile_time_s']:.0f} s of {s['compute_time_s']:.0f} s of compute)"
     )
     if s["failed"]:
         first = next(r for r in s["rows"] if r["status"] == "error")

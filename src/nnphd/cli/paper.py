@@ -398,6 +398,8 @@ def study_data_quality(
         None, "--betas", help="comma-separated imbalances β in [0,1] (default 0, 0.125, …, 1)"
     ),
     out: str = typer.Option("out/study-data-quality", "--out", help="output directory (results.json, fig6.png, cache)"),
+    workers: int | None = workers_option(),
+    scheduler: str | None = scheduler_option(),
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
     from nnphd.io.outdir import claim_out_dir
@@ -413,7 +415,9 @@ def study_data_quality(
     from nnphd.paper.data_quality import data_quality_study
 
     with _progress("data-quality study: starting") as bar:
-        res = data_quality_study(steps=steps, seed=seed, alphas=al, betas=be, out=out, progress=bar)
+        res = data_quality_study(
+            steps=steps, seed=seed, alphas=al, betas=be, out=out, progress=bar, workers=workers, scheduler=scheduler
+        )
     s = res["settings"]
     t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {steps} steps)")
     for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
@@ -485,7 +489,8 @@ def reproduce(
         console.print(f"loaded from the cache: {', '.join(cached)}")
     console.print(
         f"claims met: {s['claims_met']} of {s['claims_total']}; wall time {s['wall_time_s']:.0f} s "
-        f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s)"
+        f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s; JAX compilation in "
+        f"this run: {s['compile_time_s']:.0f} s; workers: {s['workers']})"
     )
     console.print(f"wrote {out}/report.html and {out}/summary.json")
     if s["failed"]:

@@ -41,6 +41,7 @@ from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig6
 from nnphd.paper.lambda_p import _FORMAT, ALIGN_TOL, NEAR_ZERO_FRACTION
+from nnphd.parallel import Unit, run_units
 
 __all__ = ["DQ_GRID", "data_quality_study"]
 
@@ -228,12 +229,15 @@ def data_quality_study(
     progress: Progress | None = None,
     n_train: int = 1000,
     n_test: int = 1000,
+    workers: int | None = 1,
+    scheduler: str | None = None,
 ) -> dict:
     """Fig. 6: L_e(α) of HO+CD at λ=10 on pie-shaped data, m_c(β), m_n(β) of HO+LD at λ=0.5 on imbalanced data.
 
     Returns a JSON-able dict with "settings", "alpha" and "beta" (the two tables and their settings), "claims"
     ({claim, ours, met}), "cached" and "wall_time_s". With ``out``: writes results.json and fig6.png, and caches the
-    two grids in out/alpha.json, out/beta.json (a repeated call with the same settings loads them).
+    two grids in out/alpha.json, out/beta.json (a repeated call with the same settings loads them). The two grids
+    are units of :func:`nnphd.parallel.run_units` (``workers``: 1 here, None one process per core; ``scheduler``).
     """
     t0 = time.perf_counter()
     if isinstance(steps, bool) or int(steps) != steps or steps < 4:
@@ -244,14 +248,36 @@ def data_quality_study(
     al = _check_grid(alphas, "alphas")
     be = _check_grid(betas, "betas")
     outdir = ensure_writable_dir(out) if out is not None else None
+    units = [
+        Unit(
+            kind,
+            _dq_grid_run,
+            dict(
+                kind=kind,
+                grid=g,
+                steps=steps,
+                seed=seed,
+                n_train=n_train,
+                n_test=n_test,
+                path=outdir / f"{kind}.json" if outdir else None,
+            ),
+        )  # fmt: skip
+        for kind, g in (("alpha", al), ("beta", be))
+    ]
+    finished: list[str] = []
+
+    def report(o) -> None:  # the progress of the two grids
+        finished.append(o.key)
+        if progress:
+            progress(len(finished), 2, "done" if len(finished) == 2 else f"{o.key} done")
+
     if progress:
-        progress(0, 2, f"HO+CD pie coverage: {len(al)} α at λ={DQ_LAM_ALPHA:g}")
-    ares = _dq_grid_run("alpha", al, steps, seed, n_train, n_test, outdir / "alpha.json" if outdir else None)
-    if progress:
-        progress(1, 2, f"HO+LD imbalance: {len(be)} β at λ={DQ_LAM_BETA:g}")
-    bres = _dq_grid_run("beta", be, steps, seed, n_train, n_test, outdir / "beta.json" if outdir else None)
-    if progress:
-        progress(2, 2, "done")
+        progress(0, 2, f"HO+CD pie coverage ({len(al)} α at λ={DQ_LAM_ALPHA:g}), HO+LD imbalance ({len(be)} β)")
+    outs = run_units(units, workers, scheduler, on_outcome=report)
+    bad = [o for o in outs.values() if not o.ok]
+    if bad:
+        raise RuntimeError(f"the {bad[0].key} grid failed: {bad[0].error}")
+    ares, bres = outs["alpha"].value, outs["beta"].value
     result = {
         "settings": {
             "steps": steps,

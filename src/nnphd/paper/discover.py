@@ -34,9 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nnphd.engine.data import trajectory_dataset
 from nnphd.engine.features import FEATURE_SETS, train_constrained
-from nnphd.engine.models import ModelConfig
 from nnphd.engine.systems import SYSTEMS, get_system
 from nnphd.engine.train import PAPER_LAMBDAS
 from nnphd.explain.laws import rank_laws
@@ -45,7 +43,7 @@ from nnphd.explain.sparse import sparse_formula
 from nnphd.explain.symbolic import genetic_formula
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.sweep import plan_sweep, run_sweep
 
 # the systems with a Table II row; each names its feature Lagrangian, hypothesis family, truth, goals and default
 # trajectory length in the catalogue (nnphd.engine.systems.System)
@@ -129,13 +127,12 @@ def discover(
     sysm = replace(sysm, n_steps=int(n_steps or sysm.discover_n_steps))
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
-    sw = run_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize, lambdas=sweep_lambdas)
+    # the trajectory and its standardisation are made once, for the sweep and the constrained fit
+    plan = plan_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize, lambdas=sweep_lambdas)
+    sw = run_sweep(sysm, plan=plan)
     say(f"constrained Lagrangian + UAN at λ = {lam:g}")
-    d = trajectory_dataset(sysm)
+    d, cfg = plan.train, plan.cfg  # the trajectory; ModelConfig(n) standardised on it (when standardize)
     fl = FEATURE_SETS[sysm.feature_set]
-    cfg = ModelConfig(n=sysm.n)
-    if standardize:
-        cfg = cfg.standardized(d.q, d.qd, d.t)
     cf = train_constrained(d, fl, lam=lam, steps=steps, seed=seed, cfg=cfg)
     say("the law: candidates fitted jointly with the constrained Lagrangian")
     table = joint_laws(sysm, d, fl, cf, seed)

@@ -318,7 +318,7 @@ def run_lambda_p_sweeps(
     runs: dict[str, dict[str, dict]] = {s: {} for s in systems}
     for u in units:
         s, l = u.key.split("/p=")
-        runs[s][l] = outs[u.key].value
+        runs[s][l] = {**outs[u.key].value, "compile_time_s": outs[u.key].compile_time_s}
     return runs
 
 
@@ -559,6 +559,7 @@ def lambda_p_study(
         "claims": _lambda_p_claims(runs, systems, labels, lams),
         "cached": [f"{v['system']}/p={v['p']}" for v in verdicts if v["cached"]],
         "train_wall_time_s": sum(v["train_wall_time_s"] for v in verdicts),  # of the sweeps, when they were trained
+        "compile_time_s": sum(runs[s][l]["compile_time_s"] for s in systems for l in labels),  # in this call
         "wall_time_s": None,  # of this call (small when the sweeps come from the cache)
         "jax_version": jax.__version__,
     }

@@ -33,7 +33,7 @@ from pathlib import Path
 from nnphd.io.cache import Cache
 from nnphd.io.html import bullets, details, figure_file, figures, page, section, table
 from nnphd.io.html import escape as _e
-from nnphd.io.progress import Progress, nested
+from nnphd.io.progress import Progress
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
 from nnphd.parallel import Outcome, Unit, n_workers, run_units, runs_here
 
@@ -154,6 +154,13 @@ def experiment_unit(
     return {"result": res, "log": log}
 
 
+def _part(progress: Progress | None, i: int, n: int, label: str) -> Progress | None:
+    """The progress of unit ``i`` of ``n``, counted in units of the whole run."""
+    if progress is None:
+        return None
+    return lambda done, tot, msg: progress(i, n, f"{label} ({done}/{tot}): {msg}")
+
+
 def _spread(units: list[Unit], outdir: Path, seed: int, lp_kw: dict) -> list[Unit]:
     """For workers: the λ/p study (most of the time) as its 20 sweeps, unless its results are cached already; the
     longest units first (the discovery systems, then the sweeps, then predict and data quality)."""
@@ -200,7 +207,7 @@ def reproduce(
     here = runs_here(workers, scheduler, len(specs))
     units = []
     for i, (key, exp, name, d, settings, k) in enumerate(specs):
-        part = nested(progress, f"{labels.get(exp, key)}: ", i, len(specs)) if here else None
+        part = _part(progress, i, len(specs), labels.get(exp, key.replace("/", " "))) if here else None
         units.append(Unit(key, experiment_unit, dict(exp=exp, name=name, d=str(d), settings=settings, seed=seed, kw=k, progress=part)))  # fmt: skip
     if not here:
         units = _spread(units, outdir, seed, kw["lambda-p"])
@@ -232,7 +239,7 @@ def reproduce(
             failed[key] = o.error
             runs[key] = {"cached": False, "compute_time_s": o.wall_time_s, "error": o.error}
             continue
-        runs[key] = {**o.value["log"], "where": o.where}
+        runs[key] = {**o.value["log"], "where": o.where, "compile_time_s": o.compile_time_s}
         if exp == "discover":
             disc.append(o.value["result"])
         else:
@@ -252,6 +259,8 @@ def reproduce(
         "runs": runs,
         "wall_time_s": wall,
         "compute_time_s": sum(r["compute_time_s"] for r in runs.values()),
+        "compile_time_s": sum(r.get("compile_time_s", 0.0) for r in runs.values())
+        + sum(o.compile_time_s for k, o in outs.items() if k.startswith("lambda-p/")),  # of this run's units
         "claims": claims,
         "claims_met": sum(c["met"] for c in claims),
         "claims_total": len(claims),
@@ -479,7 +488,9 @@ def render_html(outdir: Path, summary: dict, results: dict) -> str:
         f"<p>Mode <b>{_e(summary['mode'])}</b>, seed {summary['seed']}, written "
         f"{datetime.now(UTC).isoformat(timespec='seconds')}. This run: {summary['wall_time_s']:.0f} s "
         f"({n_cached} of {len(summary['runs'])} units loaded from the cache); compute time of all units as "
-        f"measured when they ran: {summary['compute_time_s']:.0f} s. Claims met: "
+        f"measured when they ran: {summary['compute_time_s']:.0f} s; of this run's time, "
+        f"{summary.get('compile_time_s', 0.0):.0f} s went to JAX compilation (workers: "
+        f"{_e(summary.get('workers', 'in-process'))}). Claims met: "
         f"<b>{summary['claims_met']} of {summary['claims_total']}</b>.</p>"
     )
     parts.append(bullets(f'<a href="#{e}">{_e(TITLES[e])}</a>' for e in EXPERIMENTS))

@@ -130,16 +130,21 @@ def run_sweep(
     out: str | Path | None = None,
     progress: Progress | None = None,
     resume: bool = True,
+    plan: SweepPlan | None = None,
     **plan_kw,
 ) -> dict:
     """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given).
 
-    ``plan_kw`` (p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize) as :func:`plan_sweep`. With
+    ``plan_kw`` (p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize) as :func:`plan_sweep`, or
+    ``plan``: one made already (a caller that also needs its data and model settings makes them once). With
     ``out``, every finished λ is checkpointed there (``resume=False`` starts afresh)."""
     outdir = ensure_writable_dir(out) if out is not None else None
     if outdir is not None and not resume:
         Cache(outdir, {}).clear_checkpoint()
-    plan = plan_sweep(system, out=outdir, **plan_kw)
+    if plan is None:
+        plan = plan_sweep(system, out=outdir, **plan_kw)
+    elif plan_kw or outdir is not None:
+        raise ValueError("run_sweep: give either plan or the plan's settings (and out), not both")
     r = plan.run(progress)
     sysm, v, points = plan.system, r.verdict, r.points
     table = [pt.row() for pt in points]

@@ -55,6 +55,7 @@ from nnphd.engine.models import (
     ModelConfig,
 )
 from nnphd.io.progress import Progress
+from nnphd.parallel import Unit, run_units, runs_here
 from nnphd.user.checks import (
     DRIFT_MIN,
     GAP_MIN,
@@ -106,6 +107,8 @@ def assess(
     angles: Sequence[bool] | None = None,
     position_noise: Sequence[float] | None = None,
     derivative_error: Sequence[float] | None = None,
+    workers: int | None = 1,
+    scheduler: str | None = None,
 ) -> dict:
     """Is there new physics in trajectory data (q, q̇, t, q̈), with checks against under-fitting?
 
@@ -117,6 +120,9 @@ def assess(
     ``position_noise``: (n,) σ of the positions (default: estimated); ``derivative_error``: (n,) relative RMS
     error of the estimated q̈ (from :func:`nnphd.user.derivatives.to_dataset`; None: q̈ assumed exact);
     ``progress(done, total, message)``: called after every training round. The method: module docstring.
+    ``workers`` / ``scheduler``: the seeds are independent units of :func:`nnphd.parallel.run_units` (1: one after
+    another here; None: one local worker process per core; or an existing Dask scheduler) — the same numbers either
+    way.
 
     Returns a dict:
 
@@ -192,7 +198,15 @@ def assess(
         if progress:
             progress(done[0], total, "training")
 
-    seeds = [_one_seed(ctx, seed + i, tick) for i in range(n_seeds)]
+    here = runs_here(workers, scheduler, n_seeds)
+    units = [Unit(f"seed {seed + i}", _one_seed, dict(ctx=ctx, seed=seed + i, tick=tick if here else None)) for i in range(n_seeds)]  # fmt: skip
+    if not here and progress:
+        progress(0, n_seeds, f"training {n_seeds} seeds on Dask workers")
+    outs = run_units(units, workers, scheduler, progress=None if here else progress)
+    bad = [o for o in outs.values() if not o.ok]
+    if bad:
+        raise RuntimeError(f"the training of {bad[0].key} failed: {bad[0].error}")
+    seeds = [outs[u.key].value for u in units]
     res = _combine(seeds, sc, data, time.perf_counter() - t_start)
     res["quality"] = quality
     res["angles"] = [bool(a) for a in is_angle]

@@ -142,7 +142,7 @@ def detect_batch(
     for u in units:
         o = outs[u.key]
         if o.ok:
-            rows.append({**o.value, "where": o.where})
+            rows.append({**o.value, "where": o.where, "compile_time_s": o.compile_time_s})
         else:
             rows.append({c: None for c in COLUMNS} | {"name": u.key, "file": u.kwargs["path"], "status": "error", "error": o.error, "cached": False, "where": o.where})  # fmt: skip
     summary = {
@@ -154,6 +154,7 @@ def detect_batch(
         "settings": {"angles": list(angles), "max_rows": max_rows, **settings},
         "wall_time_s": time.perf_counter() - t0,
         "compute_time_s": sum(outs[u.key].wall_time_s for u in units),
+        "compile_time_s": sum(outs[u.key].compile_time_s for u in units),
     }
     _write_summary(outdir, summary)
     return summary
@@ -200,7 +201,8 @@ def _write_summary(outdir: Path, summary: dict) -> None:
         "<h1>nnphd detect — batch summary</h1>"
         f"<p>{summary['n_files']} files: {c['detected']} detected, {c['none']} none, {c['inconclusive']} "
         f"inconclusive, {c['error']} errors; workers: {escape(summary['workers'])}; wall time "
-        f"{summary['wall_time_s']:.0f} s (compute time of the files {summary['compute_time_s']:.0f} s).</p>"
+        f"{summary['wall_time_s']:.0f} s (compute time of the files {summary['compute_time_s']:.0f} s, of which "
+        f"{summary['compile_time_s']:.0f} s JAX compilation).</p>"
         + table(
             [
                 "report",

@@ -61,6 +61,8 @@ def detect_data(
     trim: bool | str = "auto",
     laws: Sequence[str] = (),
     law_level: str = "auto",
+    workers: int | None = 1,
+    scheduler: str | None = None,
     **assess_kw,
 ) -> tuple[dict, dict]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
@@ -110,6 +112,8 @@ def detect_data(
         angles=[bool(a) for a in ud.is_angle],
         position_noise=[pc[c]["noise"] for c in ud.coords],
         derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
+        workers=workers,
+        scheduler=scheduler,
         **assess_kw,
     )
     coords = list(ud.coords)

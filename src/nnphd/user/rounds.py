@@ -189,7 +189,8 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
     return pts, evals, table, check
 
 
-def _one_seed(ctx: dict, seed: int, tick) -> dict:
+def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
+    tick = tick or (lambda: None)
     q, qd, tp, qdd, segs = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"]
     steps, lambdas, width, long_factor, sc = ctx["steps"], ctx["lambdas"], ctx["width"], ctx["long_factor"], ctx["sc"]
     feats = ctx["feats"]

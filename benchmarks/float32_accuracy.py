@@ -1,0 +1,73 @@
+"""float32 against float64 training (what a GPU user may choose): the λ-sweep verdict of every toy system
+(HO+MF … HO+PF) and of the three Table I systems, at the paper's settings, in both precisions, in one run.
+
+.venv/bin/python benchmarks/float32_accuracy.py [--steps 2000] [--systems ho+mf,ho+ld,...] [--workers 2]
+
+Prints a table (system, verdict and L_e ratio across λ = 1 in float64 and float32, the largest relative difference
+of L_e over the λ grid) and writes benchmarks/results/float32.json. Each (system, precision) sweep is one unit of
+nnphd.parallel.run_units.
+"""
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import nnphd
+
+nnphd.configure()
+
+from nnphd.engine.models import ModelConfig
+from nnphd.engine.systems import get_system
+from nnphd.paper.sweep import run_sweep
+from nnphd.parallel import Unit, run_units
+
+SYSTEMS = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "neptune", "gw"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--systems", default=",".join(SYSTEMS))
+    ap.add_argument("--workers", type=int, default=None)
+    a = ap.parse_args()
+    systems = a.systems.split(",")
+    units = [
+        Unit(
+            f"{s}/{dt}",
+            run_sweep,
+            dict(system=s, steps=a.steps, seed=0, model_cfg=ModelConfig(n=get_system(s).n, dtype=dt)),
+        )
+        for s in systems
+        for dt in ("float64", "float32")
+    ]
+    outs = run_units(units, workers=a.workers, progress=lambda d, t, m: print(f"[{d}/{t}] {m}", flush=True))
+    rows = []
+    print(f"{'system':16s} {'float64':>22s} {'float32':>22s} {'max rel. diff of L_e':>22s}")
+    for s in systems:
+        r64, r32 = outs[f"{s}/float64"].value, outs[f"{s}/float32"].value
+        le64 = [x["L_e"] for x in r64["table"]]
+        le32 = [x["L_e"] for x in r32["table"]]
+        diff = max(abs(x - y) / abs(x) for x, y in zip(le64, le32))
+        row = {
+            "system": s,
+            "truth_conservative": r64["truth_conservative"],
+            "float64": {"new_physics": r64["new_physics"], "ratio": r64["statistic"]["value"]},
+            "float32": {"new_physics": r32["new_physics"], "ratio": r32["statistic"]["value"]},
+            "same_verdict": r64["new_physics"] == r32["new_physics"],
+            "max_rel_diff_L_e": diff,
+            "wall_s": {"float64": outs[f"{s}/float64"].wall_time_s, "float32": outs[f"{s}/float32"].wall_time_s},
+        }
+        rows.append(row)
+        v = lambda r: f"{'new' if r['new_physics'] else 'none'} ×{r['ratio']:.3g}"  # noqa: E731
+        print(f"{s:16s} {v(row['float64']):>22s} {v(row['float32']):>22s} {diff:>22.3g}")
+    print(f"same verdict on {sum(r['same_verdict'] for r in rows)} of {len(rows)} systems")
+    out = {"steps": a.steps, "rows": rows}
+    (ROOT / "benchmarks" / "results" / "float32.json").write_text(json.dumps(out, indent=1))
+
+
+if __name__ == "__main__":
+    main()

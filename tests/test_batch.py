@@ -1,0 +1,94 @@
+"""nnphd detect on many files: one report per file, a summary table (CSV, HTML, JSON), a bad file reported without
+stopping the others, the same numbers on 2 workers as one file alone, and a rerun that loads what is finished."""
+
+import csv
+import json
+
+import pytest
+from test_detect_file import _write_positions
+
+from nnphd.cli import main
+from nnphd.user.batch import _names, expand_paths
+
+QUICK = [
+    "--steps", "100", "--repeats", "1", "--sr-time", "0", "--law-fit", "pointwise", "--width", "16",
+    "--lambdas", "0.2,0.5,2,5",
+]  # fmt: skip
+
+
+def test_batch_summary_failures_workers_and_resume(tmp_path, capsys):
+    d = tmp_path / "recordings"
+    d.mkdir()
+    _write_positions(d / "friction.csv", "ho+ld", n_traj=3, n_steps=300)
+    _write_positions(d / "magnetic.csv", "ho+mf", n_traj=3, n_steps=300, seed=1)
+    (d / "broken.csv").write_text("t,x\n0,1\n")
+    (d / "notes.txt").write_text("not data")  # not a .csv/.npz: not part of the batch
+    out = tmp_path / "out"
+
+    rc = main(["detect", str(d), "--out", str(out), "--workers", "2", *QUICK])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1
+    assert len(err.splitlines()) == 1 and err.startswith("error: 1 of 3 files failed") and "broken.csv" in err
+    with open(out / "summary.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["name"] for r in rows] == ["broken", "friction", "magnetic"]  # the folder's sorted files
+    assert [r["status"] for r in rows] == ["error", "detected", "none"]
+    assert "DataError" in rows[0]["error"] and rows[1]["error"] == rows[2]["error"] == ""
+    assert "x_dot" not in rows[1]["law"] and "q1_dot" in rows[1]["law"]  # the law in the file's own names
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["counts"] == {"detected": 1, "none": 1, "inconclusive": 0, "error": 1}
+    assert summary["workers"] == 2 and {r["where"] for r in summary["rows"][1:]} != {"in-process"}
+    html = (out / "summary.html").read_text()
+    assert 'href="friction/report.html"' in html and "broken" in html
+    for n in ("friction", "magnetic"):
+        assert (out / n / "report.html").stat().st_size > 1000
+    assert not (out / "broken").exists() or not any((out / "broken").iterdir())
+
+    # one file alone, in this process: the batch's report on 2 workers has the same numbers
+    rc = main(["detect", str(d / "friction.csv"), "--out", str(tmp_path / "alone"), *QUICK])
+    assert rc == 0
+    alone = json.loads((tmp_path / "alone" / "report.json").read_text())
+    batch = json.loads((out / "friction" / "report.json").read_text())
+    for k in ("status", "confidence", "statistic", "effect", "table"):
+        assert alone[k] == batch[k], k
+
+    # a rerun with the same settings loads the finished files and retries the broken one
+    capsys.readouterr()
+    rc = main(["detect", str(d), "--out", str(out), "--workers", "1", *QUICK])
+    assert rc == 1
+    rows = json.loads((out / "summary.json").read_text())["rows"]
+    assert [r["cached"] for r in rows] == [False, True, True]
+    assert [r["status"] for r in rows] == ["error", "detected", "none"]
+
+
+def test_batch_bad_paths_one_line_nothing_written(tmp_path, capsys):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    good = tmp_path / "a.csv"
+    good.write_text("t,x\n" + "".join(f"{i / 10},{i}\n" for i in range(20)))
+    cases = [
+        ([str(good), str(tmp_path / "missing.csv")], "missing.csv: no such file or folder"),
+        ([str(empty)], "the folder holds no .csv or .npz file"),
+        ([str(good), str(good)], "a.csv: the file is given twice"),
+    ]
+    for args, msg in cases:
+        out = tmp_path / "out"
+        rc = main(["detect", *args, "--out", str(out)])
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and len(err.splitlines()) == 1 and msg in err, err
+        assert not out.exists()
+
+
+def test_expand_and_names(tmp_path):
+    (tmp_path / "b.CSV").write_text("t\n")
+    (tmp_path / "a.npz").write_bytes(b"")
+    (tmp_path / "sub").mkdir()
+    assert [p.name for p in expand_paths([tmp_path])] == ["a.npz", "b.CSV"]
+    assert _names([tmp_path / "x/run.csv", tmp_path / "y/run.csv", tmp_path / "RUN.npz", tmp_path / "summary.csv"]) == [
+        "run",
+        "run-2",
+        "RUN-3",
+        "summary-2",
+    ]
+    with pytest.raises(ValueError, match="no such file"):
+        expand_paths([tmp_path / "nope"])

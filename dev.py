@@ -52,7 +52,12 @@ def main() -> None:
         paths = ["src", "tests", "benchmarks", "dev.py"]
         lint = subprocess.run([str(BIN / "ruff"), "check", *paths], cwd=ROOT).returncode
         lint = subprocess.run([str(BIN / "ruff"), "format", "--check", *paths], cwd=ROOT).returncode or lint
-        tests = subprocess.run([str(BIN / "python"), "-m", "pytest", "tests", *sys.argv[2:]], cwd=ROOT).returncode
+        # one pytest process per core (pytest-xdist; a module's tests stay together): nnphd holds XLA to one
+        # thread per process (nnphd.configure), so the cores are filled by processes
+        xdist = ["-n", "auto", "--dist", "loadfile"]
+        tests = subprocess.run(
+            [str(BIN / "python"), "-m", "pytest", *xdist, "tests", *sys.argv[2:]], cwd=ROOT
+        ).returncode
         if lint or tests:
             sys.exit(tests or lint)
 

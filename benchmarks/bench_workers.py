@@ -3,7 +3,7 @@ process) and with N local worker processes, in one run; checks that the numbers 
 
 .venv/bin/python benchmarks/bench_workers.py lambda-p [--steps 2000] [--workers 2]
 .venv/bin/python benchmarks/bench_workers.py reproduce [--quick] [--workers 2]
-.venv/bin/python benchmarks/bench_workers.py detect [--workers 2]     # the 8 noisy constructed cases: batch vs one by one
+.venv/bin/python benchmarks/bench_workers.py detect [--workers 2] [--detect-steps 1000]   # 8 noisy cases: batch vs one by one
 
 Prints the wall times and their ratio and writes benchmarks/results/workers_<what>.json.
 """
@@ -75,7 +75,7 @@ def _write_cases(d: Path) -> list[Path]:
     return paths
 
 
-def _detect(workers: int, paths: list[Path], out: Path) -> tuple[float, dict]:
+def _detect(workers: int, paths: list[Path], out: Path, steps: int) -> tuple[float, dict]:
     from nnphd.user.batch import detect_batch
     from nnphd.user.detect import detect_file
 
@@ -83,10 +83,10 @@ def _detect(workers: int, paths: list[Path], out: Path) -> tuple[float, dict]:
     if workers == 1:  # one by one, as a user would call nnphd detect per file
         res = {}
         for p in paths:
-            r = detect_file(p, out / p.stem, sr_time=0)
+            r = detect_file(p, out / p.stem, sr_time=0, steps=steps)
             res[p.stem] = [r["status"], r["confidence"], r["statistic"]["value"]]
     else:
-        s = detect_batch(paths, out, workers=workers, sr_time=0)
+        s = detect_batch(paths, out, workers=workers, sr_time=0, steps=steps)
         res = {}
         for row in s["rows"]:
             r = json.loads((out / row["name"] / "report.json").read_text())
@@ -100,6 +100,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--steps", type=int, default=2000)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--detect-steps", type=int, default=1000, help="nnphd detect's --steps")
     a = ap.parse_args()
     tmp = Path(tempfile.mkdtemp(prefix="nnphd-bench-workers-"))
     runs = {}
@@ -113,7 +114,7 @@ def main() -> None:
         elif a.what == "reproduce":
             wall, nums = _reproduce(w, a.quick, out)
         else:
-            wall, nums = _detect(w, paths, out)
+            wall, nums = _detect(w, paths, out, a.detect_steps)
         runs[w] = {"wall_s": wall, "numbers": nums}
         print(f"{a.what}: {w} worker(s): {wall:.1f} s", flush=True)
     same = runs[1]["numbers"] == runs[a.workers]["numbers"]
@@ -121,7 +122,7 @@ def main() -> None:
     print(f"speed-up {a.workers} workers vs 1: {ratio:.2f}x; identical numbers: {same}")
     res = {
         "what": a.what,
-        "settings": {"workers": a.workers, "steps": a.steps, "quick": a.quick},
+        "settings": {"workers": a.workers, "steps": a.steps, "quick": a.quick, "detect_steps": a.detect_steps},
         "cores": os.cpu_count(),
         "wall_s": {str(k): v["wall_s"] for k, v in runs.items()},
         "speedup": ratio,

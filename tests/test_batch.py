@@ -92,3 +92,18 @@ def test_expand_and_names(tmp_path):
     ]
     with pytest.raises(ValueError, match="no such file"):
         expand_paths([tmp_path / "nope"])
+
+
+def test_detect_seeds_on_two_workers_same_report(tmp_path):
+    """nnphd detect trains its repeated seeds as units: on 2 worker processes the report's numbers are those of
+    the run in this process."""
+    path = _write_positions(tmp_path / "friction.csv", "ho+ld", n_traj=3, n_steps=300)
+    args = list(QUICK)
+    args[args.index("--repeats") + 1] = "2"
+    reps = {}
+    for w in ("1", "2"):
+        assert main(["detect", str(path), "--out", str(tmp_path / w), "--workers", w, *args]) == 0
+        reps[w] = json.loads((tmp_path / w / "report.json").read_text())
+    assert reps["1"]["settings"]["n_seeds"] == 2
+    for k in ("status", "confidence", "statistic", "effect", "table", "checks"):
+        assert reps["1"][k] == reps["2"][k], k

@@ -112,3 +112,19 @@ def test_killed_worker_every_result_still_comes(in_process):
     assert killed and killed[0] not in after  # the worker was really killed (and replaced)
     assert all(o.ok for o in outs.values()), {k: o.error for k, o in outs.items()}
     assert _numbers(outs) == in_process
+
+
+def test_cli_failed_units_are_one_line_exit_1(tmp_path, capsys, monkeypatch):
+    """A unit that fails inside a command: one line naming it (not "internal error"), exit code 1."""
+    import nnphd.paper.lambda_p as lp
+    from nnphd.cli import main
+
+    def broken(**kw):
+        raise ValueError("no data")
+
+    monkeypatch.setattr(lp, "_lambda_p_subrun", broken)
+    argv = ["study", "lambda-p", "--systems", "ho+ld", "--ps", "1", "--lambdas", "0.5,2", "--steps", "4"]
+    rc = main([*argv, "--workers", "1", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err.strip()
+    assert rc == 1 and len(err.splitlines()) == 1, err
+    assert "1 of 1 sweeps failed (ho+ld/p=1: ValueError: no data)" in err and "internal error" not in err

@@ -43,6 +43,7 @@ from nnphd.io.progress import Progress
 
 __all__ = [
     "CompileClock",
+    "UnitsFailed",
     "Unit",
     "Outcome",
     "run_units",
@@ -63,6 +64,11 @@ WORKER_ENV = {
     "MKL_NUM_THREADS": "1",
     "NNPHD_WORKER": "1",
 }
+
+
+class UnitsFailed(RuntimeError):
+    """Units of a job failed (each one's error is in the message); the others finished and are cached, so the same
+    call resumes. The command line reports it in one line, exit code 1."""
 
 
 @dataclass(frozen=True)

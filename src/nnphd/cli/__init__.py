@@ -21,6 +21,7 @@ from nnphd.cli import paper as _paper  # noqa: F401  (registers the commands)
 from nnphd.cli.common import InputError, _ClickException, app
 from nnphd.io.errors import DataError
 from nnphd.io.outdir import release_out_dirs
+from nnphd.parallel import UnitsFailed
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -50,6 +51,8 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         print(f"error: {e.format_message()}", file=sys.stderr)
         return getattr(e, "exit_code", 2) or 2
+    except UnitsFailed as e:  # independent units failed (reported, the others cached): not bad input, not a defect
+        return _failed(args, out_before, str(e), 1)
     except MemoryError:
         return _failed(args, out_before, "out of memory; use a smaller file (fewer rows) or fewer --steps", 1)
     except Exception as e:  # a defect of nnphd: one line and exit 1; NNPHD_TRACEBACK=1 shows the traceback

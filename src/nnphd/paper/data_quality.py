@@ -41,7 +41,7 @@ from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig6
 from nnphd.paper.lambda_p import _FORMAT, ALIGN_TOL, NEAR_ZERO_FRACTION
-from nnphd.parallel import Unit, run_units
+from nnphd.parallel import Unit, UnitsFailed, run_units
 
 __all__ = ["DQ_GRID", "data_quality_study"]
 
@@ -276,7 +276,7 @@ def data_quality_study(
     outs = run_units(units, workers, scheduler, on_outcome=report)
     bad = [o for o in outs.values() if not o.ok]
     if bad:
-        raise RuntimeError(f"the {bad[0].key} grid failed: {bad[0].error}")
+        raise UnitsFailed(f"the {bad[0].key} grid failed: {bad[0].error}")
     ares, bres = outs["alpha"].value, outs["beta"].value
     result = {
         "settings": {

@@ -62,7 +62,7 @@ from nnphd.io.progress import Progress, nested
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig5, plot_fig5_forces
 from nnphd.paper.sweep import plan_sweep
-from nnphd.parallel import Unit, run_units, runs_here
+from nnphd.parallel import Unit, UnitsFailed, run_units, runs_here
 
 __all__ = [
     "TOY_SYSTEMS",
@@ -314,7 +314,7 @@ def run_lambda_p_sweeps(
         where = (
             f"; the {len(units) - len(failed)} finished ones are cached in {outdir}: rerun to resume" if outdir else ""
         )
-        raise RuntimeError(f"{len(failed)} of {len(units)} sweeps failed ({failed[0].key}: {failed[0].error}){where}")
+        raise UnitsFailed(f"{len(failed)} of {len(units)} sweeps failed ({failed[0].key}: {failed[0].error}){where}")
     runs: dict[str, dict[str, dict]] = {s: {} for s in systems}
     for u in units:
         s, l = u.key.split("/p=")

@@ -213,10 +213,11 @@ def reproduce(
         units = _spread(units, outdir, seed, kw["lambda-p"])
     outs = run_units(units, workers, scheduler, progress=None if here else progress)
     if not here:  # the λ/p study itself, from its sweeps (cached by the units above): figures and claims, here
-        lp = [u for u in units if u.key == "lambda-p"][0] if "lambda-p" in outs else None
         spec = next(sp for sp in specs if sp[0] == "lambda-p")
         failed_sweeps = [o for key, o in outs.items() if key.startswith("lambda-p/") and not o.ok]
-        if lp is None and not failed_sweeps:
+        if "lambda-p" in outs:  # its results were cached: loaded by a unit
+            pass
+        elif not failed_sweeps:
             t0 = time.perf_counter()
             try:
                 value = experiment_unit("lambda-p", None, str(spec[3]), spec[4], seed, spec[5])
@@ -226,7 +227,7 @@ def reproduce(
                 outs["lambda-p"] = Outcome("lambda-p", True, value, wall_time_s=time.perf_counter() - t0)
             except Exception as e:  # contained like a unit's failure
                 outs["lambda-p"] = Outcome("lambda-p", False, error=f"{type(e).__name__}: {e}")
-        elif lp is None:
+        else:
             o = failed_sweeps[0]
             outs["lambda-p"] = Outcome(
                 "lambda-p", False, error=f"{len(failed_sweeps)} sweeps failed ({o.key}: {o.error})"

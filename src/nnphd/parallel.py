@@ -51,7 +51,6 @@ __all__ = [
     "n_workers",
     "default_workers",
     "WORKER_ENV",
-    "worker_pids",
 ]
 
 # each worker process: one XLA thread (no Eigen thread pool), one BLAS/OpenMP thread; the faster XLA:CPU setting of
@@ -252,7 +251,7 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
                 processes=True,
                 dashboard_address=None,
                 env=dict(WORKER_ENV),
-                silence_logs=50,  # logging.CRITICAL: a restarted worker is reported in the outcomes, not on stderr
+                silence_logs=50,  # logging.CRITICAL: Dask's own log lines stay off the user's terminal
             )
             client = Client(cluster)
         else:
@@ -284,8 +283,3 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
             client.close()
             if cluster is not None:
                 cluster.close()
-
-
-def worker_pids(client) -> dict[str, int]:
-    """{worker address: process id} of a Dask client's workers (tests kill one of them)."""
-    return client.run(os.getpid)

@@ -88,7 +88,7 @@ def test_killed_worker_every_result_still_comes(in_process):
     from distributed import Client, LocalCluster
 
     with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, env=dict(WORKER_ENV), silence_logs=50
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0", env=dict(WORKER_ENV), silence_logs=50
     ) as cluster:
         with Client(cluster) as client:
             pids = list(client.run(os.getpid).values())

@@ -249,7 +249,7 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
                 n_workers=n,
                 threads_per_worker=1,
                 processes=True,
-                dashboard_address=None,
+                dashboard_address=":0",  # a free port: never a clash with a running dashboard
                 env=dict(WORKER_ENV),
                 silence_logs=50,  # logging.CRITICAL: Dask's own log lines stay off the user's terminal
             )

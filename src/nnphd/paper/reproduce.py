@@ -171,7 +171,7 @@ def _spread(units: list[Unit], outdir: Path, seed: int, lp_kw: dict) -> list[Uni
         return units
     sweeps = [Unit(f"lambda-p/{u.key}", u.fn, u.kwargs) for u in study_units(seed, outdir / "lambda-p", **lp_kw)]
     disc = [u for u in units if u.key.startswith("discover/")]
-    return disc + sweeps + [u for u in units if u.key not in ("lambda-p",) and not u.key.startswith("discover/")]
+    return disc + sweeps + [u for u in units if u.key != "lambda-p" and not u.key.startswith("discover/")]
 
 
 def reproduce(

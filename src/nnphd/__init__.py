@@ -21,7 +21,7 @@ __version__ = "0.1.0"
 __all__ = ["Law", "NNPhD", "Trajectories", "Verdict", "__version__", "configure", "load"]
 
 XLA_FLAG = "--xla_cpu_experimental_ynn_fusion_type="
-ONE_THREAD_FLAGS = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+ONE_THREAD_FLAGS = "--xla_cpu_multi_thread_eigen=false"
 
 
 def configure(x64: bool = True, fast_cpu: bool = True, one_thread: bool = True) -> None:
@@ -33,8 +33,8 @@ def configure(x64: bool = True, fast_cpu: bool = True, one_thread: bool = True) 
     ``one_thread``: one XLA thread (no Eigen thread pool). Eigen splits a matrix product's sums differently with
     more threads, which changes the last bits and, after thousands of training steps, the 5th digit; with one
     thread here and in every Dask worker (:mod:`nnphd.parallel`) the same seed gives the same numbers whatever the
-    number of workers. More cores are used through workers; one sweep alone runs ~20% slower than with the Eigen
-    pool on 2 cores (14.0 → 16.9 s, ``nnphd sweep --steps 500``).
+    number of workers. More cores are used through workers; one sweep alone is as fast as with the Eigen pool on
+    2 cores (``nnphd sweep --steps 500``: 16.0 and 21.4 s against 19.0 and 20.8 s, alternating runs).
     The XLA flags only take effect if JAX has not started its backend yet; NNPHD_KEEP_XLA_FLAGS=1 vetoes both.
     """
     flags = os.environ.get("XLA_FLAGS", "")

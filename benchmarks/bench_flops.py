@@ -76,7 +76,12 @@ def gemm_peak(blocks: int) -> dict:
         jax.block_until_ready(mm(a, b))
         times.append(time.perf_counter() - t0)
     flops = 2.0 * GEMM_N**3
-    return {"n": GEMM_N, "flops": flops, "s": statistics.median(times), "gflops": flops / statistics.median(times) / 1e9}
+    return {
+        "n": GEMM_N,
+        "flops": flops,
+        "s": statistics.median(times),
+        "gflops": flops / statistics.median(times) / 1e9,
+    }
 
 
 def _batch(key, b: int):
@@ -116,7 +121,13 @@ def cases():
         pk = jax.vmap(lambda key: init_nnphd(key, cfg))(jax.random.split(kp, k))
         bk = jax.vmap(lambda key: _batch(key, 32))(jax.random.split(kd, k))
         sstep = jax.vmap(lambda p, o, bt: step(p, o, bt, lam)[:2])
-        yield f"ours, {k} seeds vmapped", 32, k, lambda p, o, bk=bk: sstep(p, o, bk), (pk, jax.vmap(opt.init)(pk))
+        yield (
+            f"ours, {k} seeds vmapped",
+            32,
+            k,
+            lambda p, o, bk=bk, sstep=sstep: sstep(p, o, bk),
+            (pk, jax.vmap(opt.init)(pk)),
+        )
 
 
 def main() -> None:

@@ -40,6 +40,22 @@ def test_small_sweep_writes_results(tmp_path, capsys):
     assert [r["L_e"] for r in res2["table"]] == [r["L_e"] for r in res["table"]]
 
 
+def test_fast_sweep_reports_its_protocol(tmp_path, capsys):
+    out = tmp_path / "f"
+    lams = "0.05,0.1,0.5,2,10,20"
+    assert (
+        main(["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", lams, "--mode", "fast", "--out", str(out)])
+        == 0
+    )
+    res = json.loads((out / "results.json").read_text())
+    pr = res["protocol"]
+    assert pr["first_lambdas"] == [0.1, 0.5, 2.0, 10.0] and res["settings"]["mode"] == "fast"
+    trained = [r["lam"] for r in res["table"]]
+    assert trained == ([0.05, 0.1, 0.5, 2.0, 10.0, 20.0] if pr["ran_paper_protocol"] else [0.1, 0.5, 2.0, 10.0])
+    assert pr["ran_paper_protocol"] == bool(pr["doubts"])
+    assert "fast mode:" in capsys.readouterr().out
+
+
 BAD = [
     (["sweep", "--system", "nope"], "unknown system 'nope'"),
     (["sweep", "--system", "ho+ld", "--lambdas", "0,1,2"], "λ must be > 0"),
@@ -57,7 +73,7 @@ BAD = [
         ["sweep", "--system", "ho+ld", "--seed", "-1"],
         "Invalid value for '--seed': Input should be greater than or equal to 0",
     ),
-    (["sweep", "--system", "ho+ld", "--mode", "fast"], "'fast' is not one of 'warm', 'vmap', 'scratch'"),
+    (["sweep", "--system", "ho+ld", "--mode", "quick"], "'quick' is not one of 'warm', 'vmap', 'scratch', 'fast'"),
     (["sweep", "--system", "ho+ld", "--param", "zeta=1"], "unknown parameter(s) 'zeta'"),
     (["sweep", "--system", "ho+ld", "--param", "gamma"], "--param must look like name=value"),
     (["sweep", "--system", "ho+ld", "--param", "gamma=nan"], "--param gamma must be a finite number"),

@@ -61,6 +61,7 @@ class SweepMode(StrEnum):
     warm = "warm"
     vmap = "vmap"
     scratch = "scratch"
+    fast = "fast"
 
 
 class DiscoverySystem(StrEnum):  # nnphd.paper.discover.DISCOVERY_SYSTEMS (a test keeps them equal)

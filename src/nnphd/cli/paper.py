@@ -59,7 +59,7 @@ def sweep(
     mode: SweepMode = typer.Option(
         SweepMode.warm,
         "--mode",
-        help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run) or scratch (the same, one λ after the other)",
+        help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run), scratch (the same, one λ after the other) or fast (warm, each λ until converged, 4 λ first and the rest only when the verdict is close)",
     ),
     param: list[str] = typer.Option(
         [], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"
@@ -130,6 +130,16 @@ def sweep(
         f"statistic: L_e ratio across λ=1 = {v['ratio']:.3g} (threshold {v['min_ratio']:g}); "
         f"|f_n| ≈ {v['fn_size_from_jump']:.3g} (jump) / {v['fn_size_from_uan']:.3g} (UAN)"
     )
+    pr = res["protocol"]
+    if pr is not None:
+        paper_steps = steps * len(res["settings"]["lambdas"])
+        if pr["ran_paper_protocol"]:
+            console.print(f"fast mode: the first verdict was close ({'; '.join(pr['doubts'])}): ran the paper protocol")
+        else:
+            console.print(
+                f"fast mode: {len(pr['first_lambdas'])} λ, {pr['steps_total']} training steps "
+                f"(the paper protocol: {paper_steps})"
+            )
     if res["resumed_lambdas"]:
         console.print(f"resumed {len(res['resumed_lambdas'])} finished λ from a checkpoint")
     console.print(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)")

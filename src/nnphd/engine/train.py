@@ -258,6 +258,19 @@ def lambda_sweep(
     return out
 
 
+def sweep_point(lam: float, params: Params, train_data, test_data, cfg: ModelConfig, p) -> SweepPoint:
+    """The sweep's record of λ: L_e, L_b on the test set (the training set when there is none) and on the training
+    set, and the misalignments m_c, m_n when the data carry the true split."""
+    eval_data = test_data if test_data is not None else train_data
+    ev = evaluate(params, eval_data, cfg, p)
+    tr = ev if test_data is None else evaluate(params, train_data, cfg, p)
+    pt = SweepPoint(lam, ev.L_e, ev.L_b, tr.L_e, tr.L_b, params=params)
+    if eval_data.fc is not None:
+        pt.m_c = alignment(ev.fc, eval_data.fc)
+        pt.m_n = alignment(ev.fn, eval_data.fn)
+    return pt
+
+
 def sweep(
     train_data,
     cfg: ModelConfig,
@@ -280,17 +293,10 @@ def sweep(
     lams = validate_lambdas(lambdas)
     dtype = jnp.dtype(cfg.dtype)
     k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
-    eval_data = test_data if test_data is not None else train_data
     points = {lam: pt for lam, pt in (resume or {}).items() if pt.params is not None}
 
     def finish(lam, params):
-        ev = evaluate(params, eval_data, cfg, tcfg.p)
-        tr = ev if test_data is None else evaluate(params, train_data, cfg, tcfg.p)
-        pt = SweepPoint(lam, ev.L_e, ev.L_b, tr.L_e, tr.L_b, params=params)
-        if eval_data.fc is not None:
-            pt.m_c = alignment(ev.fc, eval_data.fc)
-            pt.m_n = alignment(ev.fn, eval_data.fn)
-        points[lam] = pt
+        points[lam] = pt = sweep_point(lam, params, train_data, test_data, cfg, tcfg.p)
         if on_point:
             on_point(pt)
 

@@ -12,10 +12,11 @@ from pathlib import Path
 
 import jax
 
+from nnphd.engine.adaptive import fast_sweep
 from nnphd.engine.data import Dataset, train_test
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.systems import System, get_system
-from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
+from nnphd.engine.train import PAPER_LAMBDAS, SWEEP_MODES, SweepPoint, TrainConfig, sweep, validate_lambdas
 from nnphd.engine.verdict import Verdict, force_norm, verdict
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
@@ -50,21 +51,16 @@ class SweepPlan:
             _save_checkpoint(self.cache, done)
 
         t0 = time.perf_counter()
-        points = sweep(
-            self.train,
-            self.cfg,
-            self.tcfg,
-            self.lambdas,
-            seed=self.seed,
-            test_data=self.test,
-            mode=self.mode,
-            progress=progress,
-            resume=done,
-            on_point=on_point,
-        )
+        common = dict(seed=self.seed, test_data=self.test, progress=progress, resume=done, on_point=on_point)
+        protocol = None
+        if self.mode == "fast":
+            points, info = fast_sweep(self.train, self.cfg, self.tcfg, self.lambdas, **common)
+            protocol = info.to_dict()
+        else:
+            points = sweep(self.train, self.cfg, self.tcfg, self.lambdas, mode=self.mode, **common)
         wall = time.perf_counter() - t0
         ev = self.test if self.test is not None else self.train
-        return SystemSweep(self, points, verdict(points, force_norm(ev.qdd, self.tcfg.p)), wall, resumed)
+        return SystemSweep(self, points, verdict(points, force_norm(ev.qdd, self.tcfg.p)), wall, resumed, protocol)
 
 
 @dataclass
@@ -76,6 +72,7 @@ class SystemSweep:
     verdict: Verdict
     wall_time_s: float
     resumed: list[float]
+    protocol: dict | None = None  # mode "fast": what it trained (FastInfo.to_dict)
 
 
 def plan_sweep(
@@ -95,6 +92,8 @@ def plan_sweep(
     """Data of a catalogue system, the model and the settings of its λ-sweep (plus ``extra_settings``, for callers
     that store more under the same key); the checkpoint lives in ``out``."""
     sysm = get_system(system) if isinstance(system, str) else system
+    if mode not in (*SWEEP_MODES, "fast"):
+        raise ValueError(f"mode must be one of {', '.join((*SWEEP_MODES, 'fast'))}, got {mode!r}")
     tcfg = TrainConfig(steps=steps, p=p)
     lams = validate_lambdas(lambdas)
     train, test = train_test(sysm, seed=seed, n_train=n_train, n_test=n_test)
@@ -165,6 +164,7 @@ def run_sweep(
         "evaluated_on": "test set" if plan.test is not None else "training trajectory (as the paper)",
         "wall_time_s": r.wall_time_s,
         "resumed_lambdas": r.resumed,
+        "protocol": r.protocol,
         "jax_version": jax.__version__,
     }
     if outdir is not None:

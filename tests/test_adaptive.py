@@ -1,0 +1,122 @@
+"""The fast protocol (``--mode fast``): chunked training with convergence stopping, the adaptive λ grid, its verdicts."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import nnphd  # noqa: F401
+from nnphd.engine import adaptive
+from nnphd.engine.adaptive import StopRule, fast_sweep, first_lambdas, make_chunk_trainer, train_converged, undecided
+from nnphd.engine.data import gaussian_dataset
+from nnphd.engine.models import ModelConfig, init_nnphd
+from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, _as_arrays, loss_terms, sweep
+from nnphd.engine.verdict import verdict
+from nnphd.paper.sweep import run_sweep
+
+SMALL = ModelConfig(n=1, lnn_widths=(32, 32), uan_widths=(32, 32))
+
+
+def _pts(lams, les):
+    return [SweepPoint(lam, le, 0.0, le, 0.0) for lam, le in zip(lams, les)]
+
+
+def test_first_lambdas_nearest_on_each_side():
+    assert first_lambdas(PAPER_LAMBDAS) == (0.1, 0.5, 2.0, 10.0)
+    assert first_lambdas((0.3, 0.7, 3.0, 30.0, 300.0)) == (0.3, 0.7, 3.0, 30.0)
+    # 1 itself is never chosen; the same λ nearest two targets is trained once
+    assert first_lambdas((0.01, 0.02, 1.0, 100.0, 200.0)) == (0.02, 100.0)
+    assert first_lambdas((0.5, 5.0)) == (0.5, 5.0)
+
+
+def test_undecided_reasons():
+    lams = (0.1, 0.5, 2.0, 10.0)
+    clear = _pts(lams, [1e-3, 1.2e-3, 0.30, 0.31])
+    assert undecided(verdict(clear, 1.0), clear) == []
+    flat = _pts(lams, [0.010, 0.011, 0.010, 0.012])
+    none = _pts(lams, [0.020, 0.022, 0.012, 0.014])  # L_e lower above λ = 1: ×0.6
+    assert undecided(verdict(none, 1.0), none) == []
+    assert undecided(verdict(flat, 1.0), flat) != []  # ×1.05 is not clearly below ×1
+    near = _pts(lams, [0.10, 0.10, 0.40, 0.40])  # ×4: in [×1, ×6)
+    assert any("ratio" in w for w in undecided(verdict(near, 1.0), near))
+    weak = _pts(lams, [0.10, 0.10, 0.12, 0.12])  # ×1.2: "no jump", but not clearly
+    assert any("ratio" in w for w in undecided(verdict(weak, 1.0), weak))
+    split = _pts(lams, [1e-3, 1e-2, 0.30, 0.31])  # the two below λ = 1 disagree ×10
+    assert any("below" in w for w in undecided(verdict(split, 1.0), split))
+    small = _pts(lams, [1e-6, 1e-6, 2e-4, 2e-4])  # remainder 2e-4 of the force: within ×3 of 1e-4
+    assert any("remainder" in w for w in undecided(verdict(small, 1.0), small))
+
+
+def test_stop_rule_rejects():
+    with pytest.raises(ValueError, match="chunk"):
+        StopRule(chunk=0)
+    with pytest.raises(ValueError, match="rel_tol"):
+        StopRule(rel_tol=1.0)
+
+
+def test_chunk_trainer_objective_and_learning_rate():
+    """``run`` returns L_e + λ L_b on all the data at its returned parameters; lr = 0 leaves them unchanged."""
+    d = gaussian_dataset("ho+ld", 128, seed=0)
+    tcfg = TrainConfig(steps=40)
+    arrays = _as_arrays(d, jnp.float64)
+    run, init, _, _ = make_chunk_trainer(SMALL, tcfg, 10)
+    p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
+    lam = jnp.asarray(0.5)
+    p1, _, obj = run(p0, init(p0), arrays, lam, jnp.asarray(1e-3), jax.random.PRNGKey(1))
+    le, lb = loss_terms(p1, *arrays, SMALL, 1.0)
+    assert abs(float(obj) - float(le + 0.5 * lb)) < 1e-12
+    le0, lb0 = loss_terms(p0, *arrays, SMALL, 1.0)
+    assert float(obj) < float(le0 + 0.5 * lb0)  # ten steps at lr 1e-3 lower it
+    same, _, _ = run(p0, init(p0), arrays, lam, jnp.asarray(0.0), jax.random.PRNGKey(1))
+    assert all(np.array_equal(a, b) for a, b in zip(jax.tree_util.tree_leaves(same), jax.tree_util.tree_leaves(p0)))
+
+
+def test_train_converged_counts_its_steps():
+    d = gaussian_dataset("ho+ld", 128, seed=0)
+    tcfg = TrainConfig(steps=400)  # ≤ 100 steps per learning rate
+    arrays = _as_arrays(d, jnp.float64)
+    p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
+    tr = make_chunk_trainer(SMALL, tcfg, 20)
+    # every chunk must improve the objective by 99%: each learning rate stops after its first chunk
+    _, used = train_converged(tr, p0, arrays, 0.5, jax.random.PRNGKey(2), tcfg, StopRule(20, 0.99))
+    assert used == 4 * 20
+    _, used = train_converged(tr, p0, arrays, 0.5, jax.random.PRNGKey(2), tcfg, StopRule(20, 0.0))
+    assert 4 * 20 <= used <= 400 and used % 20 == 0
+
+
+def test_fast_sweep_runs_the_paper_protocol_when_undecided(monkeypatch):
+    tr = gaussian_dataset("ho+ld", 128, seed=0)
+    tcfg = TrainConfig(steps=40)
+    lams = (0.05, 0.1, 0.5, 2.0, 10.0, 20.0)
+    pts, info = fast_sweep(tr, SMALL, tcfg, lams, rule=StopRule(10, 0.5))
+    again, _ = fast_sweep(tr, SMALL, tcfg, lams, rule=StopRule(10, 0.5))
+    assert [p.L_e for p in pts] == [p.L_e for p in again]  # same seed, same numbers
+    if not info.paper_protocol:
+        assert [p.lam for p in pts] == [0.1, 0.5, 2.0, 10.0] and info.doubts == []
+        assert info.steps[0.1] == 40 and all(info.steps[x] < 40 + 10 for x in (0.5, 2.0, 10.0))
+    monkeypatch.setattr(adaptive, "undecided", lambda v, p: ["forced"])
+    saved = {}
+    pts2, info2 = fast_sweep(
+        tr, SMALL, tcfg, lams, rule=StopRule(10, 0.5), on_point=lambda pt: saved.update({pt.lam: pt})
+    )
+    paper = sweep(tr, SMALL, tcfg, lams, seed=0, mode="warm")
+    assert info2.paper_protocol and info2.doubts == ["forced"]
+    assert [(p.lam, p.L_e, p.L_b) for p in pts2] == [(p.lam, p.L_e, p.L_b) for p in paper]  # exactly the paper's
+    assert sorted(saved) == list(lams)  # only the paper protocol's points are checkpointed
+    # a resume continues the paper protocol: nothing is trained again
+    pts3, info3 = fast_sweep(tr, SMALL, tcfg, lams, resume=saved)
+    assert info3.paper_protocol and [p.L_e for p in pts3] == [p.L_e for p in paper]
+
+
+@pytest.mark.parametrize("name", ["ho+ld", "ho+mf"])
+def test_fast_mode_verdicts(name):
+    """--mode fast gives the paper protocol's verdict on a damped and a conservative toy, in far fewer steps."""
+    res = run_sweep(name, seed=0, mode="fast", n_train=500, n_test=500)  # 2000 steps per λ at most
+    v = res["verdict"]
+    conservative = name == "ho+mf"
+    assert v["new_physics"] == (not conservative), v
+    assert (v["ratio"] < 2) if conservative else (v["ratio"] > 6 and v["L_above"] > 0.1), v
+    pr = res["protocol"]
+    assert pr["first_lambdas"] == [0.1, 0.5, 2.0, 10.0]
+    assert not pr["ran_paper_protocol"] and pr["steps_total"] < 2000 * len(PAPER_LAMBDAS) / 3, pr
+    assert [r["lam"] for r in res["table"]] == [float(k) for k in pr["steps_by_lambda"]]

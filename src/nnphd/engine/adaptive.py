@@ -166,7 +166,7 @@ class FastInfo:
     """What :func:`fast_sweep` did: the steps of each λ it trained, the first verdict's doubts, and whether it then
     ran the paper's protocol (whose points and verdict it returned)."""
 
-    steps: dict[float, int | None]  # None: resumed from a checkpoint
+    steps: dict[float, int]  # training steps per λ; with the paper protocol, its budget added (also when resumed)
     first: tuple[float, ...]
     doubts: list[str]
     paper_protocol: bool
@@ -178,7 +178,7 @@ class FastInfo:
             "doubts": self.doubts,
             "ran_paper_protocol": self.paper_protocol,
             "steps_by_lambda": {f"{k:g}": v for k, v in sorted(self.steps.items())},
-            "steps_total": sum(v for v in self.steps.values() if v is not None),
+            "steps_total": sum(self.steps.values()),
         }
 
 

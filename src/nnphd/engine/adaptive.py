@@ -38,6 +38,7 @@ import optax
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.train import (
     PAPER_LAMBDAS,
+    SWEEP_MODES,
     SweepPoint,
     TrainConfig,
     _as_arrays,
@@ -50,6 +51,7 @@ from nnphd.engine.verdict import Verdict, force_norm, verdict
 from nnphd.io.progress import Progress
 
 FIRST_LAMBDAS: tuple[float, ...] = (0.1, 0.5, 2.0, 10.0)
+ALL_MODES = (*SWEEP_MODES, "fast")  # the modes of a catalogue sweep (nnphd sweep --mode)
 
 
 @dataclass(frozen=True)

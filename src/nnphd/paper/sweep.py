@@ -12,11 +12,11 @@ from pathlib import Path
 
 import jax
 
-from nnphd.engine.adaptive import fast_sweep
+from nnphd.engine.adaptive import ALL_MODES, fast_sweep
 from nnphd.engine.data import Dataset, train_test
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.systems import System, get_system
-from nnphd.engine.train import PAPER_LAMBDAS, SWEEP_MODES, SweepPoint, TrainConfig, sweep, validate_lambdas
+from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
 from nnphd.engine.verdict import Verdict, force_norm, verdict
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
@@ -92,8 +92,8 @@ def plan_sweep(
     """Data of a catalogue system, the model and the settings of its λ-sweep (plus ``extra_settings``, for callers
     that store more under the same key); the checkpoint lives in ``out``."""
     sysm = get_system(system) if isinstance(system, str) else system
-    if mode not in (*SWEEP_MODES, "fast"):
-        raise ValueError(f"mode must be one of {', '.join((*SWEEP_MODES, 'fast'))}, got {mode!r}")
+    if mode not in ALL_MODES:
+        raise ValueError(f"mode must be one of {', '.join(ALL_MODES)}, got {mode!r}")
     tcfg = TrainConfig(steps=steps, p=p)
     lams = validate_lambdas(lambdas)
     train, test = train_test(sysm, seed=seed, n_train=n_train, n_test=n_test)

@@ -69,6 +69,49 @@ def test_configure_sets_float64_and_the_flag(tmp_path):
     assert r.stdout.split() == ["True", *nnphd.ONE_THREAD_FLAGS.split(), nnphd.XLA_FLAG]
 
 
+def test_compile_cache_folder_choice(monkeypatch, tmp_path):
+    monkeypatch.delenv(nnphd.COMPILE_CACHE_ENV, raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    assert nnphd.compile_cache_dir() is None and nnphd.compile_cache_dir(False) is None
+    assert nnphd.compile_cache_dir(True) == tmp_path / "xdg" / "nnphd" / "jax"
+    assert nnphd.compile_cache_dir(tmp_path / "c") == tmp_path / "c"
+    monkeypatch.setenv(nnphd.COMPILE_CACHE_ENV, str(tmp_path / "env"))
+    assert nnphd.compile_cache_dir() == nnphd.compile_cache_dir(True) == tmp_path / "env"
+    assert nnphd.compile_cache_dir(tmp_path / "c") == tmp_path / "c" and nnphd.compile_cache_dir(False) is None
+    for off in ("0", "off", ""):
+        monkeypatch.setenv(nnphd.COMPILE_CACHE_ENV, off)
+        assert nnphd.compile_cache_dir(True) is None
+
+
+def test_compile_cache_is_loaded_by_the_next_process_same_numbers(tmp_path):
+    """A program compiled in one process is written to the cache folder and loaded (not compiled) by the next; the
+    numbers are bit for bit the same, and a cache that cannot be created leaves nnphd compiling as before."""
+    code = """
+import json, jax, jax.numpy as jnp, jax.monitoring, nnphd
+nnphd.configure()
+hits = []
+jax.monitoring.register_event_listener(lambda e, **kw: hits.append(e) if e.endswith("cache_hits") else None)
+x = jnp.linspace(0.1, 1.0, 600).reshape(20, 30)
+n = len(hits)
+y = jax.jit(lambda x: jnp.tanh(jnp.sin(x) @ x.T).sum(axis=0).cumsum() ** 1.5)(x)
+print(json.dumps([y.tolist(), jax.config.jax_compilation_cache_dir, len(hits) - n]))
+"""
+    cache = tmp_path / "cache"
+    runs = [_fresh(code, tmp_path, env={nnphd.COMPILE_CACHE_ENV: str(cache)}) for _ in range(2)]
+    assert all(r.returncode == 0 for r in runs), runs[0].stderr
+    (y1, d1, h1), (y2, d2, h2) = (json.loads(r.stdout.strip().splitlines()[-1]) for r in runs)
+    assert d1 == d2 == str(cache) and y1 == y2
+    assert (h1, h2) == (0, 1)  # compiled by the first process, loaded from the cache by the second
+    entries = [p for p in cache.iterdir() if not p.name.startswith(".")]
+    assert len(entries) >= 1  # the program (and JAX's own small ones) were written
+    blocked = tmp_path / "file"
+    blocked.write_text("x")  # a folder cannot be made under a file: no cache, same result
+    r = _fresh(code, tmp_path, env={nnphd.COMPILE_CACHE_ENV: str(blocked / "sub")})
+    assert r.returncode == 0, r.stderr
+    y3, d3, h3 = json.loads(r.stdout.strip().splitlines()[-1])
+    assert y3 == y1 and d3 is None and h3 == 0
+
+
 CHECKS = """
 # --- appended by the test (not in the README): the fitted model, in this same session (float64 off) ---
 import json, os, tempfile

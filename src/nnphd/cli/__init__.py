@@ -28,7 +28,9 @@ def main(argv: list[str] | None = None) -> int:
     from nnphd import configure
     from nnphd._extras import MissingExtra
 
-    configure()  # the command line owns its process: float64 and the fast XLA:CPU setting
+    # the command line owns its process: float64, the fast XLA:CPU setting, and compiled programs cached on disk
+    # (~/.cache/nnphd/jax; NNPHD_COMPILE_CACHE=folder or 0 for off), so a second run does not compile them again
+    configure(compile_cache=True)
     cmd = typer.main.get_command(app)
     args = list(argv if argv is not None else sys.argv[1:])
     out_before = _out_state(args)

@@ -2,7 +2,8 @@
 """Set up the project in ./.venv (if needed) and run the demo or the tests. Needs only python3 (≥ 3.11).
 
 python3 dev.py demo    # λ-sweeps on HO+LD (friction: a jump at λ=1) and HO+MF (conservative: no jump)
-python3 dev.py test    # the test suite (pytest)
+python3 dev.py test    # the test suite (pytest), without the end-to-end runs marked slow (under 10 min on 2 cores)
+python3 dev.py test --slow   # only the slow ones (CI, .ci/run, runs both)
 """
 
 import hashlib
@@ -41,7 +42,7 @@ def setup() -> None:
 def main() -> None:
     what = sys.argv[1] if len(sys.argv) > 1 else ""
     if what not in ("demo", "test", "setup"):
-        sys.exit("usage: python3 dev.py demo|test|setup [extra pytest arguments for test]")
+        sys.exit("usage: python3 dev.py demo|test|setup [--slow] [extra pytest arguments for test]")
     setup()
     if what == "demo":
         for system in ("ho+ld", "ho+mf"):
@@ -55,8 +56,12 @@ def main() -> None:
         # one pytest process per core (pytest-xdist; a module's tests stay together): nnphd holds XLA to one
         # thread per process (nnphd.configure), so the cores are filled by processes
         xdist = ["-n", "auto", "--dist", "loadfile"]
+        extra = sys.argv[2:]
+        # the tests marked slow (end-to-end runs at realistic sizes) only with --slow, unless -m chooses otherwise
+        tier = ["-m", "slow"] if "--slow" in extra else [] if "-m" in extra else ["-m", "not slow"]
+        extra = [a for a in extra if a != "--slow"]
         tests = subprocess.run(
-            [str(BIN / "python"), "-m", "pytest", *xdist, "tests", *sys.argv[2:]], cwd=ROOT
+            [str(BIN / "python"), "-m", "pytest", *xdist, *tier, "tests", *extra], cwd=ROOT
         ).returncode
         if lint or tests:
             sys.exit(tests or lint)

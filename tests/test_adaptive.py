@@ -108,15 +108,18 @@ def test_fast_sweep_runs_the_paper_protocol_when_undecided(monkeypatch):
     assert info3.paper_protocol and [p.L_e for p in pts3] == [p.L_e for p in paper]
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 @pytest.mark.parametrize("name", ["ho+ld", "ho+mf"])
 def test_fast_mode_verdicts(name):
-    """--mode fast gives the paper protocol's verdict on a damped and a conservative toy, in far fewer steps."""
-    res = run_sweep(name, seed=0, mode="fast", n_train=500, n_test=500)  # 2000 steps per λ at most
+    """--mode fast gives the right verdict on a damped and a conservative toy, in < 1/3 of the paper protocol's steps."""
+    # half the paper's budget per λ (1000 of 2000 steps) and 300 samples: at 600 steps HO+MF is still undertrained
+    # (fast: a wrong "detected", ratio 8.7); the paper-size runs are benchmarks/time_to_verdict.py
+    res = run_sweep(name, seed=0, mode="fast", n_train=300, n_test=300, steps=1000)
     v = res["verdict"]
     conservative = name == "ho+mf"
     assert v["new_physics"] == (not conservative), v
     assert (v["ratio"] < 2) if conservative else (v["ratio"] > 6 and v["L_above"] > 0.1), v
     pr = res["protocol"]
     assert pr["first_lambdas"] == [0.1, 0.5, 2.0, 10.0]
-    assert not pr["ran_paper_protocol"] and pr["steps_total"] < 2000 * len(PAPER_LAMBDAS) / 3, pr
+    assert not pr["ran_paper_protocol"] and pr["steps_total"] < 1000 * len(PAPER_LAMBDAS) / 3, pr
     assert [r["lam"] for r in res["table"]] == [float(k) for k in pr["steps_by_lambda"]]

@@ -86,6 +86,7 @@ def test_expand_and_names(tmp_path):
         expand_paths([tmp_path / "nope"])
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_detect_seeds_on_two_workers_same_report(tmp_path):
     """nnphd detect trains its repeated seeds as units: on 2 worker processes the report's numbers are those of
     the run in this process."""

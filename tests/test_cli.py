@@ -114,6 +114,7 @@ def test_console_script_no_traceback(tmp_path):
     assert "Traceback" not in r.stderr and r.stderr.strip().startswith("error: unknown system")
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_discover_small_run_writes_table2_row(tmp_path, capsys):
     out = tmp_path / "d"
     rc = main(

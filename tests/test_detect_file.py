@@ -27,6 +27,7 @@ def _write_positions(path, system, n_traj=6, dt=0.05, n_steps=600, noise=1e-3, s
     return path
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 @pytest.mark.parametrize("system,expected", [("ho+ld", "detected"), ("ho+mf", "none")])
 def test_positions_only_verdicts(system, expected, tmp_path, capsys):
     path = _write_positions(tmp_path / f"{system}.csv", system)

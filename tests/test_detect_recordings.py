@@ -24,7 +24,14 @@ def _detect(name, tmp_path, out=None, **kw):
     return rec, detect_file(path, out=out, angles=rec.angles, seed=0, **(SMALL | kw))
 
 
-@pytest.mark.parametrize("name", ["pendulum-damped", "cart", "carts-coupled"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "pendulum-damped",
+        pytest.param("cart", marks=pytest.mark.slow),
+        pytest.param("carts-coupled", marks=pytest.mark.slow),
+    ],
+)
 def test_damped_recording_is_detected_with_its_decay_rate(name, tmp_path):
     rec, rep = _detect(name, tmp_path)
     assert rep["status"] == "detected" and rep["new_physics"]
@@ -47,6 +54,7 @@ def test_conservative_recording_is_none(name, tmp_path):
     assert "95% bound" in rep["reasons"][0]
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_chaotic_double_pendulum_with_whole_turns(tmp_path):
     rec, rep = _detect("double-pendulum", tmp_path)
     assert rep["status"] == "detected"
@@ -54,6 +62,7 @@ def test_chaotic_double_pendulum_with_whole_turns(tmp_path):
     assert rep["evidence"]["energy_trend"]["rate"] > 0  # it loses energy
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_two_trajectories_at_disjoint_times_do_not_test_the_clock(tmp_path):
     rec, rep = _detect("disjoint-clock", tmp_path)
     assert rep["status"] != "detected" and not rep["new_physics"]

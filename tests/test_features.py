@@ -16,6 +16,7 @@ def _points(n=20, seed=0):
     return jnp.asarray(rng.uniform(-1.5, 1.5, (n, 2)) + np.array([2.5, 0.0])), jnp.asarray(rng.normal(size=(n, 2)))
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_double_pendulum_features_at_true_coefficients_give_f_c():
     s = get_system("double-pendulum")
     assert s.feature_set == "double-pendulum"

@@ -112,6 +112,7 @@ def test_trajectory_level_law_from_positions(name, tmp_path):
     assert cases.score(c, tab.law.predict) < 0.2
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_pendulum_recording_damping_within_10_percent(tmp_path):
     """One trajectory, 6 Hz with jitter and gaps, 0.5% noise (tests/fixtures/recordings.py): linear friction wins
     and γ is within 10% of the truth with a 2-se interval that covers it."""

@@ -27,6 +27,7 @@ def demo(tmp_path_factory):
     return res, out, msgs
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_nnphd_detects_the_non_conservative_residual(demo):
     res, _, msgs = demo
     v = res["verdict"]
@@ -40,6 +41,7 @@ def test_nnphd_detects_the_non_conservative_residual(demo):
     assert done == sorted(done) and all(d <= t for d, t, _ in msgs) and len({t for _, t, _ in msgs}) == 1
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_learned_split_kepler_plus_neptune(demo):
     res, _, _ = demo
     ll = res["learned_lagrangian"]
@@ -52,6 +54,7 @@ def test_learned_split_kepler_plus_neptune(demo):
     assert d["fn_vs_a_res_rel_rms"] < d["least_squares_remainder_vs_a_res_rel_rms"]
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_perturber_fitted_to_learned_fn_locates_neptune(demo):
     res, _, _ = demo
     e = res["errors"]
@@ -67,6 +70,7 @@ def test_perturber_fitted_to_learned_fn_locates_neptune(demo):
     assert set(res["goals"]) == {"gm_rel", "radius_rel", "period_rel", "longitude_deg"}
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_outputs_written(demo):
     res, out, _ = demo
     on_disk = json.loads((out / "results.json").read_text())

@@ -102,6 +102,7 @@ def test_periodic_pass_equals_hessian_reference(periodic, act):
         np.testing.assert_allclose(a, b, atol=1e-10, rtol=0)
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 @pytest.mark.parametrize("periodic", [(0, 2)])
 def test_periodic_pass_n3_with_standardisation_and_parameter_gradients(periodic):
     # non-contiguous / middle angle indices, standardisation on, three hidden layers; gradients w.r.t. the weights

@@ -70,6 +70,7 @@ def test_models_forces_and_learned_power():
     np.testing.assert_allclose(learned_power(zero, q, qd, fn, cfg), np.sum(qd * fn, axis=1), rtol=1e-12)
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_small_run_numbers(small):
     res = small
     assert res["settings"]["seed"] == 1 and res["settings"]["steps"] == 200 and res["settings"]["lambda"] == 0.2
@@ -97,6 +98,7 @@ def test_small_run_numbers(small):
     json.dumps(res)  # JSON-able
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_same_seed_same_numbers(small):
     again = run_prediction(seed=1, **SMALL)
     assert again["metrics"] == small["metrics"]
@@ -112,6 +114,7 @@ def test_bad_settings_raise():
         run_prediction(steps=8, lam=0)
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_cli_writes_results_and_figure(tmp_path, capsys):
     out = tmp_path / "p"
     rc = main(["predict", "--steps", "8", "--seed", "2", "--out", str(out)])

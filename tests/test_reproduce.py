@@ -43,6 +43,7 @@ def run(tmp_path_factory):
     return out, summary, msgs
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_report_has_every_section_and_figure(run):
     out, summary, _ = run
     page = (out / "report.html").read_text()
@@ -68,6 +69,7 @@ def test_report_has_every_section_and_figure(run):
         assert f"<td>{v}</td>" in page, v
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_summary_claims_and_settings(run):
     out, summary, msgs = run
     saved = json.loads((out / "summary.json").read_text())
@@ -91,6 +93,7 @@ def test_summary_claims_and_settings(run):
         assert (out / rel).is_file()
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_rerun_loads_every_unit_from_the_cache(run):
     out, summary, _ = run
     again = reproduce(out=out, quick=True, seed=0, overrides=TINY)
@@ -120,6 +123,7 @@ def test_cli_bad_input(tmp_path, capsys):
     assert not (tmp_path / "r").exists()
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_two_workers_same_claims(run, tmp_path):
     """On 2 local worker processes (the λ/p study's sweeps as units of their own) the claims — every number in
     them — are those of the run in this process."""
@@ -132,6 +136,7 @@ def test_two_workers_same_claims(run, tmp_path):
     assert {r["where"] for k, r in two["runs"].items() if k != "lambda-p"} != {"in-process"}
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_a_failing_unit_is_reported_the_others_finish(run, tmp_path):
     import shutil
 

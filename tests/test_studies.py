@@ -156,6 +156,7 @@ def test_data_quality_cached_rerun(dq):
     assert again["claims"] == res["claims"]
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_data_quality_cli_same_seed_same_numbers(dq, tmp_path, capsys):
     _, res = dq
     out = tmp_path / "cli"

@@ -34,6 +34,7 @@ def test_friction_found_and_reproducible():
     assert genetic_formula(inputs, fn, ["a1", "a2"], max_time=4, n_threads=1).expressions == r.expressions
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_gravitational_radiation_law_found():
     v2 = VX**2 + VY**2
     fn = _noisy(np.stack([-0.00165 * v2**4 * VX, -0.00165 * v2**4 * VY], 1))

@@ -166,6 +166,7 @@ def test_phase_transition_reduced(name):
         assert v["ratio"] < 2
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 @pytest.mark.parametrize("name", ["ho+ld", "ho+mf"])
 def test_phase_transition_reduced_float32(name):
     """float32 training (what a GPU user may choose): the same verdicts, within the same bands, as float64."""

@@ -207,6 +207,7 @@ def _run(name, seed=0):
     return d, assess(d, traj, seed=seed, **FAST)
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 @pytest.mark.parametrize("name", ["morse"])  # (the pendulum: tests/test_detect_recordings.py, from positions)
 def test_underfitting_prone_conservative_system_is_not_new_physics(name):
     d, r = _run(name)
@@ -239,6 +240,7 @@ def test_weak_drag_on_a_pendulum_is_detected():
     assert np.corrcoef(r["f_n"].ravel(), d.fn.ravel())[0, 1] > 0.5
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_weak_periodic_drive_is_detected_by_its_clock():
     d, r = _run("anharmonic+drive")
     assert np.mean(np.abs(d.fn)) / np.mean(np.abs(d.qdd)) < 0.03
@@ -248,11 +250,13 @@ def test_weak_periodic_drive_is_detected_by_its_clock():
     assert "depends on t" in r["reasons"][0]
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_weak_self_excitation_is_detected():
     d, r = _run("vanderpol")
     assert r["status"] == "detected" and r["checks"]["drift"]["rho_median"][0] > 0.9
 
 
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_single_trajectory_drive_is_never_a_confident_none():
     # along one trajectory a periodic drive is confounded with the state (no clock test) and does no net work;
     # the learned energy swings from oscillation to oscillation, which must keep the verdict from "none"

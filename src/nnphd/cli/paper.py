@@ -59,7 +59,7 @@ def sweep(
     mode: SweepMode = typer.Option(
         SweepMode.warm,
         "--mode",
-        help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run), scratch (the same, one λ after the other) or fast (4 λ, warm, each until converged; the paper protocol when that verdict is close; at fewer --steps than 2000 it can report a false jump, see README)",
+        help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run), scratch (the same, one λ after the other) or fast (4 λ, warm, each until converged; the paper protocol when that verdict is close)",
     ),
     param: list[str] = typer.Option(
         [], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"

@@ -45,13 +45,43 @@ def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> 
     return wins
 
 
+def rowwise_jvp(f):
+    """``f(aux, q, v)`` → (W, n), each row a function of its own row of (q, v) only, with forward derivatives taken
+    through the per-row Jacobian ∂f/∂(q, v): computed once per call from 2n directions and applied to every tangent.
+    A shooting Jacobian pushes P_loc + P_glob tangent directions through the conservative force (35 for a law ranked
+    at trajectory level), all at the same point: JAX's own jvp would differentiate the LNN's Euler–Lagrange solve
+    once per direction. Same values, same derivatives (to rounding). ``aux`` is data: its tangent is ignored, so do
+    not differentiate with respect to it."""
+
+    @jax.custom_jvp
+    def g(aux, q, v):
+        return f(aux, q, v)
+
+    @g.defjvp
+    def g_jvp(primals, tangents):
+        aux, q, v = primals
+        _, dq, dv = tangents
+        n = q.shape[-1]
+
+        def column(e):  # ∂f/∂(q, v)_j of every row: the same unit direction j in every row
+            dirs = (jnp.broadcast_to(e[:n], q.shape), jnp.broadcast_to(e[n:], v.shape))
+            return jax.jvp(lambda q_, v_: f(aux, q_, v_), (q, v), dirs)[1]
+
+        J = jax.vmap(column)(jnp.eye(2 * n, dtype=q.dtype))  # (2n, W, n)
+        return f(aux, q, v), jnp.einsum("jwi,wj->wi", J, jnp.concatenate([dq, dv], axis=-1))
+
+    return g
+
+
 @functools.lru_cache(maxsize=64)
 def _damping_rhs(accel):
     """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
     object per ``accel``, so the shooting fit compiles once per model)."""
 
+    fc = rowwise_jvp(accel)
+
     def rhs(theta, q, v, t, params):
-        return (1.0 + theta[0]) * accel(params, q, v) - theta[1:] * v
+        return (1.0 + theta[0]) * fc(params, q, v) - theta[1:] * v
 
     return rhs
 
@@ -134,7 +164,8 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8):
             dth[free] = dth_free
             s_new, th_new = s + ds, theta + dth
             r_new, jac_new = (np.asarray(a) for a in resjac(s_new, th_new))
-            c_new = float(np.sum(r_new * r_new))
+            with np.errstate(over="ignore", invalid="ignore"):  # a step that blows up is rejected below
+                c_new = float(np.sum(r_new * r_new))
             if np.isfinite(c_new) and c_new <= cost:
                 rel = (cost - c_new) / max(cost, 1e-300)
                 s, theta, r, jac, cost = s_new, th_new, r_new, jac_new, c_new

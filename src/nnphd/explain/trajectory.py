@@ -19,27 +19,40 @@ __all__ = ["rank_trajectory"]
 
 
 def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center, library: bool = True):
-    """q̈ = f_c + Σ_families gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…): every candidate is this
-    model with the other families' gates at 0 — one compiled shooting function for all of them. The parameters
-    actually fitted are u, with θ = base + u·D (``aux`` = (base, D))."""
+    """q̈ = f_c + gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…) and the candidate's number f (0: no
+    law, i: the i-th of ``fams``): one compiled shooting function for all of them, which evaluates only the chosen
+    family (``lax.switch`` on a number that is data, not a traced derivative). The parameters actually fitted are u,
+    with θ = base + u·D (``aux`` = (base, D, f))."""
+    import jax
     import jax.numpy as jnp
 
-    sizes = [(len(f.coef_names), len(f.nl_names)) for f in fams]
+    from nnphd.engine.shooting import rowwise_jvp
 
-    def rhs(u, q, v, t, aux):
-        base, D = aux
-        theta = base + u @ D
-        fc = None if fc_fn is None else fc_fn(q, v)
-        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center, library), theta[:Kc])
-        off = Kc
-        for f, (K, m) in zip(fams, sizes):
+    sizes = [(len(f.coef_names), len(f.nl_names)) for f in fams]
+    # the LNN's f_c is differentiated once per row (2n directions), not once per fitted parameter
+    fc_rows = None if fc_fn is None else rowwise_jvp(lambda _, q, v: fc_fn(q, v))
+
+    def family_term(f, off, K, m):
+        def term(theta, q, v, t):
             b, th, gate = theta[off : off + K], theta[off + K : off + K + m], theta[off + K + m]
-            off += K + m + 1
             g = jnp.einsum("wnk,k->wn", f.basis(jnp, th, q, v, t), b)
             if f.fixed is not None:
                 g = g + f.fixed(jnp, th, q, v, t)
-            out = out + jnp.where(gate != 0, gate * g, 0.0)
-        return out
+            return gate * g
+
+        return term
+
+    branches, off = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc
+    for f, (K, m) in zip(fams, sizes):
+        branches.append(family_term(f, off, K, m))
+        off += K + m + 1
+
+    def rhs(u, q, v, t, aux):
+        base, D, which = aux
+        theta = base + u @ D
+        fc = None if fc_rows is None else fc_rows(None, q, v)
+        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center, library), theta[:Kc])
+        return out + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs
 
@@ -140,7 +153,7 @@ def rank_trajectory(
         D = np.zeros((P_dir, P_glob))
         D[np.arange(len(idx)), idx] = 1.0
         u0 = np.concatenate([u0, np.zeros(P_dir - len(idx))])
-        aux = (jnp.asarray(base), jnp.asarray(D))
+        aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32))  # branch ci: this row's family
 
         def resjac(s_, u_, aux=aux):
             return model_residuals_and_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)

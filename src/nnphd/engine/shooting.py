@@ -62,13 +62,13 @@ def rowwise_jvp(f):
         aux, q, v = primals
         _, dq, dv = tangents
         n = q.shape[-1]
+        y, lin = jax.linearize(lambda q_, v_: f(aux, q_, v_), q, v)
 
         def column(e):  # ∂f/∂(q, v)_j of every row: the same unit direction j in every row
-            dirs = (jnp.broadcast_to(e[:n], q.shape), jnp.broadcast_to(e[n:], v.shape))
-            return jax.jvp(lambda q_, v_: f(aux, q_, v_), (q, v), dirs)[1]
+            return lin(jnp.broadcast_to(e[:n], q.shape), jnp.broadcast_to(e[n:], v.shape))
 
         J = jax.vmap(column)(jnp.eye(2 * n, dtype=q.dtype))  # (2n, W, n)
-        return f(aux, q, v), jnp.einsum("jwi,wj->wi", J, jnp.concatenate([dq, dv], axis=-1))
+        return y, jnp.einsum("jwi,wj->wi", J, jnp.concatenate([dq, dv], axis=-1))
 
     return g
 

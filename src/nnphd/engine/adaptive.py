@@ -55,8 +55,8 @@ FIRST_LAMBDAS: tuple[float, ...] = (0.1, 0.5, 2.0, 10.0)
 # Theorem 1: at every λ < 1 the minimiser's UAN carries exactly f_n, so its output L_b is the same at each of them.
 # When a jump is claimed and L_b below λ = 1 differs by this factor or more between λ values, the split between the
 # LNN and the UAN is still moving, and the jump may only be the force the LNN has not learned yet. Measured on the
-# 4-λ chain (tests/test_adaptive.py): true jumps ×1.02–1.31 (HO+LD/CD/PF, GW, 600 and 2000 steps, seeds 0–2); the
-# false jump of HO+MF at 600 steps per λ ×2.25 (L_b 1.15 at λ = 0.1, 0.51 at 0.5; the paper protocol: no jump).
+# 4-λ chain (tests/test_adaptive.py): true jumps ×1.02–1.31 (HO+LD/CD/PF, GW, 800 and 2000 steps, seeds 0–2); the
+# false jump of HO+MF at 800 steps per λ ×2.25 (L_b 1.15 at λ = 0.1, 0.51 at 0.5; the paper protocol: no jump).
 UAN_SETTLED = 1.5
 ALL_MODES = (*SWEEP_MODES, "fast")  # the modes of a catalogue sweep (nnphd sweep --mode)
 
@@ -77,16 +77,18 @@ class StopRule:
 
 
 class ChunkTrainer(NamedTuple):
-    run: Callable  # (params, opt_state, arrays, lam, lr, key) -> (params, opt_state, objective on all of arrays)
+    # (params, opt_state, arrays, lam, lr, key, n_steps=chunk) -> (params, opt_state, objective on all of arrays)
+    run: Callable
     init: Callable  # params -> a fresh Adam state
     objective: Callable  # (params, arrays, lam) -> L_e + λ L_b
     chunk: int  # steps per call of run
 
 
 def make_chunk_trainer(cfg: ModelConfig, tcfg: TrainConfig, chunk: int, loss_fn: Callable | None = None):
-    """A :class:`ChunkTrainer`: ``run(params, opt_state, arrays, lam, lr, key)`` trains ``chunk`` steps (minibatches of
-    ``tcfg.batch_size``) at learning rate ``lr`` and returns L_e + λ L_b on all of ``arrays``; ``init(params)`` is a
-    fresh Adam state. One compiled program serves every λ and learning rate."""
+    """A :class:`ChunkTrainer`: ``run(params, opt_state, arrays, lam, lr, key, n_steps=chunk)`` trains ``n_steps``
+    steps (minibatches of ``tcfg.batch_size``) at learning rate ``lr`` and returns L_e + λ L_b on all of ``arrays``;
+    ``init(params)`` is a fresh Adam state. One compiled program per ``n_steps`` serves every λ and learning rate
+    (a budget that is not a multiple of ``chunk`` compiles one more, for its last, shorter chunk)."""
     opt = optax.inject_hyperparams(optax.adam)(learning_rate=tcfg.lrs[0])
     if loss_fn is None:
         loss_fn = partial(loss_terms, cfg=cfg, p=tcfg.p)
@@ -97,8 +99,8 @@ def make_chunk_trainer(cfg: ModelConfig, tcfg: TrainConfig, chunk: int, loss_fn:
 
     grad_fn = jax.grad(objective)
 
-    @jax.jit
-    def run(params, opt_state, arrays, lam, lr, key):
+    @partial(jax.jit, static_argnames="n_steps")
+    def run(params, opt_state, arrays, lam, lr, key, n_steps=chunk):
         hp = dict(opt_state.hyperparams, learning_rate=jnp.asarray(lr, opt_state.hyperparams["learning_rate"].dtype))
         opt_state = opt_state._replace(hyperparams=hp)
         n_data = arrays[0].shape[0]
@@ -110,7 +112,7 @@ def make_chunk_trainer(cfg: ModelConfig, tcfg: TrainConfig, chunk: int, loss_fn:
             updates, opt_state = opt.update(g, opt_state, params)
             return (optax.apply_updates(params, updates), opt_state), None
 
-        (params, opt_state), _ = jax.lax.scan(step, (params, opt_state), jax.random.split(key, chunk))
+        (params, opt_state), _ = jax.lax.scan(step, (params, opt_state), jax.random.split(key, n_steps))
         return params, opt_state, objective(params, arrays, lam)
 
     return ChunkTrainer(run, jax.jit(opt.init), jax.jit(objective), chunk)
@@ -118,21 +120,23 @@ def make_chunk_trainer(cfg: ModelConfig, tcfg: TrainConfig, chunk: int, loss_fn:
 
 def train_converged(trainer, params, arrays, lam: float, key, tcfg: TrainConfig, rule: StopRule | None):
     """Train at one λ through the learning rates of ``tcfg``, each until it stops paying (``rule``; None: never) or
-    for ``tcfg.steps / len(lrs)`` steps at most. Returns (params, steps taken)."""
+    for ``tcfg.steps / len(lrs)`` steps at most (exactly that many when it never stops: the last chunk of a learning
+    rate is shortened to the budget). Returns (params, steps taken)."""
     run, init, objective, chunk = trainer
     dtype = arrays[0].dtype
     lam_a = jnp.asarray(lam, dtype)
     opt_state = init(params)
     current = float(objective(params, arrays, lam_a))
-    per_lr = max(chunk, tcfg.steps // len(tcfg.lrs))
+    per_lr = tcfg.steps // len(tcfg.lrs)  # TrainConfig: ≥ 1
     used, i = 0, 0
     for lr in tcfg.lrs:
         done = 0
         while done < per_lr:
+            n = min(chunk, per_lr - done)
             params, opt_state, obj = run(
-                params, opt_state, arrays, lam_a, jnp.asarray(lr, dtype), jax.random.fold_in(key, i)
+                params, opt_state, arrays, lam_a, jnp.asarray(lr, dtype), jax.random.fold_in(key, i), n_steps=n
             )
-            i, done, used = i + 1, done + chunk, used + chunk
+            i, done, used = i + 1, done + n, used + n
             obj = float(obj)
             paid = rule is None or obj < current * (1.0 - rule.rel_tol)
             current = obj

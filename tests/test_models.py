@@ -174,6 +174,21 @@ def test_float32_model_runs_and_matches_float64():
     np.testing.assert_allclose(fn32, fn64, atol=1e-4)
 
 
+def test_float32_config_trains_in_float32():
+    """ModelConfig(dtype="float32") means float32 weights (a NumPy float64 scale once made them float64, so the
+    "float32" runs were float64 but for their biases and data), and they stay float32 through Adam."""
+    from nnphd.engine.train import TrainConfig, make_trainer
+
+    cfg = ModelConfig(n=2, lnn_widths=(16, 16), uan_widths=(16, 16), dtype="float32")
+    p0 = init_nnphd(jax.random.PRNGKey(0), cfg)
+    assert {str(x.dtype) for x in jax.tree_util.tree_leaves(p0)} == {"float32"}
+    q, qd, t = _batch(2)
+    arrays = tuple(a.astype(jnp.float32) for a in (q, qd, t, q))  # (q, q̇, t, q̈)
+    p1, (le, lb) = make_trainer(cfg, TrainConfig(steps=8))(p0, arrays, jnp.asarray(0.5, jnp.float32), jax.random.key(1))
+    assert {str(x.dtype) for x in jax.tree_util.tree_leaves(p1)} == {"float32"} and le.dtype == jnp.float32
+    assert not all(np.array_equal(a, b) for a, b in zip(jax.tree_util.tree_leaves(p0), jax.tree_util.tree_leaves(p1)))
+
+
 def test_uan_is_leaky_relu_mlp_of_q_qd_t():
     cfg = ModelConfig(n=1, uan_widths=(2,))
     uan = [

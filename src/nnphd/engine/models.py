@@ -184,9 +184,9 @@ def init_mlp(key, sizes, dtype="float64", out_scale=1.0) -> list:
     layers = []
     keys = jax.random.split(key, len(sizes) - 1)
     for i, (k, fan_in, fan_out) in enumerate(zip(keys, sizes[:-1], sizes[1:])):
-        std = 1.0 / np.sqrt(fan_in)
+        std = 1.0 / float(np.sqrt(fan_in))  # a Python float: a NumPy float64 would promote float32 weights
         if i == len(sizes) - 2:
-            std *= out_scale
+            std *= float(out_scale)
         w = std * jax.random.normal(k, (fan_in, fan_out), dtype=dtype)
         layers.append({"w": w, "b": jnp.zeros((fan_out,), dtype)})
     return layers

@@ -102,3 +102,24 @@ def test_detect_seeds_on_two_workers_same_report(tmp_path):
         assert reps["1"][k] == reps["2"][k], k
     timeless = [{k: v for k, v in r["checks"].items() if k != "wall_time_s"} for r in reps.values()]
     assert timeless[0] == timeless[1]
+
+
+def test_batch_hands_the_biggest_files_to_the_workers_first(tmp_path, monkeypatch):
+    """A long file started last keeps one worker busy while the others idle: units carry their file's size as cost
+    and Dask gets them largest first (ties in the given order); the summary keeps the files' order."""
+    import nnphd.user.batch as batch
+    from nnphd.parallel import Outcome, largest_first
+
+    sizes = {"a.csv": 10, "b.csv": 300, "c.csv": 20, "d.csv": 300}
+    for name, size in sizes.items():
+        (tmp_path / name).write_text("t\n" + "0\n" * ((size - 2) // 2))
+    seen = {}
+
+    def fake_run_units(units, workers, scheduler, progress=None):
+        seen["order"] = [u.key for u in largest_first(units)]
+        return {u.key: Outcome(u.key, False, error="not run") for u in units}
+
+    monkeypatch.setattr(batch, "run_units", fake_run_units)
+    summary = batch.detect_batch([tmp_path], tmp_path / "out", workers=2)
+    assert seen["order"] == ["b", "d", "c", "a"]
+    assert [r["name"] for r in summary["rows"]] == ["a", "b", "c", "d"]

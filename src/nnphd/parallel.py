@@ -46,6 +46,7 @@ __all__ = [
     "UnitsFailed",
     "Unit",
     "Outcome",
+    "largest_first",
     "run_units",
     "runs_here",
     "n_workers",
@@ -74,11 +75,13 @@ class UnitsFailed(RuntimeError):
 class Unit:
     """One independent piece of work: ``fn(**kwargs)`` named ``key`` (unique within a call). ``fn`` must be a
     module-level function (workers import it by name) and its result picklable; it may write files under its own
-    ``out`` folder."""
+    ``out`` folder. ``cost``: a guess of its run time in any unit (e.g. a file's size); on Dask workers the
+    costliest units start first, so that no long unit starts last while the other workers idle."""
 
     key: str
     fn: Callable[..., Any]
     kwargs: dict = field(default_factory=dict)
+    cost: float = 0.0
 
 
 @dataclass
@@ -206,6 +209,11 @@ def run_units(
     return _run_dask(units, n, scheduler, progress, retries, on_outcome)
 
 
+def largest_first(units: Sequence[Unit]) -> list[Unit]:
+    """The order units are handed to Dask workers: by decreasing :attr:`Unit.cost`, ties in the given order."""
+    return sorted(units, key=lambda u: -u.cost)
+
+
 def _run_here(units, progress, on_outcome) -> dict[str, Outcome]:
     out: dict[str, Outcome] = {}
     for i, u in enumerate(units):
@@ -261,7 +269,7 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
             client = Client(scheduler)
         try:
             futures = {}
-            for u in units:
+            for u in largest_first(units):
                 fut = client.submit(_call, u.fn, u.kwargs, key=f"nnphd-{u.key}-{time.time_ns()}", pure=False)
                 futures[fut] = u.key
             out: dict[str, Outcome] = {}

@@ -134,6 +134,7 @@ def detect_batch(
             n,
             detect_one,
             dict(path=str(p), out=str(outdir / n), name=n, angles=tuple(angles), max_rows=max_rows, **settings),
+            cost=p.stat().st_size,  # the biggest files start first on the workers
         )  # fmt: skip
         for n, p in zip(names, files)
     ]

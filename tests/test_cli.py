@@ -38,6 +38,13 @@ def test_small_sweep_writes_results(tmp_path, capsys):
     main(["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", "0.2,5", "--seed", "3", "--out", str(out2)])
     res2 = json.loads((out2 / "results.json").read_text())
     assert [r["L_e"] for r in res2["table"]] == [r["L_e"] for r in res["table"]]
+    # --dtype float32 (a GPU user's choice) is carried to the model, and trains other numbers
+    out3 = tmp_path / "o3"
+    argv = ["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", "0.2,5", "--seed", "3", "--dtype", "float32"]
+    assert main([*argv, "--out", str(out3)]) == 0
+    res3 = json.loads((out3 / "results.json").read_text())
+    assert res["settings"]["model"]["dtype"] == "float64" and res3["settings"]["model"]["dtype"] == "float32"
+    assert [r["L_e"] for r in res3["table"]] != [r["L_e"] for r in res["table"]]
 
 
 def test_fast_sweep_reports_its_protocol(tmp_path, capsys):
@@ -161,6 +168,7 @@ def test_discover_small_run_writes_table2_row(tmp_path, capsys):
         (["discover", "--system", "gw", "--steps", "x"], "Invalid value for '--steps'"),
         (["discover", "--system", "gw", "--n-steps", "5"], "--n-steps must be 0 (default) or ≥ 20"),
         (["discover", "--system", "gw", "--sr-time", "-1"], "Invalid value for '--sr-time'"),
+        (["discover", "--system", "gw", "--dtype", "float16"], "Invalid value for '--dtype'"),
     ],
 )
 def test_discover_bad_input(argv, msg, tmp_path, capsys):

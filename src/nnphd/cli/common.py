@@ -64,6 +64,14 @@ class SweepMode(StrEnum):
     fast = "fast"
 
 
+class Precision(StrEnum):  # nnphd.engine.models.ModelConfig.dtype
+    float64 = "float64"
+    float32 = "float32"
+
+
+DTYPE_HELP = "precision of the training: float64 (default) or float32 (faster on a GPU; less margin in the numbers)"
+
+
 class DiscoverySystem(StrEnum):  # nnphd.paper.discover.DISCOVERY_SYSTEMS (a test keeps them equal)
     double_pendulum = "double-pendulum"
     neptune = "neptune"

@@ -11,10 +11,12 @@ import typer
 from rich.table import Table
 
 from nnphd.cli.common import (
+    DTYPE_HELP,
     MAX_SEED,
     MAX_STEPS,
     DiscoverySystem,
     InputError,
+    Precision,
     SweepMode,
     _fraction,
     _parse_csv,
@@ -71,6 +73,7 @@ def sweep(
         "--standardize/--no-standardize",
         help="networks see (q, q̇, t) standardised by the training data's mean and std",
     ),
+    dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP),
 ):
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
     from nnphd.engine.systems import get_system
@@ -97,6 +100,7 @@ def sweep(
     except ValueError as e:
         raise InputError(str(e)) from None
 
+    from nnphd.engine.models import ModelConfig
     from nnphd.paper.sweep import run_sweep
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
@@ -112,6 +116,7 @@ def sweep(
             resume=resume,
             standardize=standardize,
             progress=bar,
+            model_cfg=ModelConfig(n=sysm.n, dtype=dtype.value),
         )
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
     has_m = res["table"][0]["m_c"] is not None
@@ -165,6 +170,7 @@ def discover(
         20, "--sr-time", min=0, help="seconds of genetic symbolic regression per force component (0: skip)"
     ),
     out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
+    dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
     from nnphd.io.outdir import claim_out_dir
@@ -201,6 +207,7 @@ def discover(
                 progress=bar,
                 n_steps=n_steps or None,
                 sr_time=sr_time,
+                dtype=dtype.value,
             )
         write_discovery(res, Path(out) / name)
         results.append(res)

@@ -157,14 +157,15 @@ def constrained_model(
         uan_scale = float(uan_scale)
         if not (np.isfinite(uan_scale) and uan_scale > 0):
             raise ValueError(f"uan_scale must be positive and finite, got {uan_scale!r}")
-    c_start = jnp.ones(n_c) if c_init is None else jnp.asarray(c_init)
+    dt = jnp.dtype(cfg.dtype)  # the coefficients, the data and the UAN all train in the model's precision
+    c_start = jnp.ones(n_c, dt) if c_init is None else jnp.asarray(c_init, dt)
 
     if coef_scale is None:
 
         def coefs(params):
             return params["c"]
     else:
-        s_c = jnp.asarray(coef_scale)
+        s_c = jnp.asarray(coef_scale, dt)
 
         def coefs(params):
             return c_start + s_c * params["dc"]
@@ -184,7 +185,7 @@ def constrained_model(
         params = {"c": c_start, "uan": init_uan(k_init, cfg)}
     else:
         params = {"dc": jnp.zeros(n_c, c_start.dtype), "uan": init_uan(k_init, cfg)}
-    arrays = tuple(jnp.asarray(a) for a in (data.q, data.qd, data.t, data.qdd))
+    arrays = tuple(jnp.asarray(a, dt) for a in (data.q, data.qd, data.t, data.qdd))
     return ConstrainedModel(params, loss, forces, coefs, arrays, cfg, tcfg, k_train)
 
 

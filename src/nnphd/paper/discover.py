@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from nnphd.engine.features import FEATURE_SETS, train_constrained
+from nnphd.engine.models import ModelConfig
 from nnphd.engine.systems import SYSTEMS, get_system
 from nnphd.engine.train import PAPER_LAMBDAS
 from nnphd.explain.laws import rank_laws
@@ -112,12 +113,15 @@ def discover(
     n_steps: int | None = None,
     sr_time: float = 20.0,
     sweep_lambdas: Sequence[float] = PAPER_LAMBDAS,
+    dtype: str = "float64",
 ) -> dict:
     """Detection sweep, constrained Lagrangian + UAN at ``lam``, parametric Table II row and blind formulas.
 
     ``n_steps``: trajectory length (None → the system's
     :attr:`~nnphd.engine.systems.System.discover_n_steps`); ``sr_time``: seconds of genetic symbolic
-    regression per force component (0 skips it).
+    regression per force component (0 skips it); ``dtype``: the precision of every training (the sweep's LNN and
+    UAN, the constrained Lagrangian and its UAN; "float32" for a GPU); the law is then fitted in float64 on the
+    trained forces.
     """
     if system not in DISCOVERY_SYSTEMS:
         raise ValueError(f"discover works on {', '.join(DISCOVERY_SYSTEMS)}; got {system!r}")
@@ -128,12 +132,21 @@ def discover(
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
     # the trajectory and its standardisation are made once, for the sweep and the constrained fit
-    plan = plan_sweep(sysm, steps=sweep_steps, seed=seed, standardize=standardize, lambdas=sweep_lambdas)
+    plan = plan_sweep(
+        sysm,
+        steps=sweep_steps,
+        seed=seed,
+        standardize=standardize,
+        lambdas=sweep_lambdas,
+        model_cfg=ModelConfig(n=sysm.n, dtype=dtype),
+    )
     sw = run_sweep(sysm, plan=plan)
     say(f"constrained Lagrangian + UAN at λ = {lam:g}")
     d, cfg = plan.train, plan.cfg  # the trajectory; ModelConfig(n) standardised on it (when standardize)
     fl = FEATURE_SETS[sysm.feature_set]
     cf = train_constrained(d, fl, lam=lam, steps=steps, seed=seed, cfg=cfg)
+    # the law and the explanations are fitted in float64 on what was trained, whatever the training's precision
+    cf = replace(cf, **{k: np.asarray(getattr(cf, k), np.float64) for k in ("coefs", "fc", "fn")})
     say("the law: candidates fitted jointly with the constrained Lagrangian")
     table = joint_laws(sysm, d, fl, cf, seed)
     hyp = next(r for r in table.rows if r.key == sysm.law_family)
@@ -205,6 +218,7 @@ def discover(
             "lambda": lam,
             "seed": seed,
             "standardize": standardize,
+            "dtype": dtype,
             "sr_time_per_component_s": sr_time,
             "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps, "paper_n_steps": paper_n_steps},
         },

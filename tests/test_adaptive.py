@@ -155,14 +155,16 @@ def test_fast_mode_does_not_report_an_unlearned_lagrangian_as_a_jump():
 @pytest.mark.parametrize("name", ["ho+ld", "ho+mf"])
 def test_fast_mode_verdicts(name):
     """--mode fast gives the right verdict on a damped and a conservative toy, in < 1/3 of the paper protocol's steps."""
-    # half the paper's budget per λ (1000 of 2000 steps) and 300 samples (at 800 steps HO+MF's 4-λ chain is still
-    # undertrained: the test above); the paper-size runs are benchmarks/time_to_verdict.py
-    res = run_sweep(name, seed=0, mode="fast", n_train=300, n_test=300, steps=1000)
+    # 60 % of the paper's budget per λ (1200 of 2000 steps) and 300 samples; the paper-size runs are
+    # benchmarks/time_to_verdict.py. With less HO+MF's 4-λ chain is undertrained: at 800 steps it claims a jump (the
+    # test above), at 1000 too (its UAN below λ = 1 unsettled, so the paper protocol runs and says none) — this test
+    # ran at 1000 before the chunk fix, when 1000 meant 1200 steps at the first λ and up to 300 per learning rate
+    res = run_sweep(name, seed=0, mode="fast", n_train=300, n_test=300, steps=1200)
     v = res["verdict"]
     conservative = name == "ho+mf"
     assert v["new_physics"] == (not conservative), v
     assert (v["ratio"] < 2) if conservative else (v["ratio"] > 6 and v["L_above"] > 0.1), v
     pr = res["protocol"]
     assert pr["first_lambdas"] == [0.1, 0.5, 2.0, 10.0]
-    assert not pr["ran_paper_protocol"] and pr["steps_total"] < 1000 * len(PAPER_LAMBDAS) / 3, pr
+    assert not pr["ran_paper_protocol"] and pr["steps_total"] < 1200 * len(PAPER_LAMBDAS) / 3, pr
     assert [r["lam"] for r in res["table"]] == [float(k) for k in pr["steps_by_lambda"]]

@@ -38,7 +38,10 @@ def test_friction_found_and_reproducible():
 def test_gravitational_radiation_law_found():
     v2 = VX**2 + VY**2
     fn = _noisy(np.stack([-0.00165 * v2**4 * VX, -0.00165 * v2**4 * VY], 1))
-    r = genetic_formula({"x": X, "y": Y, "vx": VX, "vy": VY, "t": T}, fn, ["ax", "ay"], max_time=10)
+    # a budget of generations on one thread, not of seconds: a 10 s search found t in the formula when CI was loaded
+    # (deterministic now; measured: 18 s, 2.8 % rms)
+    inputs = {"x": X, "y": Y, "vx": VX, "vy": VY, "t": T}
+    r = genetic_formula(inputs, fn, ["ax", "ay"], max_time=600, generations=1000, n_threads=1)
     assert r.readable and r.rel_rms < 0.03
     for i, expr in enumerate(r.expressions):  # the formula, not just a good fit: it matches the law off the data too
         assert sp.sympify(expr).free_symbols <= {sp.Symbol("vx"), sp.Symbol("vy")}

@@ -192,3 +192,38 @@ def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
     assert float(jnp.max(jnp.abs(fd - j1[1]))) < 1e-4 * float(jnp.max(jnp.abs(j1[1])))
     fd = (model_residuals_and_jac(s, theta.at[0].add(h), *args, rhs=rowwise, nsub=2)[0] - r1) / h
     assert float(jnp.max(jnp.abs(fd - j1[4]))) < 1e-4 * float(jnp.max(jnp.abs(j1[4])))
+
+
+def test_lm_judges_trial_steps_on_the_residuals_alone():
+    """Levenberg–Marquardt with ``res`` (residuals only for a trial step, derivatives only where a step is accepted)
+    reaches the same fit as with the derivatives at every trial, with fewer derivative evaluations."""
+    from nnphd.engine.shooting import _damping_rhs, _pad_windows, lm_windows, model_residuals, model_residuals_and_jac
+
+    t, q, qd = _pendulum(0.011)
+    wins = shooting_windows([np.arange(t.size)], t, 2 * np.pi / W0)
+    tw, qw, mask, s0 = _pad_windows(wins, t, q, (q, qd))
+    tw = tw - tw[:, :1]
+    args = (jnp.asarray(1.01 * W0**2), jnp.asarray(tw), jnp.zeros(len(wins)), jnp.asarray(qw), jnp.asarray(mask))
+    args = (*args, jnp.asarray([1 / 0.0025]))
+    rhs = _damping_rhs(_accel)
+    calls = {"jac": 0, "res": 0}
+
+    def resjac(s, th):
+        calls["jac"] += 1
+        return model_residuals_and_jac(s, th, *args, rhs=rhs, nsub=2)
+
+    def res(s, th):
+        calls["res"] += 1
+        return model_residuals(s, th, *args, rhs=rhs, nsub=2)
+
+    free = np.ones(2, bool)
+    # from the noisy data's own states and a far start (c = −0.5, d = 1): trial steps get rejected on the way
+    s_a, th_a, r_a, j_a, c_a = lm_windows(resjac, s0, np.array([-0.5, 1.0]), free)
+    n_plain = calls["jac"]
+    calls.update(jac=0, res=0)
+    s_b, th_b, r_b, j_b, c_b = lm_windows(resjac, s0, np.array([-0.5, 1.0]), free, res=res)
+    assert calls["res"] == n_plain - 1  # every trial judged on its residuals (the first point needs the derivatives)
+    assert calls["jac"] < n_plain  # and derivatives only at the accepted points
+    assert c_b == pytest.approx(c_a, rel=1e-12) and np.allclose(th_b, th_a, rtol=0, atol=1e-10)
+    assert np.allclose(s_b, s_a, rtol=0, atol=1e-10) and np.allclose(j_b, j_a, rtol=1e-9, atol=1e-12)
+    assert abs(th_b[1] - 0.011) < 0.003  # and it is the damping

@@ -139,13 +139,21 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, 
     def resjac(s_, th_):
         return _residuals_and_jac(params, s_, th_, tw, qw, mask, inv_sigma, accel, nsub)
 
-    return lm_windows(resjac, s, theta, free, iters, tol)
+    def res(s_, th_):
+        t0w = jnp.zeros(tw.shape[0], tw.dtype)
+        return model_residuals(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel), nsub=nsub)
+
+    return lm_windows(resjac, s, theta, free, iters, tol, res=res)
 
 
-def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8):
+def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None):
     """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
     ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
-    window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²)."""
+    window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²).
+
+    ``res(s, theta)`` → the residuals alone: then a trial step is judged on them and the derivatives are computed
+    only where a step is accepted (most trials of a stiff fit are rejected, and the derivatives cost one simulation
+    per direction). The accepted points, and so the result, are those of the search without it."""
     P_loc = s.shape[1]
     mu = 1e-3
     r, jac = (np.asarray(a) for a in resjac(s, theta))
@@ -163,10 +171,17 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8):
             dth = np.zeros_like(theta)
             dth[free] = dth_free
             s_new, th_new = s + ds, theta + dth
-            r_new, jac_new = (np.asarray(a) for a in resjac(s_new, th_new))
+            if res is None:
+                r_new, jac_new = (np.asarray(a) for a in resjac(s_new, th_new))
+            else:
+                r_new, jac_new = np.asarray(res(s_new, th_new)), None
             with np.errstate(over="ignore", invalid="ignore"):  # a step that blows up is rejected below
                 c_new = float(np.sum(r_new * r_new))
             if np.isfinite(c_new) and c_new <= cost:
+                if jac_new is None:
+                    r_new, jac_new = (np.asarray(a) for a in resjac(s_new, th_new))
+                    with np.errstate(over="ignore", invalid="ignore"):
+                        c_new = float(np.sum(r_new * r_new))
                 rel = (cost - c_new) / max(cost, 1e-300)
                 s, theta, r, jac, cost = s_new, th_new, r_new, jac_new, c_new
                 mu = max(mu / 3.0, 1e-9)
@@ -178,42 +193,54 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8):
     return s, theta, r, jac, cost
 
 
+def _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+    """Weighted position residuals (W, L, n) of the windows started at states ``s`` under q̈ = rhs(theta, …)."""
+    n = qw.shape[-1]
+    q0, v0 = s[:, :n], s[:, n:]
+
+    def f(q, v, tt):
+        return v, rhs(theta, q, v, tt, aux)
+
+    def step(carry, x):
+        h = x / nsub
+        hh = h[:, None]
+
+        def sub(_, c):  # one RK4 sub-step (a loop, not unrolled: the graph stays small to compile)
+            q, v, tt = c
+            k1q, k1v = f(q, v, tt)
+            k2q, k2v = f(q + 0.5 * hh * k1q, v + 0.5 * hh * k1v, tt + 0.5 * h)
+            k3q, k3v = f(q + 0.5 * hh * k2q, v + 0.5 * hh * k2v, tt + 0.5 * h)
+            k4q, k4v = f(q + hh * k3q, v + hh * k3v, tt + h)
+            return (
+                q + hh / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
+                v + hh / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v),
+                tt + h,
+            )
+
+        q, v, tt = jax.lax.fori_loop(0, nsub, sub, carry)
+        return (q, v, tt), q
+
+    dts = jnp.diff(tw, axis=1).T  # (L-1, W)
+    _, qs = jax.lax.scan(step, (q0, v0, t0w + tw[:, 0]), dts)
+    qs = jnp.concatenate([q0[None], qs], axis=0)
+    return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
+
+
+@functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
+def model_residuals(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+    """The residuals of :func:`model_residuals_and_jac` alone: what a trial step of :func:`lm_windows` needs (one
+    simulation instead of one per direction)."""
+    return _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
+
+
 @functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
 def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
     """Like :func:`_residuals_and_jac` for any model q̈ = rhs(theta, q, v, t, aux) (batched over windows; t the
     absolute time: window start ``t0w`` plus the window clock ``tw``; ``aux`` any data the model needs, not
     differentiated — so one compiled function serves many models that differ only in data)."""
-    n = qw.shape[-1]
 
     def simulate(s, theta):
-        q0, v0 = s[:, :n], s[:, n:]
-
-        def f(q, v, tt):
-            return v, rhs(theta, q, v, tt, aux)
-
-        def step(carry, x):
-            h = x / nsub
-            hh = h[:, None]
-
-            def sub(_, c):  # one RK4 sub-step (a loop, not unrolled: the graph stays small to compile)
-                q, v, tt = c
-                k1q, k1v = f(q, v, tt)
-                k2q, k2v = f(q + 0.5 * hh * k1q, v + 0.5 * hh * k1v, tt + 0.5 * h)
-                k3q, k3v = f(q + 0.5 * hh * k2q, v + 0.5 * hh * k2v, tt + 0.5 * h)
-                k4q, k4v = f(q + hh * k3q, v + hh * k3v, tt + h)
-                return (
-                    q + hh / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q),
-                    v + hh / 6.0 * (k1v + 2 * k2v + 2 * k3v + k4v),
-                    tt + h,
-                )
-
-            q, v, tt = jax.lax.fori_loop(0, nsub, sub, carry)
-            return (q, v, tt), q
-
-        dts = jnp.diff(tw, axis=1).T  # (L-1, W)
-        _, qs = jax.lax.scan(step, (q0, v0, t0w + tw[:, 0]), dts)
-        qs = jnp.concatenate([q0[None], qs], axis=0)
-        return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
+        return _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
 
     r = simulate(s, theta)
     P_loc, P_glob = s.shape[1], theta.shape[0]

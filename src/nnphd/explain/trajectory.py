@@ -90,6 +90,7 @@ def rank_trajectory(
         _pad_windows,
         _schur,
         lm_windows,
+        model_residuals,
         model_residuals_and_jac,
         shooting_windows,
     )
@@ -158,10 +159,13 @@ def rank_trajectory(
         def resjac(s_, u_, aux=aux):
             return model_residuals_and_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
 
+        def res(s_, u_, aux=aux):
+            return model_residuals(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
+
         free = np.zeros(P_dir, bool)
         free[: len(idx)] = True
         try:
-            s, th, r, jac, chi2 = lm_windows(resjac, s0, u0, free, iters=15)
+            s, th, r, jac, chi2 = lm_windows(resjac, s0, u0, free, iters=15, res=res)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             continue
         if not np.isfinite(chi2):
@@ -174,7 +178,7 @@ def rank_trajectory(
                 th1 = th.copy()
                 th1[Kc + K : len(idx)] = np.clip(nl, lo, hi)
                 free[Kc + K : len(idx)] = False
-                s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15)
+                s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15, res=res)
                 if not np.isfinite(chi2):
                     continue
         th = th[: len(idx)]

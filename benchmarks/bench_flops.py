@@ -9,7 +9,9 @@ For each step (one jitted value_and_grad of L_e + λ L_b and an Adam update, as 
 Steps measured: ours (the derivative-carrying LNN pass + UAN), the reference (per-sample ``jax.hessian`` under vmap,
 as the original LNN code) and a plain MLP of the same widths, at batch 32 and 1000; and ours at batch 32 with K
 independent copies vmapped into one program — K = 13 λ values sharing a batch (``nnphd sweep --mode vmap``) and K = 32
-seeds with their own initial weights and minibatches. Everything runs under ``nnphd.configure()``: float64 and one XLA
+seeds with their own initial weights and minibatches. Two breakdown rows say where the time goes: our gradient with
+a plain SGD update instead of Adam, and Adam's update alone (batch 0: it costs the same at every batch, per
+parameter, so K vmapped copies pay it K times). Everything runs under ``nnphd.configure()``: float64 and one XLA
 thread (so the GEMM peak is one core's, like the step).
 
 Run:  .venv/bin/python benchmarks/bench_flops.py [--reps 100] [--blocks 3]
@@ -108,6 +110,27 @@ def cases():
                 lambda p, o, step=step, batch=batch: step(p, o, batch, lam)[:2],
                 (params, opt.init(params)),
             )
+    # where the time of our step goes: the same gradient with a plain SGD update (one fused op per weight array), and
+    # Adam's update alone (per parameter: independent of the batch, and not shared by vmapped copies)
+    p0 = init_nnphd(kp, cfg)
+    grad = jax.grad(lambda p, bt: (lambda le, lb: le + lam * lb)(*loss_terms(p, *bt, cfg=cfg, p=P)))
+    for b in (32, 1000):
+        batch = _batch(kd, b)
+        yield (
+            "breakdown: ours with SGD",
+            b,
+            1,
+            lambda p, o, batch=batch: (jax.tree_util.tree_map(lambda w, g: w - 1e-9 * g, p, grad(p, batch)), o),
+            (p0, opt.init(p0)),
+        )
+    g0 = jax.tree_util.tree_map(lambda w: 1e-3 * jnp.ones_like(w), p0)
+    yield (
+        "breakdown: Adam alone",
+        0,
+        1,
+        lambda p, o: (lambda u, o2: (optax.apply_updates(p, u), o2))(*opt.update(g0, o, p)),
+        (p0, opt.init(p0)),
+    )
     step = make_step(partial(loss_terms, cfg=cfg, p=P), opt)
     # K λ values, one shared batch (as a vmapped λ-sweep): the copies differ only in λ and their weights
     lams = jnp.asarray([0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0])
@@ -170,7 +193,9 @@ def main() -> None:
         "ours_over_plain_flops_b1000": get("ours", 1000)["mflop"] / get("plain", 1000)["mflop"],
         "reference_over_ours_flops_b1000": get("reference", 1000)["mflop"] / get("ours", 1000)["mflop"],
         "best_batch32_fraction": max(
-            r["fraction_of_peak"] for r in rows if r["batch"] == 32 and r["step"].startswith("ours")
+            r["fraction_of_peak"]
+            for r in rows
+            if r["batch"] == 32 and r["step"].startswith("ours")  # the trainer's steps
         ),
     }
     print(

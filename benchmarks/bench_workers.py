@@ -120,6 +120,12 @@ def main() -> None:
     same = runs[1]["numbers"] == runs[a.workers]["numbers"]
     ratio = runs[1]["wall_s"] / runs[a.workers]["wall_s"]
     print(f"speed-up {a.workers} workers vs 1: {ratio:.2f}x; identical numbers: {same}")
+    if a.what == "detect":  # each file's own time (its report's wall_time_s), one by one and in the batch
+        for w, run in runs.items():
+            run["file_s"] = {
+                p.stem: json.loads((tmp / f"w{w}" / p.stem / "report.json").read_text())["wall_time_s"] for p in paths
+            }
+            print(f"per file, {w} worker(s): " + ", ".join(f"{k} {v:.1f} s" for k, v in run["file_s"].items()))
     res = {
         "what": a.what,
         "settings": {"workers": a.workers, "steps": a.steps, "quick": a.quick, "detect_steps": a.detect_steps},
@@ -128,6 +134,7 @@ def main() -> None:
         "speedup": ratio,
         "identical_numbers": same,
         "numbers": {str(k): v["numbers"] for k, v in runs.items()},
+        **({"file_s": {str(k): v["file_s"] for k, v in runs.items()}} if a.what == "detect" else {}),
     }
     name = f"workers_{a.what}{'_quick' if a.quick else ''}.json"
     (ROOT / "benchmarks" / "results" / name).write_text(json.dumps(res, indent=1, default=str))

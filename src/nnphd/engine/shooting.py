@@ -152,8 +152,8 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None):
     window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²).
 
     ``res(s, theta)`` → the residuals alone: then a trial step is judged on them and the derivatives are computed
-    only where a step is accepted (most trials of a stiff fit are rejected, and the derivatives cost one simulation
-    per direction). The accepted points, and so the result, are those of the search without it."""
+    only where a step is accepted (a third of the trials of the trajectory-level law ranking were rejected, and the
+    derivatives cost one simulation per direction). The accepted points, and so the result, are those of the search without it."""
     P_loc = s.shape[1]
     mu = 1e-3
     r, jac = (np.asarray(a) for a in resjac(s, theta))

@@ -113,24 +113,24 @@ def cases():
     # where the time of our step goes: the same gradient with a plain SGD update (one fused op per weight array), and
     # Adam's update alone (per parameter: independent of the batch, and not shared by vmapped copies)
     p0 = init_nnphd(kp, cfg)
-    grad = jax.grad(lambda p, bt: (lambda le, lb: le + lam * lb)(*loss_terms(p, *bt, cfg=cfg, p=P)))
+
+    def objective(params, batch):
+        le, lb = loss_terms(params, *batch, cfg=cfg, p=P)
+        return le + lam * lb
+
+    def sgd_step(params, o, batch):
+        return jax.tree_util.tree_map(lambda w, g: w - 1e-9 * g, params, jax.grad(objective)(params, batch)), o
+
+    g0 = jax.tree_util.tree_map(lambda w: 1e-3 * jnp.ones_like(w), p0)
+
+    def adam_alone(params, o):
+        updates, o = opt.update(g0, o, params)
+        return optax.apply_updates(params, updates), o
+
     for b in (32, 1000):
         batch = _batch(kd, b)
-        yield (
-            "breakdown: ours with SGD",
-            b,
-            1,
-            lambda p, o, batch=batch: (jax.tree_util.tree_map(lambda w, g: w - 1e-9 * g, p, grad(p, batch)), o),
-            (p0, opt.init(p0)),
-        )
-    g0 = jax.tree_util.tree_map(lambda w: 1e-3 * jnp.ones_like(w), p0)
-    yield (
-        "breakdown: Adam alone",
-        0,
-        1,
-        lambda p, o: (lambda u, o2: (optax.apply_updates(p, u), o2))(*opt.update(g0, o, p)),
-        (p0, opt.init(p0)),
-    )
+        yield "breakdown: ours with SGD", b, 1, partial(sgd_step, batch=batch), (p0, opt.init(p0))
+    yield "breakdown: Adam alone", 0, 1, adam_alone, (p0, opt.init(p0))
     step = make_step(partial(loss_terms, cfg=cfg, p=P), opt)
     # K λ values, one shared batch (as a vmapped λ-sweep): the copies differ only in λ and their weights
     lams = jnp.asarray([0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0])

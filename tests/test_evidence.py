@@ -203,8 +203,8 @@ def test_lm_judges_trial_steps_on_the_residuals_alone():
     wins = shooting_windows([np.arange(t.size)], t, 2 * np.pi / W0)
     tw, qw, mask, s0 = _pad_windows(wins, t, q, (q, qd))
     tw = tw - tw[:, :1]
-    args = (jnp.asarray(1.01 * W0**2), jnp.asarray(tw), jnp.zeros(len(wins)), jnp.asarray(qw), jnp.asarray(mask))
-    args = (*args, jnp.asarray([1 / 0.0025]))
+    p, t0w, inv_sigma = jnp.asarray(1.01 * W0**2), jnp.zeros(len(wins)), jnp.asarray([1 / 0.0025])
+    args = (p, jnp.asarray(tw), t0w, jnp.asarray(qw), jnp.asarray(mask), inv_sigma)
     rhs = _damping_rhs(_accel)
     calls = {"jac": 0, "res": 0}
 

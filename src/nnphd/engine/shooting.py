@@ -136,12 +136,13 @@ def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
 def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
     """Levenberg–Marquardt over window initial states and the free global parameters."""
 
+    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), _damping_rhs(accel)
+
     def resjac(s_, th_):
-        return _residuals_and_jac(params, s_, th_, tw, qw, mask, inv_sigma, accel, nsub)
+        return model_residuals_and_jac(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
 
     def res(s_, th_):
-        t0w = jnp.zeros(tw.shape[0], tw.dtype)
-        return model_residuals(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel), nsub=nsub)
+        return model_residuals(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
 
     return lm_windows(resjac, s, theta, free, iters, tol, res=res)
 

@@ -10,7 +10,7 @@ import threading
 import pytest
 
 from nnphd.paper.sweep import run_sweep
-from nnphd.parallel import WORKER_ENV, Outcome, Unit, n_workers, run_units, runs_here
+from nnphd.parallel import Outcome, Unit, local_cluster, n_workers, run_units, runs_here
 
 GRID = [("ho+ld", 0), ("ho+mf", 0), ("ho+ld", 1), ("ho+pf", 2)]
 SMALL = dict(p=1, steps=60, lambdas=(0.5, 2.0), n_train=64, n_test=64)
@@ -85,11 +85,9 @@ def test_two_workers_same_numbers_and_a_failing_unit(in_process):
 def test_killed_worker_every_result_still_comes(in_process):
     """A worker process SIGKILLed while the grid runs: its nanny starts a new one, the scheduler reruns the lost
     unit, and every result arrives identical to the 1-worker run."""
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0", env=dict(WORKER_ENV), silence_logs=50
-    ) as cluster:
+    with local_cluster(2) as cluster:  # the cluster run_units starts (loopback only), here to kill one of its workers
         with Client(cluster) as client:
             pids = list(client.run(os.getpid).values())
         assert len(pids) == 2

@@ -12,7 +12,12 @@ a ``detect`` batch.  Built on Dask distributed.
   (``None``): one worker per core. Never more workers than units.
 * ``scheduler="tcp://host:8786"``: use an existing Dask cluster (``dask scheduler`` + ``dask worker``, or
   dask-jobqueue's ``SLURMCluster``, see the README); the workers must have nnphd installed and see the same ``out``
-  folder (a shared filesystem), since the units write their results and caches there.
+  folder (a shared filesystem), since the units write their results and caches there.  A malformed address or one
+  that does not answer within :data:`CONNECT_TIMEOUT_S` seconds raises :class:`SchedulerError` (one line).
+
+**Nothing listens beyond this machine.**  A local cluster's scheduler, workers and their HTTP servers (Dask's
+/health, /metrics, …; no dashboard is started) all listen on 127.0.0.1 only; a test lists every listening socket of
+the process tree during a run.
 
 **Same numbers whatever the number of workers.** A unit's result depends only on its arguments (its seed is one of
 them), never on which worker ran it or in what order; the tests compare 1 and 2 workers, and a killed worker.
@@ -35,6 +40,7 @@ import os
 import time
 import traceback
 from collections.abc import Callable, Sequence
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -42,7 +48,11 @@ from nnphd import ONE_THREAD_FLAGS, XLA_FLAG
 from nnphd.io.progress import Progress
 
 __all__ = [
+    "CONNECT_TIMEOUT_S",
     "CompileClock",
+    "SchedulerError",
+    "check_scheduler_address",
+    "local_cluster",
     "UnitsFailed",
     "Unit",
     "Outcome",
@@ -64,6 +74,47 @@ WORKER_ENV = {
     "MKL_NUM_THREADS": "1",
     "NNPHD_WORKER": "1",
 }
+
+
+LOOPBACK = "127.0.0.1"  # every socket of a local cluster listens here only
+
+# seconds to wait for an existing scheduler (``scheduler=``) to answer; NNPHD_SCHEDULER_TIMEOUT=seconds overrides it
+CONNECT_TIMEOUT_S = 30.0
+
+
+class SchedulerError(ValueError):
+    """``scheduler`` is not a Dask scheduler address, or none answers there in time: bad input (the command line
+    reports it in one line, exit code 2)."""
+
+
+def check_scheduler_address(address: str) -> str:
+    """``address`` if it has the form of a Dask scheduler address (``tcp://host:port``, also ``tls://``, ``ws://``,
+    ``wss://``, ``ucx://``; a bare ``host:port`` is tcp), else :class:`SchedulerError`. Nothing is contacted."""
+    from distributed.comm import get_address_host_port, parse_address
+    from distributed.comm.registry import backends
+
+    text = str(address).strip()
+    bad = SchedulerError(f"--scheduler {address!r} is not a Dask scheduler address (expected tcp://host:port)")
+    try:
+        scheme, loc = parse_address(text)
+        if scheme not in backends or scheme == "inproc":
+            raise bad
+        if scheme != "ucx":  # (Dask extracts no host and port of a ucx:// address)
+            host, port = get_address_host_port(text)
+            if not host or not 0 < int(port) < 65536 or any(c.isspace() or c in "/?#@" for c in loc):
+                raise bad
+    except (ValueError, TypeError):
+        raise bad from None
+    return text
+
+
+def _connect_timeout() -> float:
+    raw = os.environ.get("NNPHD_SCHEDULER_TIMEOUT", "").strip()
+    try:
+        t = float(raw) if raw else CONNECT_TIMEOUT_S
+    except ValueError:
+        t = CONNECT_TIMEOUT_S
+    return t if t > 0 else CONNECT_TIMEOUT_S
 
 
 class UnitsFailed(RuntimeError):
@@ -202,6 +253,8 @@ def run_units(
     if len(set(keys)) != len(keys):
         raise ValueError(f"unit keys must be unique, got {keys}")
     n = n_workers(workers, scheduler, len(units))
+    if scheduler is not None:
+        scheduler = check_scheduler_address(scheduler)
     if not units:
         return {}
     if n == 1:
@@ -239,11 +292,48 @@ def _run_here(units, progress, on_outcome) -> dict[str, Outcome]:
     return out
 
 
+@contextmanager
+def local_cluster(n: int):
+    """A ``distributed.LocalCluster`` of ``n`` single-threaded worker processes (nannied, :data:`WORKER_ENV`) whose
+    every socket listens on 127.0.0.1 only: the scheduler and the workers, and their HTTP servers (health and
+    metrics routes; no dashboard is started, so bokeh is never needed). Closed on leaving, also on an error."""
+    from distributed import LocalCluster
+
+    with LocalCluster(
+        n_workers=n,
+        threads_per_worker=1,
+        processes=True,
+        host=LOOPBACK,
+        scheduler_port=0,
+        # the scheduler's HTTP server (Dask starts one even without a dashboard): loopback, a free port; the
+        # default ":8787"/":0" means every interface. The workers' HTTP servers follow their host (127.0.0.1).
+        dashboard_address=f"{LOOPBACK}:0",
+        worker_dashboard_address=None,
+        env=dict(WORKER_ENV),
+        silence_logs=50,  # logging.CRITICAL: Dask's own log lines stay off the user's terminal
+    ) as cluster:
+        yield cluster
+
+
+def _client(scheduler: str):
+    """A Client of the existing scheduler at ``scheduler``; :class:`SchedulerError` if none answers in time."""
+    from distributed import Client
+
+    timeout = _connect_timeout()
+    try:
+        return Client(scheduler, timeout=timeout)
+    except (OSError, TimeoutError) as e:  # refused, unknown host, or no answer in time
+        why = " ".join(str(e).split())[:200]
+        why = "" if why.startswith("Timed out") else f" ({type(e).__name__}: {why})"
+        raise SchedulerError(
+            f"--scheduler {scheduler!r} cannot be reached within {timeout:g} s: no Dask scheduler answers there{why}"
+        ) from None
+
+
 def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, Outcome]:
     import dask
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, as_completed
 
-    cluster = None
     # a worker lost while it ran a unit: the scheduler reruns the unit elsewhere, up to `retries` more times
     config = {
         "distributed.scheduler.allowed-failures": int(retries),
@@ -254,19 +344,11 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
         # it cost 15–30 % (two λ-sweeps on 2 workers: 21.8/22.1 s with it, 18.8/18.7 s without, one run each)
         "distributed.worker.profile.enabled": False,
     }
-    with dask.config.set(config):
+    with dask.config.set(config), ExitStack() as stack:
         if scheduler is None:
-            cluster = LocalCluster(
-                n_workers=n,
-                threads_per_worker=1,
-                processes=True,
-                dashboard_address=":0",  # a free port: never a clash with a running dashboard
-                env=dict(WORKER_ENV),
-                silence_logs=50,  # logging.CRITICAL: Dask's own log lines stay off the user's terminal
-            )
-            client = Client(cluster)
+            client = Client(stack.enter_context(local_cluster(n)))
         else:
-            client = Client(scheduler)
+            client = _client(scheduler)
         try:
             futures = {}
             for u in largest_first(units):
@@ -292,5 +374,3 @@ def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, O
             return {u.key: out[u.key] for u in units}
         finally:
             client.close()
-            if cluster is not None:
-                cluster.close()

@@ -4,8 +4,11 @@ input parsing (bad input: a one-line ``error: ...`` on stderr, exit code 2, noth
 from __future__ import annotations
 
 import math
+import os
+import time
 from contextlib import contextmanager
 from enum import StrEnum
+from pathlib import Path
 
 import typer
 from rich.console import Console
@@ -18,7 +21,7 @@ app = typer.Typer(
     context_settings={"help_option_names": ["-h", "--help"]},
     help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.",
 )
-console = Console()
+console = Console(emoji=False)  # ":name:" in a column or file name stays literal (markup: nnphd.io.escape.rich)
 
 
 def _version(value: bool) -> None:
@@ -44,7 +47,10 @@ _ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "C
 
 @contextmanager
 def _progress(title: str):
-    """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)``."""
+    """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)`` (the title
+    and messages may quote file or column names: shown literally, Rich markup escaped)."""
+    from nnphd.io.escape import rich as _r
+
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -53,8 +59,8 @@ def _progress(title: str):
         console=console,
         transient=False,
     ) as prog:
-        task = prog.add_task(title, total=None)
-        yield lambda done, total, message: prog.update(task, completed=done, total=total, description=message)
+        task = prog.add_task(_r(title), total=None)
+        yield lambda done, total, message: prog.update(task, completed=done, total=total, description=_r(message))
 
 
 class SweepMode(StrEnum):
@@ -104,16 +110,110 @@ def workers_option():
     )
 
 
+def _check_scheduler(value: str | None) -> str | None:
+    """--scheduler: its form is checked when the command line is read, before anything is written or contacted."""
+    if value is None:
+        return None
+    from nnphd.parallel import check_scheduler_address
+
+    try:
+        return check_scheduler_address(value)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+
+
 def scheduler_option():
+    from nnphd.parallel import CONNECT_TIMEOUT_S
+
     return typer.Option(
         None,
         "--scheduler",
-        help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead of local workers",
+        callback=_check_scheduler,
+        help="address of an existing Dask scheduler (e.g. tcp://host:8786) instead of local workers; it must answer "
+        f"within {CONNECT_TIMEOUT_S:g} s (NNPHD_SCHEDULER_TIMEOUT=seconds)",
     )
 
 
 class InputError(Exception):
     """Bad user input: reported as one line, exit code 2."""
+
+
+# The largest loss index p: the loss is (mean |r|^p + 1e-30)^{1/p}. Beyond p = 10 it stops measuring anything: its
+# floor 1e-30^{1/p} (1e-3 at p = 10, 0.03 at p = 20, 0.5 at p = 100; 1e-20^{1/p} in float32) swamps L_b, and from
+# p ≈ 500 on |r|^p leaves float64's range (float32's from p ≈ 50) and training gives NaN.
+MAX_P = 10
+P_HELP = f"the loss norm: index p of the L_p loss, 1 ≤ p ≤ {MAX_P} (paper: 1; larger p overflow float64), or 'mse'"
+
+
+def _parse_loss_p(value):
+    """A loss index as :func:`nnphd.engine.train.parse_p`, and at most :data:`MAX_P`; InputError if not."""
+    from nnphd.engine.train import parse_p
+
+    try:
+        p = parse_p(value)
+    except ValueError as e:
+        raise InputError(str(e)) from None
+    if p != "mse" and p > MAX_P:
+        raise InputError(
+            f"p must be at most {MAX_P} (or 'mse'), got {p:g}: larger p leave float64's range in |r|^p and the "
+            "loss no longer measures the fit"
+        )
+    return p
+
+
+# ---- what a run created: removed again if it fails or is interrupted (nnphd.cli.main) -------------------------------
+RESULT_FILES = ("results.json", "summary.json", "report.json", "table2.json")
+_run = {"t0_ns": 0, "created": [], "outs": []}
+
+
+def begin_run() -> None:
+    """Forget the folders of an earlier run in this process (nnphd.cli.main calls it before each command)."""
+    # (file times come from the kernel's coarse clock, up to a few ms behind time.time_ns())
+    _run.update(t0_ns=time.time_ns() - 50_000_000, created=[], outs=[])
+
+
+def claim_out(path):
+    """:func:`nnphd.io.outdir.claim_out_dir`, first noting which folders of ``path`` do not exist yet (the run
+    creates them): :func:`undo_run` removes those it leaves empty, if the run fails or is interrupted."""
+    from nnphd.io.outdir import claim_out_dir
+
+    if str(path).strip():
+        full = Path(os.path.join(os.getcwd(), os.fspath(path)))  # lexical: no symlink is followed
+        for d in (full, *full.parents):
+            if d.name in ("", ".", ".."):  # "a/.." names a folder that exists (or will) under another name
+                continue
+            if os.path.lexists(d):
+                break
+            if d not in _run["created"]:
+                _run["created"].append(d)
+    p = claim_out_dir(path)
+    _run["outs"].append(Path(path))
+    return p
+
+
+def claimed_outs() -> list[Path]:
+    """The --out folders this run claimed, as given."""
+    return list(_run["outs"])
+
+
+def undo_run() -> None:
+    """After a failed or interrupted run: remove the result files (:data:`RESULT_FILES`) it wrote at the top of its
+    --out folders (a failed run leaves no result behind; caches and checkpoints stay, for a rerun to resume), then
+    every folder it created and left empty, innermost first. A folder that existed before is never removed."""
+    for out in _run["outs"]:
+        for name in RESULT_FILES:
+            f = out / name
+            try:
+                if f.is_file() and not f.is_symlink() and f.stat().st_mtime_ns >= _run["t0_ns"]:
+                    f.unlink()
+            except OSError:
+                pass
+    for d in sorted(_run["created"], key=lambda d: -len(d.parts)):  # innermost first
+        try:
+            if d.is_dir() and not d.is_symlink() and not any(d.iterdir()):
+                d.rmdir()
+        except OSError:
+            pass
 
 
 def _parse_lambdas(value: str | None):

@@ -106,6 +106,18 @@ def test_p_at_the_limit_is_accepted():
     assert _parse_loss_p(str(MAX_P)) == MAX_P and _parse_loss_p("MSE") == "mse" and _parse_loss_p("1") == 1
 
 
+def test_p_limit_holds_for_the_api_too():
+    """The command line's help quotes the engine's limit; the Python API (run_sweep, lambda_p_study) refuses the
+    same p."""
+    from nnphd.cli.common import MAX_P
+    from nnphd.engine import train
+
+    assert train.MAX_P == MAX_P
+    with pytest.raises(ValueError, match="at most 10"):
+        train.parse_p(1000)
+    assert train.parse_p(10.0) == 10.0
+
+
 def _sweep_raises(monkeypatch, exc, write=()):
     """nnphd sweep's run_sweep replaced by one that writes ``write`` (names in --out) and raises ``exc``."""
     import nnphd.paper.sweep as sweep_mod

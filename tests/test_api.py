@@ -190,7 +190,7 @@ def test_unfitted_and_bad_files(tmp_path):
         nnphd.NNPhD().forces([0.0], [0.0])
     bad = tmp_path / "x.npz"
     np.savez(bad, a=np.zeros(3))
-    with pytest.raises(ValueError, match="not an nnphd model file"):
+    with pytest.raises(ValueError, match="not a valid nnphd model file"):
         nnphd.load(bad)
 
 

@@ -8,8 +8,11 @@
 * :func:`save_npz` / :func:`load_npz` — JSON metadata and named arrays in one .npz (``allow_pickle=False``), used
   by the checkpoints and by saved models.
 
-Nothing read back is trusted beyond data: a file that does not parse, or that was written under other settings, is
-ignored (treated as absent), never executed.
+Nothing read back is trusted beyond data, and reading it costs bounded time and memory (:func:`read_npz`,
+:func:`read_json`: a regular file, a size limit, JSON of bounded size and nesting, plain numeric arrays only). A file
+written under other settings is not used; a damaged, foreign or non-finite one is ignored with one
+:class:`IgnoredFileWarning` line naming it and why, and the run starts from scratch: never an exception, never
+executed, never NaN weights.
 """
 
 from __future__ import annotations
@@ -17,7 +20,12 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import os
+import stat
+import warnings
+import zipfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -44,14 +52,163 @@ def save_npz(path: str | os.PathLike, meta: dict, arrays: dict[str, np.ndarray])
 
 
 def load_npz(path: str | os.PathLike) -> tuple[dict, dict[str, np.ndarray]]:
-    """(meta, arrays) of a file written by :func:`save_npz`; ValueError if it is not one."""
+    """(meta, arrays) of a file written by :func:`save_npz`; ValueError (one line, naming ``path``) if it is not one."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["__meta__"]))
-            arrays = {k: np.asarray(z[k]) for k in z.files if k != "__meta__"}
-    except (OSError, KeyError, ValueError, EOFError) as e:
-        raise ValueError(f"{path}: not an nnphd .npz file ({e.__class__.__name__}: {e})") from None
+        meta, arrays = read_npz(path, "__meta__")
+        if not isinstance(meta, dict):
+            raise ValueError("its metadata is not a JSON object")
+    except ValueError as e:
+        raise ValueError(one_line(f"{path}: not an nnphd .npz file ({e})")) from None
     return meta, arrays
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# reading untrusted files within bounds
+
+MAX_NPZ_BYTES = 1 << 30  # an .npz (file and uncompressed contents); a checkpoint of a whole sweep is ~10 MB
+MAX_JSON_BYTES = 64 << 20  # a JSON file, or the JSON metadata inside an .npz
+MAX_JSON_DEPTH = 64  # nesting of JSON objects/arrays (a report nests 7 deep, a model file 8)
+MAX_NPZ_ENTRIES = 10_000
+_NPZ_COMPRESSION = (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED)  # np.savez / np.savez_compressed (deflate: bounded)
+_ARRAY_KINDS = "biuf"  # bool, integers, floats: plain numbers, nothing to unpickle
+
+
+class IgnoredFileWarning(UserWarning):
+    """A cache or checkpoint file that could not be used (damaged, foreign or non-finite) was ignored."""
+
+
+def one_line(text: str, limit: int = 400) -> str:
+    text = " ".join(str(text).split())
+    return text[:limit] + ("…" if len(text) > limit else "")
+
+
+def warn_ignored(path: str | os.PathLike, why: str) -> None:
+    """One warning line ``<path>: ignored (<why>); starting from scratch`` (an :class:`IgnoredFileWarning`). It is
+    issued without a source location, so Python prints it on one line of stderr and reads no file to show it."""
+    msg = one_line(f"{path}: ignored ({why}); starting from scratch")
+    warnings.warn_explicit(msg, IgnoredFileWarning, "<nnphd>", 0, module=__name__)
+
+
+def open_regular(path: str | os.PathLike, max_bytes: int):
+    """``path`` opened for binary reading if it is a regular file of at most ``max_bytes`` bytes; else ValueError
+    saying why (a FIFO or device is refused without blocking on it)."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0) | getattr(os, "O_BINARY", 0)
+    try:
+        fd = os.open(path, flags)
+    except FileNotFoundError:
+        raise ValueError("no such file") from None
+    except OSError as e:
+        raise ValueError(f"cannot be read ({e.strerror or e})") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError("not a regular file")
+        if st.st_size > max_bytes:
+            raise ValueError(f"{st.st_size} bytes, more than the limit of {max_bytes}")
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def parse_json(text: str, max_depth: int | None = None):
+    """JSON ``text`` of at most :data:`MAX_JSON_BYTES` characters whose objects/arrays nest at most ``max_depth``
+    (default :data:`MAX_JSON_DEPTH`) deep (ValueError otherwise; the depth is checked without recursion)."""
+    max_depth = MAX_JSON_DEPTH if max_depth is None else max_depth
+    if len(text) > MAX_JSON_BYTES:
+        raise ValueError(f"JSON of {len(text)} characters, more than the limit of {MAX_JSON_BYTES}")
+    try:
+        obj = json.loads(text)
+    except RecursionError:  # the C parser's own guard, far beyond max_depth
+        raise ValueError(f"JSON nested more than {max_depth} levels deep") from None
+    except ValueError as e:
+        raise ValueError(f"not valid JSON ({e})") from None
+    stack = [(obj, 1)]
+    while stack:
+        o, depth = stack.pop()
+        if isinstance(o, (dict, list)):
+            if depth > max_depth:
+                raise ValueError(f"JSON nested more than {max_depth} levels deep")
+            stack.extend((v, depth + 1) for v in (o.values() if isinstance(o, dict) else o))
+    return obj
+
+
+def read_json(path: str | os.PathLike, max_bytes: int | None = None):
+    """The JSON value in ``path`` (at most ``max_bytes``, default :data:`MAX_JSON_BYTES`), read within bounds
+    (:func:`open_regular`, :func:`parse_json`); ValueError saying why not."""
+    max_bytes = MAX_JSON_BYTES if max_bytes is None else max_bytes
+    with open_regular(path, max_bytes) as f:
+        data = f.read(max_bytes + 1)
+    if len(data) > max_bytes:
+        raise ValueError(f"more than the limit of {max_bytes} bytes")
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ValueError("not UTF-8 text") from None
+    return parse_json(text)
+
+
+def _npy_header(m, name: str, size: int):
+    """Check one .npy entry's header against its size in the archive (so reading it allocates only that)."""
+    from numpy.lib import format as npy
+
+    version = npy.read_magic(m)
+    if version not in ((1, 0), (2, 0)):
+        raise ValueError(f"array {name!r} has an unsupported .npy version {version}")
+    read_header = npy.read_array_header_1_0 if version == (1, 0) else npy.read_array_header_2_0
+    shape, _, dtype = read_header(m)
+    if dtype.hasobject or dtype.itemsize == 0 or dtype.fields is not None or dtype.kind not in _ARRAY_KINDS + "U":
+        raise ValueError(f"array {name!r} has dtype {dtype}, not plain numbers")
+    if any(d < 0 for d in shape) or m.tell() + math.prod(shape) * dtype.itemsize != size:
+        raise ValueError(f"array {name!r}: its shape {shape} does not match its size")
+
+
+def _read_entries(f, max_bytes: int) -> dict[str, np.ndarray]:
+    from numpy.lib import format as npy
+
+    with zipfile.ZipFile(f) as zf:
+        infos = zf.infolist()
+        names = [i.filename for i in infos]
+        if len(infos) > MAX_NPZ_ENTRIES:
+            raise ValueError(f"{len(infos)} entries, more than the limit of {MAX_NPZ_ENTRIES}")
+        if len(set(names)) != len(names) or not all(n.endswith(".npy") for n in names):
+            raise ValueError("entries that are not distinct .npy arrays")
+        if sum(i.file_size for i in infos) > max_bytes:
+            raise ValueError(f"more than {max_bytes} bytes uncompressed")
+        out = {}
+        for info in infos:
+            name = info.filename[:-4]
+            if info.compress_type not in _NPZ_COMPRESSION or info.flag_bits & 0x1:
+                raise ValueError(f"array {name!r} is encrypted or compressed with an unsupported method")
+            with zf.open(info) as m:
+                _npy_header(m, name, info.file_size)
+            with zf.open(info) as m:
+                out[name] = npy.read_array(m, allow_pickle=False)
+    return out
+
+
+def read_npz(path: str | os.PathLike, meta_key: str, max_bytes: int | None = None) -> tuple[object, dict]:
+    """(meta, arrays) of an .npz of plain numeric arrays and the JSON string ``meta_key``, read within bounds: a
+    regular file of at most ``max_bytes`` (default :data:`MAX_NPZ_BYTES`; as many uncompressed), stored or deflated
+    ``.npy`` entries whose headers match their sizes, no pickle, the JSON as :func:`parse_json`. ValueError (saying
+    why) otherwise."""
+    max_bytes = MAX_NPZ_BYTES if max_bytes is None else max_bytes
+    with open_regular(path, max_bytes) as f:
+        try:
+            arrays = _read_entries(f, max_bytes)
+        except ValueError:
+            raise
+        except Exception as e:  # zipfile, zlib and struct raise many types on damaged input: all mean "damaged"
+            raise ValueError(f"not a valid .npz archive ({type(e).__name__}: {e})") from None
+    meta = arrays.pop(meta_key, None)
+    if meta is None:
+        raise ValueError(f"no {meta_key!r} entry")
+    if meta.dtype.kind != "U" or meta.ndim != 0:
+        raise ValueError(f"{meta_key!r} is not a JSON string")
+    bad = next((k for k, a in arrays.items() if a.dtype.kind not in _ARRAY_KINDS), None)
+    if bad is not None:
+        raise ValueError(f"array {bad!r} has dtype {arrays[bad].dtype}, not plain numbers")
+    return parse_json(str(meta)), arrays
 
 
 def tree_arrays(tree, prefix: str = "") -> dict[str, np.ndarray]:
@@ -61,19 +218,28 @@ def tree_arrays(tree, prefix: str = "") -> dict[str, np.ndarray]:
     return {f"{prefix}{i}": np.asarray(x) for i, x in enumerate(jax.tree_util.tree_leaves(tree))}
 
 
+def check_array(name: str, a, shape: tuple, dtype) -> None:
+    """ValueError unless ``a`` is a numpy array of ``shape``, of ``dtype``'s kind (float/int/bool) and finite."""
+    if not isinstance(a, np.ndarray):
+        raise ValueError(f"array {name!r} is missing")
+    if a.shape != tuple(shape):
+        raise ValueError(f"array {name!r} has shape {a.shape}, expected {tuple(shape)}")
+    if a.dtype.kind != np.dtype(dtype).kind:
+        raise ValueError(f"array {name!r} has dtype {a.dtype}, expected {np.dtype(dtype)}")
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        raise ValueError(f"array {name!r} has non-finite values")
+
+
 def tree_from_arrays(like, arrays: dict[str, np.ndarray], prefix: str = ""):
     """The pytree of the structure of ``like`` from :func:`tree_arrays`' output (ValueError if the leaves do not
-    match ``like``'s count and shapes)."""
+    match ``like``'s count, shapes and dtype kinds, or are not finite)."""
     import jax
     import jax.numpy as jnp
 
     leaves, treedef = jax.tree_util.tree_flatten(like)
-    try:
-        new = [arrays[f"{prefix}{i}"] for i in range(len(leaves))]
-    except KeyError as e:
-        raise ValueError(f"missing array {e}") from None
-    if any(np.shape(a) != np.shape(b) for a, b in zip(new, leaves)):
-        raise ValueError("array shapes do not match the model")
+    new = [arrays.get(f"{prefix}{i}") for i in range(len(leaves))]
+    for i, (a, b) in enumerate(zip(new, leaves)):
+        check_array(f"{prefix}{i}", a, np.shape(b), b.dtype)
     return jax.tree_util.tree_unflatten(treedef, [jnp.asarray(a, dtype=b.dtype) for a, b in zip(new, leaves)])
 
 
@@ -89,13 +255,16 @@ class Cache:
 
     def load(self, name: str = "results.json") -> dict | None:
         """The result saved as ``name`` under the same settings, or None."""
-        if self.dir is None:
+        if self.dir is None or not os.path.lexists(self.dir / name):
             return None
         try:
-            res = json.loads((self.dir / name).read_text())
-        except (OSError, ValueError):
+            res = read_json(self.dir / name)
+            if not isinstance(res, dict):
+                raise ValueError("not a JSON object")
+        except ValueError as e:
+            warn_ignored(self.dir / name, f"not a valid cached result: {e}")
             return None
-        return res if isinstance(res, dict) and res.get("fingerprint") == self.fingerprint else None
+        return res if res.get("fingerprint") == self.fingerprint else None
 
     def save(self, obj: dict, name: str = "results.json") -> dict:
         """Write ``obj`` with the fingerprint (atomically); return it as it reads back."""
@@ -114,18 +283,61 @@ class Cache:
             arrays.update(tree_arrays(tree, f"s{i}_"))
         save_npz(self.dir / self.CHECKPOINT, meta, arrays)
 
-    def restore(self, like) -> dict[float, tuple[dict, object]]:
-        """The steps saved by :meth:`checkpoint` under the same settings (pytrees shaped as ``like``); {} if none."""
-        if self.dir is None or not (self.dir / self.CHECKPOINT).exists():
+    def restore(self, like, build: Callable[[float, dict, object], object] | None = None) -> dict:
+        """The steps saved by :meth:`checkpoint` under the same settings: key → (metadata, pytree shaped as
+        ``like``), or key → ``build(key, metadata, pytree)``; {} if none. A damaged or foreign checkpoint (not an
+        .npz of ours, another layout, leaves not of ``like``'s shapes and dtypes, non-finite values, metadata that
+        ``build`` refuses with TypeError/ValueError/KeyError) is ignored with an :class:`IgnoredFileWarning`."""
+        if self.dir is None or not os.path.lexists(self.dir / self.CHECKPOINT):
             return {}
+        path = self.dir / self.CHECKPOINT
         try:
-            meta, arrays = load_npz(self.dir / self.CHECKPOINT)
-            if meta.get("fingerprint") != self.fingerprint:
-                return {}
-            return {float(k): (m, tree_from_arrays(like, arrays, f"s{i}_")) for i, (k, m) in enumerate(meta["steps"])}
-        except (ValueError, KeyError, TypeError):
+            meta, arrays = read_npz(path, "__meta__")
+            if (
+                isinstance(meta, dict)
+                and isinstance(meta.get("fingerprint"), str)
+                and meta["fingerprint"] != self.fingerprint
+            ):
+                return {}  # written under other settings: not this run's
+            steps = _checkpoint_steps(meta, self.fingerprint)
+            return _restore_steps(steps, arrays, like, build)
+        except (ValueError, TypeError, KeyError) as e:
+            warn_ignored(path, f"not a valid checkpoint of this run: {e}")
             return {}
 
     def clear_checkpoint(self) -> None:
         if self.dir is not None and (self.dir / self.CHECKPOINT).exists():
             (self.dir / self.CHECKPOINT).unlink()
+
+
+_SCALARS = (str, int, float, bool, type(None))
+
+
+def _checkpoint_steps(meta, fp: str) -> list[tuple[float, dict]]:
+    """The (key, metadata) of each step of a checkpoint's JSON, checked (ValueError why not)."""
+    if not isinstance(meta, dict) or meta.get("fingerprint") != fp or not isinstance(meta.get("steps"), list):
+        raise ValueError("not a checkpoint's metadata")
+    out = []
+    for step in meta["steps"]:
+        ok = isinstance(step, list) and len(step) == 2 and isinstance(step[1], dict)
+        if not ok or isinstance(step[0], bool) or not isinstance(step[0], (int, float)) or not math.isfinite(step[0]):
+            raise ValueError(f"a step is not [finite number, object]: {json.dumps(step)[:80]}")
+        if not all(isinstance(v, _SCALARS) for v in step[1].values()):
+            raise ValueError(f"step {step[0]}: metadata values must be numbers, strings or null")
+        out.append((float(step[0]), step[1]))
+    if len({k for k, _ in out}) != len(out):
+        raise ValueError("repeated step keys")
+    return out
+
+
+def _restore_steps(steps, arrays: dict, like, build) -> dict:
+    import jax
+
+    n = len(jax.tree_util.tree_leaves(like))
+    if set(arrays) != {f"s{i}_{j}" for i in range(len(steps)) for j in range(n)}:
+        raise ValueError(f"its arrays are not {len(steps)} step(s) of {n} leaves")
+    out = {}
+    for i, (k, m) in enumerate(steps):
+        tree = tree_from_arrays(like, arrays, f"s{i}_")
+        out[k] = (m, tree) if build is None else build(k, m, tree)
+    return out

@@ -5,6 +5,7 @@ This is what ``nnphd sweep`` calls; a notebook can call it the same way.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -21,6 +22,20 @@ from nnphd.engine.verdict import Verdict, force_norm, verdict
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
+
+_POINT_NUMBERS = ("L_e", "L_b", "L_e_train", "L_b_train")  # a checkpointed λ's metadata: these, and m_c, m_n
+
+
+def _sweep_point(lam: float, m: dict, params) -> SweepPoint:
+    """A checkpointed λ back as a SweepPoint; ValueError (the checkpoint is then ignored) if its metadata is not
+    that of a sweep point: other keys, or losses that are not finite numbers."""
+    if set(m) != {*_POINT_NUMBERS, "m_c", "m_n"}:
+        raise ValueError(f"its steps hold {sorted(m)}, not the numbers of a λ-sweep point")
+    for k, v in m.items():
+        if k in _POINT_NUMBERS or v is not None:
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise ValueError(f"λ = {lam:g}: {k} is {v!r}, expected a finite number")
+    return SweepPoint(lam, **m, params=params)
 
 
 @dataclass
@@ -40,10 +55,7 @@ class SweepPlan:
 
     def run(self, progress: Progress | None = None) -> SystemSweep:
         """Train (resuming from the checkpoint, saving one after every λ) and read the verdict."""
-        done = {
-            lam: SweepPoint(lam, **m, params=prm)
-            for lam, (m, prm) in self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg)).items()
-        }
+        done = self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg), build=_sweep_point)
         resumed = sorted(done)
 
         def on_point(pt: SweepPoint):

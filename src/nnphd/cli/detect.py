@@ -19,6 +19,7 @@ from nnphd.cli.common import (
     scheduler_option,
     workers_option,
 )
+from nnphd.io.escape import rich as _r
 from nnphd.user.limits import MAX_ROWS, MIN_ROWS
 
 
@@ -72,7 +73,7 @@ def detect(
     scheduler: str | None = scheduler_option(),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
-    from nnphd.io.outdir import claim_out_dir
+    from nnphd.cli.common import claim_out as claim_out_dir  # notes the folders it creates (removed on a failure)
     from nnphd.user.recording import DataError, load_trajectories
 
     try:
@@ -86,7 +87,7 @@ def detect(
         if len(files) > 1 or Path(files[0]).is_dir():
             from nnphd.user.batch import expand_paths
 
-            paths = expand_paths(files)
+            paths = expand_paths(files, out)  # validated here, before anything is written
             claim_out_dir(out)
         else:
             paths = None
@@ -104,7 +105,7 @@ def detect(
         **extra,
     )
     if paths is not None:
-        return _batch(paths, out, ang, max_rows, workers, scheduler, settings)
+        return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
     try:
         ud = load_trajectories(file, ang, max_rows=max_rows)  # validate the file before anything is created
         from nnphd.explain.families import parse_law
@@ -119,73 +120,80 @@ def detect(
 
     with _progress("detect: starting") as status:
         rep, _ = detect_data(ud, out=out, progress=status, workers=workers, scheduler=scheduler, **settings)
+    # every text from the report may quote the file's column names or path: Rich markup escaped (_r)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(
-        f"[{colour}]{rep['status'].upper()}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
+        f"[{colour}]{_r(rep['status'].upper())}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
         f"(confidence {rep['confidence']:.2g})",
         highlight=False,
     )
     if rep.get("effect"):
-        console.print(f"  effect: {rep['effect']}", highlight=False)
+        console.print(f"  effect: {_r(rep['effect'])}", highlight=False)
     for w in rep.get("warnings") or []:
-        console.print(f"  [yellow]warning:[/] {w}", highlight=False)
+        console.print(f"  [yellow]warning:[/] {_r(w)}", highlight=False)
     for c, why in rep.get("angle_suggestions") or []:
         console.print(
-            f"  note: {c!r} looks like an angle ({why}); rerun with --angles to treat it as one", highlight=False
+            f"  note: {_r(repr(c))} looks like an angle ({_r(why)}); rerun with --angles to treat it as one",
+            highlight=False,
         )
     for r in rep["reasons"]:
-        console.print(f"  • {r}", highlight=False)
+        console.print(f"  • {_r(r)}", highlight=False)
     f = rep["formula"]
     lw = rep.get("law") or {}
     if lw.get("law"):
         w = lw["law"]
         console.print(
-            f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items()), highlight=False
+            _r(f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items())), highlight=False
         )
         console.print(
-            "       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items()),
+            _r("       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items())),
             highlight=False,
         )
     elif f is not None:
         console.print(
-            "  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()) + f"  [{f['method']}]",
+            _r("  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()) + f"  [{f['method']}]"),
             highlight=False,
         )
     if lw.get("reason") and not lw.get("law"):
-        console.print(f"  law: none — {lw['reason']}", highlight=False)
+        console.print(f"  law: none — {_r(lw['reason'])}", highlight=False)
     elif rep["blind"] and f is None:
         console.print("  formula: nothing readable", highlight=False)
-    console.print(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)")
+    console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
 
 
-def _batch(paths, out, angles, max_rows, workers, scheduler, settings) -> None:
-    """Several files: one report each, a summary table; exit 1 when a file failed (its error is in the summary)."""
+def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) -> None:
+    """Several files (``paths`` as given: :func:`nnphd.user.batch.scan_paths` lists what it skips, ``n_files`` to
+    read): one report each, a summary table; exit 1 when a file failed (its error is in the summary)."""
     import sys
 
     from rich.table import Table
 
     from nnphd.user.batch import detect_batch
 
-    with _progress(f"detect: {len(paths)} files") as status:
+    with _progress(f"detect: {n_files} files") as status:
         s = detect_batch(
             paths, out, angles, max_rows=max_rows, workers=workers, scheduler=scheduler, progress=status, **settings
         )
-    t = Table(title=f"nnphd detect — {s['n_files']} files (workers: {s['workers']})")
+    t = Table(title=_r(f"nnphd detect — {s['n_files']} files (workers: {s['workers']})"))
     for col in ("file", "verdict", "confidence", "law", "time (s)", "error"):
         t.add_column(col, justify="left")
     for r in s["rows"]:
-        t.add_row(
-            r["file"],
-            r["status"],
+        t.add_row(  # file names, laws and errors quote the data: Rich markup escaped (_r)
+            _r(r["file"]),
+            _r(r["status"]),
             "" if r["confidence"] is None else f"{r['confidence']:.2g}",
-            r["law"] or "",
+            _r(r["law"] or ""),
             "" if r["wall_time_s"] is None else f"{r['wall_time_s']:.0f}" + (" (cached)" if r["cached"] else ""),
-            r["error"] or "",
+            _r(r["error"] or ""),
         )
+    for k in s.get("skipped", []):
+        t.add_row(_r(k["file"]), "skipped", "", "", "", _r(k["reason"]))
     console.print(t)
     console.print(
-        f"wrote {out}/summary.csv, summary.html, summary.json and one folder per file ({s['wall_time_s']:.0f} s; "
-        f"JAX compilation {s['compile_time_s']:.0f} s of {s['compute_time_s']:.0f} s of compute)"
+        _r(
+            f"wrote {out}/summary.csv, summary.html, summary.json and one folder per file ({s['wall_time_s']:.0f} s; "
+            f"JAX compilation {s['compile_time_s']:.0f} s of {s['compute_time_s']:.0f} s of compute)"
+        )
     )
     if s["failed"]:
         first = next(r for r in s["rows"] if r["status"] == "error")

@@ -14,6 +14,7 @@ from nnphd.cli.common import (
     DTYPE_HELP,
     MAX_SEED,
     MAX_STEPS,
+    P_HELP,
     DiscoverySystem,
     InputError,
     Precision,
@@ -21,14 +22,17 @@ from nnphd.cli.common import (
     _fraction,
     _parse_csv,
     _parse_lambdas,
+    _parse_loss_p,
     _progress,
     app,
+    claim_out,
     console,
     demo_app,
     scheduler_option,
     study_app,
     workers_option,
 )
+from nnphd.io.escape import rich as _r  # --out and a --scheduler address are the user's text: Rich markup escaped
 
 
 @app.command()
@@ -50,9 +54,7 @@ def systems():
 @app.command()
 def sweep(
     system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)"),
-    p: str = typer.Option(
-        "1", "--p", "--loss-p", help="the loss norm: index p ≥ 1 of the L_p loss (paper: 1), or 'mse'"
-    ),
+    p: str = typer.Option("1", "--p", "--loss-p", help=P_HELP),
     steps: int = typer.Option(
         2000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (split over the 4 learning rates)"
     ),
@@ -77,8 +79,6 @@ def sweep(
 ):
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
     from nnphd.engine.systems import get_system
-    from nnphd.engine.train import parse_p
-    from nnphd.io.outdir import claim_out_dir
 
     # --- validate everything before any work
     try:
@@ -94,9 +94,9 @@ def sweep(
             if not math.isfinite(overrides[k.strip()]):
                 raise InputError(f"--param {k.strip()} must be a finite number, got {v!r}")
         sysm = get_system(system, **overrides)
-        pp = parse_p(p)
+        pp = _parse_loss_p(p)
         lams = _parse_lambdas(lambdas)
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -147,7 +147,7 @@ def sweep(
             )
     if res["resumed_lambdas"]:
         console.print(f"resumed {len(res['resumed_lambdas'])} finished λ from a checkpoint")
-    console.print(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)")
+    console.print(_r(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)"))
 
 
 @app.command()
@@ -173,7 +173,6 @@ def discover(
     dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP),
 ):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
-    from nnphd.io.outdir import claim_out_dir
     from nnphd.paper.discover import DISCOVERY_SYSTEMS
 
     try:
@@ -184,7 +183,7 @@ def discover(
         lam_v = lam
         if not (0 < lam_v < 1):
             raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {lam!r}")
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -248,9 +247,9 @@ def discover(
     console.print(t)
     if all_:
         write_table2(results, out)
-        console.print(f"wrote {out}/<system>/results.json, {out}/fig3_loss_vs_lambda.png, {out}/table2.json")
+        console.print(_r(f"wrote {out}/<system>/results.json, {out}/fig3_loss_vs_lambda.png, {out}/table2.json"))
     else:
-        console.print(f"wrote {out}/{system}/results.json and loss_vs_lambda.png")
+        console.print(_r(f"wrote {out}/{system}/results.json and loss_vs_lambda.png"))
 
 
 def _print_claims(claims) -> None:
@@ -273,10 +272,8 @@ def predict(
     out: str = typer.Option("out/predict", "--out", help="output directory for results.json and the figures"),
 ):
     """Extrapolate the damped double pendulum with NNPhD, an LNN and a black box (paper Fig. 4)."""
-    from nnphd.io.outdir import claim_out_dir
-
     try:
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -314,7 +311,7 @@ def predict(
         highlight=False,
     )
     _print_claims(res["claims"])
-    console.print(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res['wall_time_s']:.1f} s)")
+    console.print(_r(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res['wall_time_s']:.1f} s)"))
 
 
 @study_app.command("lambda-p")
@@ -324,7 +321,9 @@ def study_lambda_p(
     ),
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (data and initialisation)"),
     systems_: str | None = typer.Option(None, "--systems", help="comma-separated toy systems (default: all five)"),
-    ps: str | None = typer.Option(None, "--ps", help="comma-separated losses (default: 1,2,3,mse)"),
+    ps: str | None = typer.Option(
+        None, "--ps", help="comma-separated losses: p in [1, 10] (see sweep --p) or mse (default: 1,2,3,mse)"
+    ),
     lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
     out: str = typer.Option(
         "out/study-lambda-p", "--out", help="output directory (results.json, fig5*.png, runs/ cache)"
@@ -333,8 +332,6 @@ def study_lambda_p(
     scheduler: str | None = scheduler_option(),
 ):
     """L_e(λ) of the five toy systems for p = 1, 2, 3 and MSE, verdicts, HO+LD alignment; claims vs the paper (Fig. 5)."""
-    from nnphd.engine.train import parse_p
-    from nnphd.io.outdir import claim_out_dir
     from nnphd.paper.lambda_p import LOSSES, TOY_SYSTEMS, p_label
 
     try:
@@ -345,11 +342,11 @@ def study_lambda_p(
             return tok
 
         syss = _parse_csv("--systems", systems_, sys_conv, TOY_SYSTEMS)
-        pvals = _parse_csv("--ps", ps, parse_p, LOSSES)
+        pvals = _parse_csv("--ps", ps, _parse_loss_p, LOSSES)
         if len(set(syss)) != len(syss) or len({p_label(p) for p in pvals}) != len(pvals):
             raise InputError("--systems and --ps must not repeat an entry")
         lams = _parse_lambdas(lambdas)
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -397,9 +394,9 @@ def study_lambda_p(
         console.print(t)
     _print_claims(res["claims"])
     if res["cached"]:
-        console.print(f"loaded {len(res['cached'])} of {len(res['verdicts'])} sweeps from the cache in {out}/runs")
+        console.print(_r(f"loaded {len(res['cached'])} of {len(res['verdicts'])} sweeps from the cache in {out}/runs"))
     figs = "fig5.png" + (", fig5_forces.png" if al is not None else "")
-    console.print(f"wrote {out}/results.json, {figs} ({res['wall_time_s']:.1f} s)")
+    console.print(_r(f"wrote {out}/results.json, {figs} ({res['wall_time_s']:.1f} s)"))
 
 
 @study_app.command("data-quality")
@@ -419,13 +416,12 @@ def study_data_quality(
     scheduler: str | None = scheduler_option(),
 ):
     """HO+CD L_e vs pie coverage α (λ=10) and HO+LD misalignment vs imbalance β (λ=0.5); claims vs the paper (Fig. 6)."""
-    from nnphd.io.outdir import claim_out_dir
     from nnphd.paper.data_quality import DQ_GRID
 
     try:
         al = _parse_csv("--alphas", alphas, _fraction("--alphas"), DQ_GRID)
         be = _parse_csv("--betas", betas, _fraction("--betas"), DQ_GRID)
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -459,8 +455,8 @@ def study_data_quality(
     console.print(t)
     _print_claims(res["claims"])
     if res["cached"]:
-        console.print(f"loaded {' and '.join(res['cached'])} from the cache in {out}")
-    console.print(f"wrote {out}/results.json and fig6.png ({res['wall_time_s']:.1f} s)")
+        console.print(_r(f"loaded {' and '.join(res['cached'])} from the cache in {out}"))
+    console.print(_r(f"wrote {out}/results.json and fig6.png ({res['wall_time_s']:.1f} s)"))
 
 
 @app.command()
@@ -476,11 +472,10 @@ def reproduce(
     scheduler: str | None = scheduler_option(),
 ):
     """Every experiment of the paper (Figs. 3–6, Table II) and one self-contained HTML report; resumes from its cache."""
-    from nnphd.io.outdir import claim_out_dir
 
     out = out or ("out/reproduce-quick" if quick else "out/reproduce")
     try:
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
@@ -507,9 +502,9 @@ def reproduce(
     console.print(
         f"claims met: {s['claims_met']} of {s['claims_total']}; wall time {s['wall_time_s']:.0f} s "
         f"(compute time of all units as measured when they ran: {s['compute_time_s']:.0f} s; JAX compilation in "
-        f"this run: {s['compile_time_s']:.0f} s; workers: {s['workers']})"
+        f"this run: {s['compile_time_s']:.0f} s; workers: {_r(s['workers'])})"
     )
-    console.print(f"wrote {out}/report.html and {out}/summary.json")
+    console.print(_r(f"wrote {out}/report.html and {out}/summary.json"))
     if s["failed"]:
         k, e = next(iter(s["failed"].items()))
         msg = f"{len(s['failed'])} units failed ({k}: {e}); the others are cached in {out}: rerun to resume"
@@ -524,7 +519,6 @@ def demo_neptune(
 ):
     """Le Verrier again: Neptune located from Uranus' real JPL DE405 orbit by NNPhD."""
     from nnphd.astro.ephemeris import EphemerisUnavailable, available
-    from nnphd.io.outdir import claim_out_dir
 
     try:
         if not available():
@@ -532,7 +526,7 @@ def demo_neptune(
                 "the Neptune demo needs the JPL ephemeris packages: pip install 'nnphd[astro]' "
                 "(python3 dev.py setup installs them)"
             )
-        claim_out_dir(out)
+        claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
     from nnphd.astro.neptune import print_summary, run_neptune_demo
@@ -543,4 +537,4 @@ def demo_neptune(
     except EphemerisUnavailable as e:
         raise InputError(str(e)) from None
     print_summary(res, console)
-    console.print(f"wrote {out}/results.json ({res['wall_time_s']:.0f} s)")
+    console.print(_r(f"wrote {out}/results.json ({res['wall_time_s']:.0f} s)"))

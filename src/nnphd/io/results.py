@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nnphd.io.escape import mpl as _m
 from nnphd.io.outdir import ensure_writable_dir  # noqa: F401  (re-exported: the writers' folder check)
 
 
@@ -67,15 +68,22 @@ def save_figure(fig, path: str | os.PathLike) -> None:
 
 
 def plot_sweep(curves: dict[str, Sequence[dict]], title: str = "", show_lb: bool = True):
-    """L_e(λ) (and dashed L_b(λ)) on log axes, one curve per name; rows are dicts with lam, L_e, L_b."""
+    """L_e(λ) (and dashed L_b(λ)) on log axes, one curve per name (plain text: "$" escaped); rows are dicts with
+    lam, L_e, L_b; ``title`` may hold mathtext."""
     fig, ax = subplots(figsize=(5.5, 4))
     for i, (name, rows) in enumerate(curves.items()):
         lam = [r["lam"] for r in rows]
         color = f"C{i}"
-        ax.plot(lam, [max(r["L_e"], 1e-8) for r in rows], "o-", color=color, label=f"{name}: $L_e$")
+        ax.plot(lam, [max(r["L_e"], 1e-8) for r in rows], "o-", color=color, label=f"{_m(name)}: $L_e$")
         if show_lb:
             ax.plot(
-                lam, [max(r["L_b"], 1e-8) for r in rows], "s--", color=color, alpha=0.5, ms=3, label=f"{name}: $L_b$"
+                lam,
+                [max(r["L_b"], 1e-8) for r in rows],
+                "s--",
+                color=color,
+                alpha=0.5,
+                ms=3,
+                label=f"{_m(name)}: $L_b$",
             )
     ax.axvline(1.0, color="k", lw=0.8, ls=":")
     ax.set_xscale("log")

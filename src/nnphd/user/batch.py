@@ -7,6 +7,13 @@ size and law — or the one-line error of a file that could not be used (a bad f
 
 Resume: a finished file leaves ``out/<name>/batch.json`` with the file's SHA-256 and the settings; a rerun with the
 same settings skips every file whose content has not changed and runs the rest.
+
+What is read (:func:`scan_paths`): of a folder, only the regular ``.csv``/``.npz`` files directly in it — a symbolic
+link is not followed (it could point anywhere, e.g. at a private key whose lines an error message would quote into a
+summary the user shares), nor anything else that is not a regular file; each is listed as skipped.  Files inside
+``out`` are nnphd's own output (summary.csv …) and never inputs: they are skipped too, and an ``out`` that is an
+input folder is refused (a subfolder of it is fine: folders are not searched recursively).  Text cells of summary.csv that a spreadsheet would run as a formula get a
+leading ``'`` (:func:`nnphd.io.escape.csv_cell`).
 """
 
 from __future__ import annotations
@@ -15,51 +22,100 @@ import csv
 import hashlib
 import io
 import json
+import os
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
 from nnphd.io.cache import Cache
+from nnphd.io.escape import csv_cell
 from nnphd.io.html import escape, page, table
 from nnphd.io.progress import Progress
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
 from nnphd.parallel import Unit, n_workers, run_units
 
-__all__ = ["SUFFIXES", "expand_paths", "detect_batch", "detect_one"]
+__all__ = ["SUFFIXES", "expand_paths", "scan_paths", "detect_batch", "detect_one"]
 
 SUFFIXES = (".csv", ".npz")
 MARKER = "batch.json"
 COLUMNS = ("name", "file", "status", "confidence", "effect", "law", "params", "wall_time_s", "cached", "error")
 
 
-def expand_paths(paths: Sequence[str | Path]) -> list[Path]:
-    """Files as given, folders as their ``*.csv`` / ``*.npz`` files (sorted; not recursive); an error names a path
-    that does not exist, a folder with no such file, and a file given twice."""
-    out: list[Path] = []
+def expand_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> list[Path]:
+    """The files :func:`scan_paths` reads (without the list of skipped ones)."""
+    return scan_paths(paths, out)[0]
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    return path == folder or folder in path.parents
+
+
+def scan_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> tuple[list[Path], list[dict[str, str]]]:
+    """(files, skipped): files as given, folders as the regular ``*.csv`` / ``*.npz`` files directly in them (sorted;
+    not recursive; symbolic links and other non-regular entries are skipped, not followed); files inside the output
+    folder ``out`` are skipped.  ``skipped``: ``{"file", "reason"}`` per entry left out.  An error names a path that
+    does not exist, a folder with no file to read, an ``out`` that is an input folder, no file left, and a file given
+    twice."""
+    out_r = Path(out).resolve() if out is not None else None
+    files: list[Path] = []
+    skipped: list[dict[str, str]] = []
+
+    def skip(p: Path, why: str) -> None:
+        skipped.append({"file": str(p), "reason": why})
+
     for p in map(Path, paths):
         if p.is_dir():
-            found = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES)
+            if out_r is not None and p.resolve() == out_r:
+                raise ValueError(
+                    f"{p}: the input folder is the --out folder; nnphd would read its own output (summary.csv) as "
+                    f"data on the next run: choose another --out, e.g. {p / 'nnphd'}"
+                )
+            found, n_skip = [], len(skipped)
+            with os.scandir(p) as it:
+                entries = sorted(it, key=lambda e: e.name)
+            for e in entries:
+                f = Path(p, e.name)
+                if f.suffix.lower() not in SUFFIXES:
+                    continue
+                if e.is_symlink():
+                    skip(f, "symbolic link, not followed")
+                elif e.is_dir(follow_symlinks=False):
+                    skip(f, "a folder, not read (folders are not searched recursively)")
+                elif not e.is_file(follow_symlinks=False):
+                    skip(f, "not a regular file")
+                else:
+                    found.append(f)
             if not found:
-                raise ValueError(f"{p}: the folder holds no .csv or .npz file")
-            out.extend(found)
+                why = f" ({len(skipped) - n_skip} skipped: {skipped[-1]['reason']})" if len(skipped) > n_skip else ""
+                raise ValueError(f"{p}: the folder holds no .csv or .npz file{why}")
+            files.extend(found)
         elif p.exists():
-            out.append(p)
+            files.append(p)
         else:
             raise ValueError(f"{p}: no such file or folder")
+    if out_r is not None:
+        inside = [f for f in files if _inside(f.resolve(), out_r)]
+        for f in inside:
+            skip(f, "inside the --out folder (nnphd's own output), not read")
+        files = [f for f in files if f not in inside]
+        if not files:
+            raise ValueError(f"every file given is inside the --out folder {out}; choose an --out outside the data")
     seen = set()
-    for p in out:
+    for p in files:
         r = p.resolve()
         if r in seen:
             raise ValueError(f"{p}: the file is given twice")
         seen.add(r)
-    return out
+    return files, skipped
 
 
 def _names(paths: Sequence[Path]) -> list[str]:
-    """A unique folder name per file: its stem, with ``-2``, ``-3`` … where stems repeat."""
+    """A unique folder name per file: its stem (characters other than letters, digits and ``-_.+`` as ``_``; a leading
+    ``.`` as ``_``, so ``..csv`` and ``...csv`` stay inside ``out``), with ``-2``, ``-3`` … where stems repeat."""
     names, used = [], set()
     for p in paths:
         base = "".join(c if c.isalnum() or c in "-_.+" else "_" for c in p.stem) or "file"
+        base = "_" + base[1:] if base.startswith(".") else base
         name, k = base, 1
         while name.lower() in used or name.lower() in ("summary",):
             k += 1
@@ -121,12 +177,12 @@ def detect_batch(
     progress: Progress | None = None,
     **settings,
 ) -> dict:
-    """Run :func:`nnphd.user.detect.detect_file` on every file (folders expanded by :func:`expand_paths`), each into
+    """Run :func:`nnphd.user.detect.detect_file` on every file (folders expanded by :func:`scan_paths`), each into
     ``out/<name>/``, as units on ``workers`` local processes (None: one per core; 1: here) or a Dask ``scheduler``;
     write ``summary.csv``, ``summary.html`` and ``summary.json`` to ``out`` and return the summary (``rows`` in the
-    files' order, ``failed``: how many files gave an error)."""
+    files' order, ``failed``: how many files gave an error; ``skipped``: the entries not read, with the reason)."""
     t0 = time.perf_counter()
-    files = expand_paths(paths)
+    files, skipped = scan_paths(paths, out)
     outdir = ensure_writable_dir(out)
     names = _names(files)
     units = [
@@ -151,6 +207,7 @@ def detect_batch(
         "n_files": len(rows),
         "failed": sum(r["status"] == "error" for r in rows),
         "counts": {s: sum(r["status"] == s for r in rows) for s in ("detected", "none", "inconclusive", "error")},
+        "skipped": skipped,
         "workers": scheduler or n_workers(workers, None, len(units)),
         "settings": {"angles": list(angles), "max_rows": max_rows, **settings},
         "wall_time_s": time.perf_counter() - t0,
@@ -171,12 +228,19 @@ def _cell(v) -> str:
     return str(v)
 
 
+def _csv(v):
+    """A summary.csv cell: numbers as :func:`_cell` writes them, text guarded against formula injection."""
+    return _cell(v) if isinstance(v, (int, float)) and not isinstance(v, bool) else csv_cell(_cell(v))
+
+
 def _write_summary(outdir: Path, summary: dict) -> None:
     buf = io.StringIO()
     w = csv.writer(buf)
     w.writerow(COLUMNS)
     for r in summary["rows"]:
-        w.writerow([_cell(r.get(c)) for c in COLUMNS])
+        w.writerow([_csv(r.get(c)) for c in COLUMNS])
+    for k in summary.get("skipped", []):  # the entries not read: status "skipped", the reason in "error"
+        w.writerow([_csv(k["file"] if c == "file" else k["reason"] if c == "error" else "skipped" if c == "status" else None) for c in COLUMNS])  # fmt: skip
     atomic_write_bytes(outdir / "summary.csv", buf.getvalue().encode())
     write_json(outdir / "summary.json", summary)
     rows = []
@@ -204,6 +268,10 @@ def _write_summary(outdir: Path, summary: dict) -> None:
         f"inconclusive, {c['error']} errors; workers: {escape(summary['workers'])}; wall time "
         f"{summary['wall_time_s']:.0f} s (compute time of the files {summary['compute_time_s']:.0f} s, of which "
         f"{summary['compile_time_s']:.0f} s JAX compilation).</p>"
+        + "".join(
+            f"<p class='warn'>skipped {escape(k['file'])}: {escape(k['reason'])}</p>"
+            for k in summary.get("skipped", [])
+        )
         + table(
             [
                 "report",

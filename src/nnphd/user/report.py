@@ -1,5 +1,6 @@
 """The report of ``nnphd detect``: the figures (data, L_e(λ), energy trend, forces) and report.json, report.html and
-the PNGs in ``--out`` (:func:`write_report`), built with :mod:`nnphd.io.html`."""
+the PNGs in ``--out`` (:func:`write_report`), built with :mod:`nnphd.io.html`.  Column names and the file's path
+are the user's text: escaped for matplotlib (:func:`nnphd.io.escape.mpl`) and HTML (:func:`nnphd.io.html.escape`)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import json
 
 import numpy as np
 
+from nnphd.io.escape import mpl as _m
 from nnphd.io.html import bullets, details, figure, figures, page, section, table
 from nnphd.io.html import escape as _e
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, subplots, write_json
@@ -41,7 +43,7 @@ def fig_data(data, traj, coords):
         for k in np.unique(traj)[:20]:
             m = traj == k
             ax.plot(data.t[m], data.q[m, j], lw=0.8)
-        ax.set_ylabel(c)
+        ax.set_ylabel(_m(c))  # a column name is the user's text: "$" escaped, never mathtext
     axes[-1, 0].set_xlabel("t")
     axes[0, 0].set_title("data (one colour per trajectory; first 20 shown)")
     return fig
@@ -109,7 +111,7 @@ def fig_forces(data, traj, coords, fc, fn, lam=None):
             axes[j, 0].plot(data.t[m], data.qdd[m, j], color="0.7", lw=1.5)
             axes[j, 0].plot(data.t[m], fc[m, j], lw=0.8)
             axes[j, 1].plot(data.t[m], fn[m, j], lw=0.8)
-        axes[j, 0].set_ylabel(f"{c}_ddot")
+        axes[j, 0].set_ylabel(_m(f"{c}_ddot"))
     lam = "" if lam is None else f" at λ = {lam:g}"
     axes[0, 0].set_title("conservative part f_c (grey: estimated q̈)", fontsize=10)
     axes[0, 1].set_title(f"non-conservative part f_n{lam} (pointwise fit: as noisy as q̈)", fontsize=10)

@@ -12,3 +12,11 @@ MAX_ABS = 1e30  # no value beyond ±1e30 in any column
 T_SPAN = (1e-15, 1e15)  # the time span of the file (max t − min t)
 Q_SPREAD = (1e-30, 1e30)  # the spread (max − min) of every coordinate that moves
 MIN_RESOLUTION = 1e-12  # a coordinate's spread relative to its largest |value| (digits of motion left in float64)
+
+# Bounds on the size and shape of a file, checked before (NPZ: from the array headers) or while (CSV: streamed) it is
+# read, so that a hostile or careless file gives one line within bounded memory and time, never a swap storm:
+MAX_COORDS = 32  # coordinates per file: the model is n×n per row; a 1000-coordinate CSV once took 2.5 GB, no output
+MAX_COLUMNS = 2 + 3 * MAX_COORDS  # columns: t, traj, and each coordinate with its <c>_dot and <c>_ddot
+MAX_CELLS = 10**8  # values per file (rows × columns: 800 MB as float64) at the default MAX_ROWS; scales with --max-rows
+MAX_LINE = 2**20  # characters of one CSV line or record (a quoted field may span lines; a real row is < 4 KiB)
+MAX_NAME = 64  # characters of a column (coordinate) name

@@ -28,7 +28,18 @@ checked by :func:`_check_scales` (values within ±1e30, a time span within 1e±1
 within 1e±30 and at least 1e-12 of its values); outside them the message says which column to rescale.  Trajectory
 ids are parsed exactly and must lie within ±2⁵³.  A file with one field per line that holds ``;``, tabs or ``|`` is
 reported as separated by that character (only commas are read).  CSV files are streamed into arrays
-``CSV_CHUNK`` rows at a time.  Any strictly increasing sampling
+``CSV_CHUNK`` rows at a time.
+
+Hostile or careless files are refused within bounded memory and time (limits in :mod:`nnphd.user.limits`): only
+regular files are opened (a link to ``/dev/zero``, a FIFO or a socket is refused from ``os.stat`` before it is
+opened); a CSV line or record (quoted fields may span lines) longer than ``MAX_LINE`` = 2²⁰ characters is refused
+without reading the rest; the header (the NPZ member names) may name at most ``MAX_COLUMNS`` = 98 columns and
+``MAX_COORDS`` = 32 coordinates, each a non-empty name of at most ``MAX_NAME`` = 64 characters without surrounding
+whitespace or control characters; a file holds at most ``MAX_CELLS`` = 10⁸ values (rows × columns; raised in
+proportion with ``max_rows``), counted while streaming a CSV and from the array headers of an NPZ, whose shapes
+(1-D, equal lengths), dtypes (int, uint, float) and members (only ``.npy``, not encrypted) are all checked before any
+array is read.  Cells and names in messages are quoted (``repr``) and cut to a few dozen characters, so a message
+never carries a file's content.  Any strictly increasing sampling
 is accepted.  :func:`suggest_angles` lists coordinates not declared as angles that look like angles (name, wrapped
 values, whole turns), for a report.
 """
@@ -37,16 +48,33 @@ from __future__ import annotations
 
 import csv
 import math
+import numbers
 import os
 import re
+import stat
+import unicodedata
 import zipfile
+import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from nnphd.io.errors import DataError
-from nnphd.user.limits import MAX_ABS, MAX_ID, MAX_ROWS, MIN_RESOLUTION, MIN_ROWS, Q_SPREAD, T_SPAN
+from nnphd.user.limits import (
+    MAX_ABS,
+    MAX_CELLS,
+    MAX_COLUMNS,
+    MAX_COORDS,
+    MAX_ID,
+    MAX_LINE,
+    MAX_NAME,
+    MAX_ROWS,
+    MIN_RESOLUTION,
+    MIN_ROWS,
+    Q_SPREAD,
+    T_SPAN,
+)
 from nnphd.user.localpoly import MIN_SAMPLES
 from nnphd.user.sampling import _grid_step
 
@@ -120,31 +148,146 @@ def load_trajectories(path, angles: Sequence[str] = (), max_rows: int | None = N
     refused as soon as the reader gets there.  Raises :class:`DataError` on any problem.
     """
     max_rows = MAX_ROWS if max_rows is None else int(max_rows)
+    max_cells = _max_cells(max_rows)
     path = os.fspath(path)
-    if isinstance(angles, str):
-        angles = (angles,)
-    ext = os.path.splitext(path)[1].lower()
-    if ext not in (".csv", ".npz"):
-        raise DataError(f"{path}: unsupported file type {ext or '(none)'!r}; expected a .csv or .npz file")
-    if not os.path.exists(path):
-        raise DataError(f"{path}: file not found")
-    if os.path.isdir(path):
-        raise DataError(f"{path}: is a directory, expected a .csv or .npz file")
-    columns, rows = _read_csv(path, max_rows) if ext == ".csv" else _read_npz(path, max_rows)
-    return _validate(path, columns, rows, tuple(angles))
+    try:
+        angles = _angle_names(path, angles)
+        ext = os.path.splitext(path)[1].lower()
+        if ext not in (".csv", ".npz"):
+            raise DataError(
+                f"{path}: unsupported file type {_q(ext) if ext else '(none)'}; expected a .csv or .npz file"
+            )
+        fd = _open_regular(path)
+        if ext == ".csv":
+            columns, rows = _read_csv(path, fd, max_rows, max_cells)
+        else:
+            columns, rows = _read_npz(path, fd, max_rows, max_cells)
+        return _validate(path, columns, rows, angles)
+    except DataError as e:
+        shown = _shown(path)
+        if shown != path and str(e).startswith(path):  # a file name with a line break must not break the line
+            raise DataError(shown + str(e)[len(path) :]) from None
+        raise
 
 
-def _read_csv(path: str, max_rows: int) -> tuple[dict[str, np.ndarray], _Rows]:
-    """Stream the file into float64 columns, CSV_CHUNK rows at a time: memory is the arrays (8 bytes per cell and
-    one line number per row), never the text of the whole file."""
+def _max_cells(max_rows: int) -> int:
+    """The cap on values (rows × columns): MAX_CELLS at the default MAX_ROWS, raised in proportion with --max-rows."""
+    return max(MAX_CELLS, MAX_CELLS * max_rows // MAX_ROWS)
+
+
+def _q(text, n: int = 40) -> str:
+    """Untrusted text (a cell, a name) for a message: quoted with repr (no line breaks or control characters) and cut
+    to ``n`` characters, so that a message never carries long file content."""
+    text = str(text)
+    return repr(text) if len(text) <= n else repr(text[:n]) + "…"
+
+
+def _cut(text, n: int = 60) -> str:
+    """Text that is not file content (names already checked, shapes, dtypes) cut to ``n`` characters."""
+    text = str(text)
+    text = text if text.isprintable() else repr(text)
+    return text if len(text) <= n else text[:n] + "…"
+
+
+def _value(v) -> str:
+    """A Python value from the caller for a message: a str quoted and cut, anything else its repr cut."""
+    return _q(v, 30) if isinstance(v, str) else _cut(repr(v), 30)
+
+
+def _num_text(c: str) -> str:
+    """A cell that parsed as a number, as written (short) or quoted and cut (a 4000-digit integer)."""
+    return c if len(c) <= 24 and c.isprintable() else _q(c, 20)
+
+
+def _err(e: BaseException, n: int = 100) -> str:
+    """A library's exception as one short line (its text may quote file content)."""
+    text = " ".join(str(e).split())
+    text = text if len(text) <= n else text[:n] + "…"
+    return f"{e.__class__.__name__}: {text}" if text else e.__class__.__name__
+
+
+def _shown(path: str) -> str:
+    return path if path.isprintable() else repr(path)
+
+
+_KINDS = (
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def _open_regular(path: str) -> int:
+    """Open a regular file for reading; anything else (a device such as /dev/zero, a FIFO, a socket, behind a link
+    or not) is refused from ``os.stat`` before it is opened, and again from ``os.fstat`` of the descriptor (opened
+    non-blocking, so that a FIFO swapped in between cannot block)."""
+
+    def check(st: os.stat_result) -> None:
+        if stat.S_ISDIR(st.st_mode):
+            raise DataError(f"{path}: is a directory, expected a .csv or .npz file")
+        if not stat.S_ISREG(st.st_mode):
+            kind = next((k for test, k in _KINDS if test(st.st_mode)), "not a file")
+            raise DataError(f"{path}: not a regular file ({kind}); expected a .csv or .npz file")
+
+    try:
+        check(os.stat(path))
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOCTTY", 0))
+    except FileNotFoundError:
+        raise DataError(f"{path}: file not found") from None
+    except OSError as e:
+        raise DataError(f"{path}: cannot read the file ({e.__class__.__name__}: {e.strerror})") from None
+    try:
+        check(os.fstat(fd))
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def _bounded_lines(path: str, fh, record: list[int]):
+    """The lines of a CSV file for :func:`csv.reader`, each read with a bound (``readline(MAX_LINE + 1)``): a line,
+    or a record spanning lines (a quoted field holding line breaks), longer than MAX_LINE characters is refused
+    without reading the rest, so a file without line breaks is never read whole.  ``record[0]`` counts the
+    characters of the record being read; the reader's loop sets it to 0 after each record."""
+    readline, limit = fh.readline, MAX_LINE + 1
+    line = start = 0
+    while True:
+        if record[0] == 0:
+            start = line + 1  # the line the record begins on
+        s = readline(limit)
+        if not s:
+            return
+        line += 1
+        record[0] += len(s)
+        if record[0] > MAX_LINE:
+            if line == start:
+                raise DataError(
+                    f"{path}: line {line} is longer than {MAX_LINE:,} characters; expected lines of at most "
+                    f"{MAX_LINE:,} (is this a CSV file with line breaks?)"
+                )
+            raise DataError(
+                f"{path}: the record from line {start} to {line} is longer than {MAX_LINE:,} characters; expected "
+                f"rows of at most {MAX_LINE:,} (an unclosed quote '\"'?)"
+            )
+        yield s
+
+
+def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[str, np.ndarray], _Rows]:
+    """Stream the file into float64 columns, CSV_CHUNK rows (at most CSV_CHUNK_CHARS characters) at a time: memory
+    is the arrays (8 bytes per cell and one line number per row), never the text of the whole file; lines are read
+    with a bound (:func:`_bounded_lines`) and the values are capped (``max_cells``, rows × columns)."""
     header, header_line, lines = None, 0, []
     chunks: dict[str, list[np.ndarray]] = {}
     pending: list[list[str]] = []
     pending_lines: list[int] = []
-    n_done = 0
+    n_done = pending_chars = 0
 
     def flush() -> None:
-        nonlocal n_done
+        nonlocal n_done, pending_chars
+        pending_chars = 0
         if not pending:
             return
         rows = _Rows(pending_lines, offset=n_done)
@@ -157,9 +300,11 @@ def _read_csv(path: str, max_rows: int) -> tuple[dict[str, np.ndarray], _Rows]:
         pending_lines.clear()
 
     try:
-        with open(path, newline="", encoding="utf-8-sig") as fh:
-            reader = csv.reader(fh)
+        with open(fd, newline="", encoding="utf-8-sig") as fh:
+            record = [0]  # characters of the record being read
+            reader = csv.reader(_bounded_lines(path, fh, record))
             for rec in reader:
+                chars, record[0] = record[0], 0
                 if not rec or all(not f.strip() for f in rec):
                     continue  # blank line
                 if header is None:
@@ -171,19 +316,27 @@ def _read_csv(path: str, max_rows: int) -> tuple[dict[str, np.ndarray], _Rows]:
                 if len(rec) != len(header):
                     where = _Rows([reader.line_num], offset=n_done + len(pending))(n_done + len(pending))
                     raise DataError(
-                        f"{path}: {where} has {len(rec)} fields; the header has {len(header)} ({','.join(header)})"
+                        f"{path}: {where} has {len(rec)} fields; the header has {len(header)} "
+                        f"({_q(','.join(header), 60)})"
                     )
                 if n_done + len(pending) >= max_rows:
                     raise DataError(_too_many(path, max_rows))
+                if (n_done + len(pending) + 1) * len(header) > max_cells:
+                    raise DataError(_too_many_cells(path, max_cells, len(header)))
                 pending.append(rec)
                 pending_lines.append(reader.line_num)
-                if len(pending) >= CSV_CHUNK:
+                pending_chars += chars
+                if len(pending) >= CSV_CHUNK or pending_chars >= CSV_CHUNK_CHARS:
                     flush()
             flush()
     except UnicodeDecodeError:
         raise DataError(f"{path}: not a UTF-8 text file; expected a CSV file with a header line") from None
-    except (OSError, csv.Error) as e:
-        raise DataError(f"{path}: cannot read the file ({e.__class__.__name__}: {e})") from None
+    except csv.Error as e:
+        raise DataError(
+            f"{path}: line {reader.line_num}: not readable as CSV ({_err(e)}); expected a CSV file"
+        ) from None
+    except OSError as e:
+        raise DataError(f"{path}: cannot read the file ({_err(e)})") from None
     if header is None:
         raise DataError(f"{path}: the file is empty; expected a header line (e.g. 't,x') and data rows")
     if n_done == 0:
@@ -199,7 +352,16 @@ def _too_many(path: str, max_rows: int) -> str:
     )
 
 
+def _too_many_cells(path: str, max_cells: int, n_columns: int) -> str:
+    return (
+        f"{path}: more than {max_cells:,} values ({n_columns} columns × {max_cells // n_columns:,} rows); expected at "
+        f"most {max_cells:,} values (rows × columns, {max_cells * 8 / 1e9:.2g} GB as float64): thin the file (keep "
+        "every k-th row), split it, or drop columns (--max-rows raises the limit in proportion)"
+    )
+
+
 CSV_CHUNK = 65536  # rows converted to arrays at a time while reading a CSV file
+CSV_CHUNK_CHARS = 2**25  # ... or fewer rows when their text reaches this many characters (long cells)
 
 
 def _check_header(path: str, header: list[str], header_line: int) -> None:
@@ -207,28 +369,65 @@ def _check_header(path: str, header: list[str], header_line: int) -> None:
         for sep, name in ((";", "semicolon"), ("\t", "tab"), ("|", "vertical bar")):
             if sep in header[0]:
                 raise DataError(
-                    f"{path}: the header {header[0]!r} is one field holding {name}s: the file seems {name}-separated; "
-                    "expected comma-separated values (e.g. 't,x')"
+                    f"{path}: the header {_q(header[0])} is one field holding {name}s: the file seems "
+                    f"{name}-separated; expected comma-separated values (e.g. 't,x')"
                 )
     if all(_is_number(f) for f in header):
         raise DataError(
             f"{path}: line {header_line} holds numbers, not a header; the first line must name the columns (e.g. 't,x')"
         )
-    for j, name in enumerate(header):
+    _check_names(path, header, "column {} of the header")
+
+
+def _check_names(path: str, names: Sequence, label: str = "column {}") -> None:
+    """Column names that are usable: at most MAX_COLUMNS, each a non-empty str of at most MAX_NAME characters with no
+    leading or trailing whitespace and no control, format or line-separator characters, all distinct; at most
+    MAX_COORDS coordinates among them.  Checked from the header / array names before any value is converted."""
+    if len(names) > MAX_COLUMNS:
+        raise DataError(
+            f"{path}: {len(names):,} columns; expected at most {MAX_COLUMNS} (t, traj and at most {MAX_COORDS} "
+            "coordinates with their _dot and _ddot): keep the columns of one system"
+        )
+    for j, name in enumerate(names):
+        where = f"{path}: {label.format(j + 1)}"
+        if not isinstance(name, str):
+            raise DataError(f"{where}: the name {_value(name)} is a {type(name).__name__}; expected a str")
         if not name:
-            raise DataError(f"{path}: column {j + 1} of the header has no name")
-    dup = sorted({h for h in header if header.count(h) > 1})
-    if dup:
-        raise DataError(f"{path}: duplicate column name {dup[0]!r} in the header")
+            raise DataError(f"{where} has no name")
+        if name != name.strip():
+            raise DataError(f"{where}: the name {_q(name)} has leading or trailing whitespace; expected none")
+        if len(name) > MAX_NAME:
+            raise DataError(f"{where}: the name {_q(name)} has {len(name)} characters; expected at most {MAX_NAME}")
+        bad = next((c for c in name if unicodedata.category(c) in _BAD_CATEGORIES), None)
+        if bad is not None:
+            raise DataError(
+                f"{where}: the name {_q(name)} holds the control character {bad!r}; expected printable characters"
+            )
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise DataError(f"{path}: duplicate column name {_q(name)}")
+        seen.add(name)
+    n_coords = sum(1 for c in names if c not in ("t", "traj") and not c.endswith(("_dot", "_ddot")))
+    if n_coords > MAX_COORDS:
+        raise DataError(
+            f"{path}: {n_coords} coordinate columns; expected at most {MAX_COORDS} coordinates (columns other than "
+            "t, traj and <c>_dot/<c>_ddot): keep the coordinates of one system"
+        )
+
+
+_BAD_CATEGORIES = {"Cc", "Cf", "Cs", "Co", "Cn", "Zl", "Zp"}  # control, format, surrogate, private, unassigned, breaks
 
 
 def _csv_floats(path: str, name: str, cells: list[str], rows: _Rows) -> np.ndarray:
     try:
         return np.array(cells, dtype=np.float64)
     except ValueError:
-        i = next(i for i, c in enumerate(cells) if not _is_number(c))
-        what = "is empty" if not cells[i].strip() else f"{cells[i].strip()!r} is not a number"
-        raise DataError(f"{path}: column {name!r} {rows(rows.offset + i)}: {what}; expected a number") from None
+        i = next((i for i, c in enumerate(cells) if not _is_number(c)), None)
+        if i is None:  # a cell that Python's float() reads and numpy's does not
+            i = next(i for i, c in enumerate(cells) if not _is_number(c, np.float64))
+        what = "is empty" if not cells[i].strip() else f"{_q(cells[i].strip(), 20)} is not a number"
+        raise DataError(f"{path}: column {_q(name)} {rows(rows.offset + i)}: {what}; expected a number") from None
 
 
 def _csv_ids(path: str, cells: list[str], rows: _Rows) -> np.ndarray:
@@ -242,13 +441,15 @@ def _csv_ids(path: str, cells: list[str], rows: _Rows) -> np.ndarray:
             try:
                 x = float(c)
             except ValueError:
-                what = "is empty" if not c else f"{c!r} is not a number"
+                what = "is empty" if not c else f"{_q(c, 20)} is not a number"
                 raise DataError(
                     f"{path}: column 'traj' {rows(rows.offset + i)}: {what}; expected an integer trajectory id"
                 ) from None
+            if math.isinf(x) and c.lstrip("+-")[:1].isdigit():  # 1e400, or more digits than int() reads
+                x = float(2 * MAX_ID)
             if not math.isfinite(x) or x != round(x):
                 raise DataError(
-                    f"{path}: column 'traj' {rows(rows.offset + i)}: {c} is not an integer; "
+                    f"{path}: column 'traj' {rows(rows.offset + i)}: {_num_text(c)} is not an integer; "
                     "expected integer trajectory ids"
                 ) from None
             v = int(x)
@@ -256,69 +457,210 @@ def _csv_ids(path: str, cells: list[str], rows: _Rows) -> np.ndarray:
                 v = MAX_ID + 1
         if abs(v) > MAX_ID:
             raise DataError(
-                f"{path}: column 'traj' {rows(rows.offset + i)}: trajectory id {c} is beyond ±2**53 = {MAX_ID}; "
-                "expected smaller integer ids (renumber the trajectories)"
+                f"{path}: column 'traj' {rows(rows.offset + i)}: trajectory id {_num_text(c)} is beyond ±2**53 = "
+                f"{MAX_ID}; expected smaller integer ids (renumber the trajectories)"
             )
         out[i] = v
     return out
 
 
-def _read_npz(path: str, max_rows: int) -> tuple[dict[str, np.ndarray], _Rows]:
-    try:
-        _npz_row_limit(path, max_rows)  # from the array headers, before any array is loaded
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {name: z[name] for name in z.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as e:
-        raise DataError(f"{path}: cannot read as .npz ({e.__class__.__name__}: {e})") from None
-    if not arrays:
-        raise DataError(f"{path}: the file holds no arrays; expected arrays named like CSV columns ('t', ...)")
-    columns, n_rows = {}, None
-    for name, a in arrays.items():
-        if a.ndim != 1:
-            raise DataError(f"{path}: array {name!r} has shape {a.shape}; expected a 1-D array (one value per row)")
-        if a.dtype.kind not in "iuf":
-            raise DataError(f"{path}: array {name!r} has dtype {a.dtype}; expected numbers (int or float)")
-        if n_rows is None:
-            n_rows = a.shape[0]
-        elif a.shape[0] != n_rows:
-            first = next(iter(arrays))
+def _read_npz(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[str, np.ndarray], _Rows]:
+    """Read an .npz archive of 1-D numeric arrays.  Everything is checked from the zip directory and the arrays'
+    .npy headers before any array is read: the number of members (at most MAX_COLUMNS, each a ``.npy``, not
+    encrypted), their names, shapes (1-D, one length), dtypes (int, uint or float: never objects, text or complex)
+    and sizes (rows ≤ ``max_rows``, values ≤ ``max_cells``); then each array is read from the archive with
+    :func:`numpy.lib.format.read_array` (no pickle), which reads exactly what its header declared."""
+    with open(fd, "rb") as fh:
+        if os.fstat(fh.fileno()).st_size == 0:
+            raise DataError(f"{path}: the file is empty; expected an .npz archive of 1-D arrays (numpy.savez)")
+        try:
+            endrec = zipfile._EndRecData(fh) if hasattr(zipfile, "_EndRecData") else None
+            if endrec is not None and endrec[zipfile._ECD_ENTRIES_TOTAL] > MAX_COLUMNS:
+                raise DataError(
+                    f"{path}: the archive holds {endrec[zipfile._ECD_ENTRIES_TOTAL]:,} members; expected at most "
+                    f"{MAX_COLUMNS} arrays (t, traj and at most {MAX_COORDS} coordinates with their _dot and _ddot)"
+                )
+            fh.seek(0)
+            with zipfile.ZipFile(fh) as zf:
+                members = _npz_members(path, zf, max_rows, max_cells)
+                columns = {}
+                for name, (info, shape, dtype) in members.items():
+                    with zf.open(info) as fp:
+                        a = np.lib.format.read_array(fp, allow_pickle=False)
+                    if a.shape != shape or a.dtype != dtype:  # the file changed under us
+                        raise DataError(f"{path}: array {_q(name)} changed while it was read; expected a stable file")
+                    columns[name] = _exact_ids(path, "array 'traj'", a) if name == "traj" else a.astype(np.float64)
+        except DataError:
+            raise
+        except _NPZ_ERRORS as e:
+            fh.seek(0)
+            hint = ": a single .npy array, not an .npz archive" if fh.read(6) == b"\x93NUMPY" else ""
             raise DataError(
-                f"{path}: array {name!r} has {a.shape[0]} values but {first!r} has {n_rows}; expected equal lengths"
-            )
-        columns[name] = _npz_ids(path, a) if name == "traj" else a.astype(np.float64)
-    if n_rows == 0:
-        raise DataError(f"{path}: the arrays are empty; expected at least one row")
-    if n_rows > max_rows:
-        raise DataError(_too_many(path, max_rows))
+                f"{path}: cannot read as .npz ({_err(e)}){hint}; expected an .npz archive of 1-D arrays (numpy.savez)"
+            ) from None
+    if not columns:
+        raise DataError(f"{path}: the file holds no arrays; expected arrays named like CSV columns ('t', ...)")
     return columns, _Rows(None)
 
 
-def _npz_row_limit(path: str, max_rows: int) -> None:
-    with zipfile.ZipFile(path) as zf:
-        for member in zf.namelist():
-            if not member.endswith(".npy"):
-                continue
-            with zf.open(member) as fp:
-                version = np.lib.format.read_magic(fp)
-                read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-                shape = read(fp)[0]
-            if shape and shape[0] > max_rows:
-                raise DataError(_too_many(path, max_rows))
+_NPZ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError)
+try:  # an LZMA member that is corrupt
+    import lzma
+
+    _NPZ_ERRORS += (lzma.LZMAError,)
+except ImportError:  # pragma: no cover - Python built without lzma
+    pass
 
 
-def _npz_ids(path: str, a: np.ndarray) -> np.ndarray:
-    """An NPZ 'traj' array as exact int64 ids (integers within ±2⁵³; floats must be whole numbers below 2⁵³)."""
+def _npz_members(path: str, zf: zipfile.ZipFile, max_rows: int, max_cells: int) -> dict:
+    """{column name: (ZipInfo, shape, dtype)} from the zip directory and the .npy headers, every limit checked."""
+    infos = zf.infolist()
+    if len(infos) > MAX_COLUMNS:
+        raise DataError(f"{path}: the archive holds {len(infos):,} members; expected at most {MAX_COLUMNS} arrays")
+    names = []
+    for info in infos:
+        if not info.filename.endswith(".npy") or info.is_dir():
+            raise DataError(
+                f"{path}: member {_q(info.filename)} is not a .npy array; expected only arrays (numpy.savez)"
+            )
+        if info.flag_bits & 0x1:
+            raise DataError(f"{path}: member {_q(info.filename)} is encrypted; expected a plain numpy.savez archive")
+        names.append(info.filename[: -len(".npy")])
+    _check_names(path, names, "array {}")
+    out, n_rows, first, cells = {}, None, None, 0
+    for name, info in zip(names, infos):
+        with zf.open(info) as fp:
+            version = np.lib.format.read_magic(fp)
+            if version not in ((1, 0), (2, 0), (3, 0)):
+                raise DataError(f"{path}: array {_q(name)} has .npy format version {version}; expected 1.0 to 3.0")
+            # version 3.0 differs from 2.0 only in the header's encoding (utf-8: for field names, refused below)
+            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+            shape, _fortran_order, dtype = read(fp)
+        if len(shape) != 1:
+            raise DataError(
+                f"{path}: array {_q(name)} has shape {_cut(shape, 30)}; expected a 1-D array (one value per row)"
+            )
+        if dtype.kind not in "iuf" or dtype.hasobject:
+            raise DataError(
+                f"{path}: array {_q(name)} has dtype {_cut(dtype, 30)}; expected numbers (int or float: not "
+                "complex, text or objects)"
+            )
+        if n_rows is None:
+            n_rows, first = shape[0], name
+        elif shape[0] != n_rows:
+            raise DataError(
+                f"{path}: array {_q(name)} has {shape[0]} values but {_q(first)} has {n_rows}; expected equal lengths"
+            )
+        if n_rows > max_rows:
+            raise DataError(_too_many(path, max_rows))
+        cells += shape[0]
+        if cells > max_cells:
+            raise DataError(_too_many_cells(path, max_cells, len(names)))
+        out[name] = (info, shape, dtype)
+    if n_rows == 0:
+        raise DataError(f"{path}: the arrays are empty; expected at least one row")
+    return out
+
+
+def _exact_ids(path: str, label: str, a: np.ndarray) -> np.ndarray:
+    """Trajectory ids as exact int64: integers within ±2⁵³ (floats must be whole numbers below 2⁵³ in magnitude, since
+    a larger float stands for several integers); ``label`` names the array in the message."""
     if a.dtype.kind == "f":
         bad = ~np.isfinite(a) | (a != np.round(a)) | (np.abs(a) >= MAX_ID)
+    elif a.dtype.kind == "i":
+        bad = (a > MAX_ID) | (a < -MAX_ID)
+    elif a.dtype.kind == "u":
+        bad = a > np.uint64(MAX_ID)
     else:
-        bad = (a > MAX_ID) | (a < -MAX_ID) if a.dtype.kind == "i" else a > np.uint64(MAX_ID)
+        raise DataError(f"{path}: {label} has dtype {a.dtype}; expected integer trajectory ids")
     if bad.any():
         i = int(np.argmax(bad))
         raise DataError(
-            f"{path}: array 'traj' index {i}: {a[i]!r} is not an integer id within ±2**53 = {MAX_ID}; "
-            "expected integer trajectory ids (renumber the trajectories)"
+            f"{path}: {label} index {i}: {_cut(repr(a[i].item()), 30)} is not an integer id within ±2**53 = "
+            f"{MAX_ID}; expected integer trajectory ids (renumber the trajectories)"
         )
     return a.astype(np.int64)
+
+
+# ---- arrays from Python (nnphd.Trajectories) ------------------------------------------------------------------------
+def _angle_names(path: str, angles) -> tuple[str, ...]:
+    """``angles`` as a tuple of names: a single str is one name (not its letters); None is none."""
+    if angles is None:
+        return ()
+    if isinstance(angles, str):
+        return (angles,)
+    try:
+        out = tuple(angles)
+    except TypeError:
+        raise DataError(f"{path}: angles must be a name or a list of names, got a {type(angles).__name__}") from None
+    for a in out:
+        if not isinstance(a, str):
+            raise DataError(f"{path}: angle {_value(a)} is a {type(a).__name__}; expected a coordinate name (str)")
+    return out
+
+
+def _api_numbers(path: str, what: str, x) -> np.ndarray:
+    """``x`` as a float64 array of real numbers; ragged lists, text, objects that are not real numbers, booleans and
+    complex numbers (whose imaginary part would be dropped) give one line."""
+    try:
+        a = np.asarray(x)
+    except (ValueError, TypeError) as e:
+        raise DataError(
+            f"{path}: {what} is not an array of numbers ({_err(e, 60)}); expected a rectangular array"
+        ) from None
+    if a.dtype.kind == "O":
+        bad = next((v for v in a.flat if not isinstance(v, numbers.Real) or isinstance(v, (bool, np.bool_))), None)
+        if bad is not None or any(v is None for v in a.flat):
+            raise DataError(
+                f"{path}: {what} holds {_value(bad)} (a {type(bad).__name__}); expected real numbers (int or float)"
+            )
+        try:
+            a = a.astype(np.float64)
+        except (OverflowError, ValueError, TypeError) as e:
+            raise DataError(f"{path}: {what}: {_err(e, 60)}; expected real numbers within float64") from None
+    if a.dtype.kind == "c":
+        raise DataError(
+            f"{path}: {what} is complex ({a.dtype}); expected real numbers (pass .real if the imaginary part is zero)"
+        )
+    if a.dtype.kind not in "iuf":
+        raise DataError(f"{path}: {what} has dtype {_cut(a.dtype, 30)}; expected real numbers (int or float)")
+    return a.astype(np.float64, copy=False)
+
+
+def _api_ids(path: str, x, n: int | None = None) -> np.ndarray:
+    """Trajectory ids given from Python as exact int64 (the CSV reader's rule: integers within ±2⁵³, whole floats),
+    a 1-D array of ``n`` ids (one per sample; any length if None)."""
+    try:
+        a = np.asarray(x)
+    except (ValueError, TypeError) as e:
+        raise DataError(
+            f"{path}: traj is not an array of ids ({_err(e, 60)}); expected one integer per sample"
+        ) from None
+    if a.ndim != 1 or (n is not None and a.shape != (n,)):
+        raise DataError(f"{path}: traj must have one id per sample ({n or 'N'}), got shape {_cut(a.shape, 30)}")
+    if a.dtype.kind == "O":
+        out = np.empty(n, dtype=np.int64)
+        for i, v in enumerate(a):
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real):
+                raise DataError(f"{path}: traj index {i}: {_value(v)} is not an integer; expected integer ids")
+            if isinstance(v, numbers.Integral):
+                v = int(v)
+            else:
+                v = float(v)
+                if not math.isfinite(v) or v != round(v) or abs(v) >= MAX_ID:
+                    raise DataError(
+                        f"{path}: traj index {i}: {v!r} is not an integer id within ±2**53; expected integer ids"
+                    )
+                v = int(v)
+            if abs(v) > MAX_ID:
+                raise DataError(
+                    f"{path}: traj index {i}: {_num_text(str(v))} is beyond ±2**53 = {MAX_ID}; expected smaller ids"
+                )
+            out[i] = v
+        return out
+    if a.dtype.kind not in "iuf":
+        raise DataError(f"{path}: traj has dtype {_cut(a.dtype, 30)}; expected integer trajectory ids")
+    return _exact_ids(path, "traj", a)
 
 
 def _check_scales(path: str, columns: dict[str, np.ndarray], coords: tuple[str, ...], rows: _Rows) -> None:
@@ -359,9 +701,9 @@ def _check_scales(path: str, columns: dict[str, np.ndarray], coords: tuple[str, 
             )
 
 
-def _is_number(s: str) -> bool:
+def _is_number(s: str, parse=float) -> bool:
     try:
-        float(s)
+        parse(s)
     except ValueError:
         return False
     return True
@@ -369,8 +711,20 @@ def _is_number(s: str) -> bool:
 
 def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tuple[str, ...]) -> UserData:
     names = list(columns)
+    _check_names(path, names)
     if "t" not in columns:
-        raise DataError(f"{path}: no 't' column; expected a time column named 't' (columns: {', '.join(names)})")
+        raise DataError(
+            f"{path}: no 't' column; expected a time column named 't' (columns: {_cut(', '.join(names), 60)})"
+        )
+    n_rows = columns["t"].shape[0]
+    for name in names:
+        if columns[name].shape != (n_rows,):
+            raise DataError(
+                f"{path}: column {_q(name)} has shape {_cut(columns[name].shape, 30)} but 't' has {n_rows} values; "
+                "expected 1-D columns of equal length"
+            )
+    if n_rows == 0:
+        raise DataError(f"{path}: no samples (the columns are empty); expected at least {MIN_ROWS} per trajectory")
     derived = [c for c in names if c.endswith("_dot") or c.endswith("_ddot")]
     coords = tuple(c for c in names if c not in ("t", "traj") and c not in derived)
     for c in derived:
@@ -383,17 +737,18 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
         )
     for a in angles:
         if a not in coords:
-            raise DataError(f"{path}: angle {a!r} is not a coordinate column (coordinates: {', '.join(coords)})")
+            raise DataError(
+                f"{path}: angle {_q(a)} is not a coordinate column (coordinates: {_cut(', '.join(coords), 60)})"
+            )
     for name in names:
         bad = ~np.isfinite(columns[name])
         if bad.any():
             i = int(np.argmax(bad))
             raise DataError(
-                f"{path}: column {name!r} {rows(i)}: {float(columns[name][i])!r} is not finite; "
+                f"{path}: column {_q(name)} {rows(i)}: {float(columns[name][i])!r} is not finite; "
                 "expected a finite number (no NaN or inf)"
             )
     _check_scales(path, columns, coords, rows)
-    n_rows = columns["t"].shape[0]
     if "traj" in columns:
         ids = columns["traj"]  # exact int64, checked by the reader
     else:
@@ -432,7 +787,7 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
 
     if all(np.ptp(q_all[:, j]) == 0 for j in range(len(coords))):
         raise DataError(
-            f"{path}: all coordinates are constant ({', '.join(coords)}); expected motion in at least one coordinate"
+            f"{path}: all coordinates are constant ({_cut(', '.join(coords), 60)}); expected motion in at least one coordinate"
         )
     return UserData(
         path=path,

@@ -24,8 +24,8 @@ import nnphd
 from nnphd.api import NNPhD
 from nnphd.engine.models import ModelConfig, init_lnn
 from nnphd.io import cache as cache_mod
-from nnphd.io import modelfile
 from nnphd.io.cache import Cache, IgnoredFileWarning
+from nnphd.user import modelfile
 from nnphd.user.scaling import Scaling
 
 CFG = ModelConfig(n=1, lnn_widths=(4, 4), uan_widths=(4,))

@@ -47,48 +47,9 @@ class Trajectories:
     def __init__(
         self, t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (), qd=None, qdd=None
     ):
-        from nnphd.user.recording import DataError, _Rows, _validate
+        from nnphd.user.recording import from_arrays
 
-        if isinstance(t, (list, tuple)) and len(t) and np.ndim(t[0]) == 1:
-            if traj is not None:
-                raise DataError("give either lists of per-trajectory arrays or traj ids, not both")
-            if not isinstance(q, (list, tuple)) or len(q) != len(t):
-                raise DataError(f"q must be a list of {len(t)} arrays, one per array of t")
-            ids = np.concatenate([np.full(len(np.asarray(x)), i) for i, x in enumerate(t)])
-            cat = lambda a: (
-                None if a is None else np.concatenate([np.asarray(x, float).reshape(len(np.asarray(x)), -1) for x in a])
-            )
-            t, q, qd, qdd, traj = np.concatenate([np.asarray(x, float) for x in t]), cat(q), cat(qd), cat(qdd), ids
-        t = np.asarray(t, float)
-        if t.ndim != 1:
-            raise DataError(f"t must be 1-D (one time per sample), got shape {t.shape}")
-        q = np.asarray(q, float)
-        q = q[:, None] if q.ndim == 1 else q
-        if q.ndim != 2 or q.shape[0] != len(t):
-            raise DataError(f"q must be (N,) or (N, n) with N = {len(t)} (the length of t), got shape {q.shape}")
-        n = q.shape[1]
-        names = [f"q{i + 1}" for i in range(n)] if names is None else [str(x) for x in names]
-        if len(names) != n or len(set(names)) != n:
-            raise DataError(f"names must be {n} distinct names (one per column of q), got {names}")
-        bad = [c for c in names if c in ("t", "traj") or c.endswith(("_dot", "_ddot"))]
-        if bad:
-            raise DataError(f"coordinate names must not be 't', 'traj' or end in _dot/_ddot, got {bad}")
-        cols: dict[str, np.ndarray] = {"t": t}
-        if traj is not None:
-            tr = np.asarray(traj)
-            if tr.shape != t.shape:
-                raise DataError(f"traj must have one id per sample ({len(t)}), got shape {tr.shape}")
-            cols["traj"] = tr.astype(float)
-        for j, c in enumerate(names):
-            cols[c] = q[:, j]
-        for suffix, arr in (("_dot", qd), ("_ddot", qdd)):
-            if arr is not None:
-                a = np.asarray(arr, float).reshape(len(t), -1)
-                if a.shape != q.shape:
-                    raise DataError(f"q{suffix} must have the shape of q {q.shape}, got {a.shape}")
-                for j, c in enumerate(names):
-                    cols[c + suffix] = a[:, j]
-        self._ud = _validate("<arrays>", cols, _Rows(None), tuple(angles))
+        self._ud = from_arrays(t, q, traj, names=names, angles=angles, qd=qd, qdd=qdd)
 
     @classmethod
     def _from_userdata(cls, ud) -> Trajectories:
@@ -99,31 +60,27 @@ class Trajectories:
     @classmethod
     def from_csv(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """A CSV file (header t, [traj,] coordinates, optional <c>_dot / <c>_ddot; see ``nnphd detect --help``)."""
-        from nnphd.user.recording import load_trajectories
+        from nnphd.user.recording import DataError, load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".csv":
-            raise ValueError(f"{path}: expected a .csv file")
+            raise DataError(f"{path}: expected a .csv file")
         return cls._from_userdata(load_trajectories(path, angles))
 
     @classmethod
     def from_npz(cls, path, angles: Sequence[str] = ()) -> Trajectories:
         """An .npz file with one 1-D array per CSV column."""
-        from nnphd.user.recording import load_trajectories
+        from nnphd.user.recording import DataError, load_trajectories
 
         if os.path.splitext(os.fspath(path))[1].lower() != ".npz":
-            raise ValueError(f"{path}: expected a .npz file")
+            raise DataError(f"{path}: expected a .npz file")
         return cls._from_userdata(load_trajectories(path, angles))
 
     @classmethod
     def from_dataframe(cls, df, angles: Sequence[str] = ()) -> Trajectories:
         """A pandas (or any mapping of columns) table with the CSV file's columns."""
-        from nnphd.user.recording import DataError, _Rows, _validate
+        from nnphd.user.recording import from_table
 
-        try:
-            cols = {str(k): np.asarray(df[k], float) for k in df}
-        except (TypeError, ValueError) as e:
-            raise DataError(f"every column must be numeric: {e}") from None
-        return cls._from_userdata(_validate("<dataframe>", cols, _Rows(None), tuple(angles)))
+        return cls._from_userdata(from_table(df, angles))
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -435,30 +392,21 @@ class NNPhD:
 
 
 def load(path) -> NNPhD:
-    """A model saved by :meth:`NNPhD.save`."""
+    """A model saved by :meth:`NNPhD.save`. The whole file is checked first (:mod:`nnphd.user.modelfile`: bounded
+    reading, every field's type and size, the weights' shapes and finiteness, the law parsed, never executed); a file
+    that is not a valid model raises ValueError with one line naming the path and what is wrong."""
     import jax
 
-    from nnphd.engine.models import ModelConfig, init_lnn
-    from nnphd.explain.families import family_from_spec
     from nnphd.explain.table import LawFit
+    from nnphd.user.modelfile import read_model_file
     from nnphd.user.scaling import Scaling
 
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            leaves = [np.asarray(z[f"lnn_{i}"]) for i in range(int(meta["n_leaves"]))]
-    except (OSError, KeyError, ValueError) as e:
-        raise ValueError(f"{path}: not an nnphd model file ({e.__class__.__name__}: {e})") from None
-    if meta.get("format") != "nnphd-model":
-        raise ValueError(f"{path}: not an nnphd model file")
-    cd = meta["cfg"]
-    cfg = ModelConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cd.items()})
+    mf = read_model_file(Path(path))
+    meta, cfg = mf.meta, mf.cfg
     with _x64():
-        treedef = jax.tree_util.tree_structure(init_lnn(jax.random.PRNGKey(0), cfg))
-        lnn = jax.tree_util.tree_unflatten(treedef, [jax.numpy.asarray(x) for x in leaves])
+        lnn = jax.tree_util.tree_unflatten(mf.treedef, [jax.numpy.asarray(x) for x in mf.leaves])
     s = meta["scaling"]
-    sc = Scaling(np.asarray(s["mu_q"]), np.asarray(s["s_q"]), float(s["t0"]), float(s["s_t"]))
+    sc = Scaling(np.asarray(s["mu_q"], float), np.asarray(s["s_q"], float), float(s["t0"]), float(s["s_t"]))
     st = meta["settings"]
     model = NNPhD(
         seed=st["seed"],
@@ -470,9 +418,8 @@ def load(path) -> NNPhD:
         trim=st["trim"],
     )
     law = None
-    if meta["law"] is not None:
-        fam = family_from_spec(meta["law"]["spec"], meta["names"])
-        beta, theta = np.asarray(meta["law"]["beta"], float), np.asarray(meta["law"]["theta"], float)
+    if mf.family is not None:
+        fam, beta, theta = mf.family, mf.beta, mf.theta
         law = LawFit(
             fam.key,
             fam.title,

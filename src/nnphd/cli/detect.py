@@ -85,7 +85,11 @@ def detect(
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
         if len(files) > 1 or Path(files[0]).is_dir():
+            from nnphd.explain.families import check_law_text
             from nnphd.user.batch import expand_paths
+
+            for x in law or []:  # a bad --law is refused before any file is read (each file parses it again)
+                check_law_text(x)
 
             paths = expand_paths(files, out)  # validated here, before anything is written
             claim_out_dir(out)

@@ -7,7 +7,8 @@ Every candidate is odd under time reversal (it does work) or explicitly time-dep
 van der Pol (a + b q²)q̇ and both together, a drive A cos(ωt + φ) with ω started from the peaks of the conservative
 residual's Lomb–Scargle spectrum. Besides them: the perturber on a circular orbit (:func:`perturber_family`, opt-in),
 a sparse polynomial (odd in q̇, degree ≤ 3, :func:`sparse_family` on a support thresholded jointly with f_c by
-:func:`nnphd.explain.laws.rank_laws`), and user laws written as SymPy strings (:func:`parse_law`).
+:func:`nnphd.explain.laws.rank_laws`), and user laws written as formulas (:func:`parse_law`; the text is read
+by :mod:`nnphd.explain.lawtext`, never evaluated).
 :func:`family_from_spec` rebuilds any of them from its JSON-ready :attr:`Family.spec`.
 """
 
@@ -20,11 +21,23 @@ from dataclasses import dataclass, replace
 import numpy as np
 import sympy as sp
 
-__all__ = ["Family", "families", "family_from_spec", "parse_law", "perturber_family", "sparse_family"]
+from nnphd.explain.lawtext import FUNCTIONS, MAX_CHARS, compile_formulas, parse_formula, short, substitute
+
+__all__ = [
+    "Family",
+    "check_law_text",
+    "families",
+    "family_from_spec",
+    "parse_law",
+    "perturber_family",
+    "sparse_family",
+]
 
 COULOMB_EPS = 0.02  # smoothing of sign(q̇), as a fraction of the rms speed
 SPARSE_DEGREE = 3
 DIGITS = 4
+MAX_PARAMS = 20  # of a user law
+FUNC_LIST = ", ".join(FUNCTIONS)
 
 
 @dataclass(frozen=True, eq=False)
@@ -348,8 +361,137 @@ def sparse_family(n: int, names: Sequence[str], support: np.ndarray) -> Family:
 _USER_SPLIT = re.compile(r"\s*;\s*")
 
 
+# A user law's linear parameters are found numerically, never by symbolic differentiation or simplification: on a
+# hostile law (a --law, a shared model file's law) sp.diff of nested powers grows exponentially and sp.simplify /
+# arbitrary-precision evalf ran for minutes (nnphd.load hung). Float64 evaluation costs one pass over the formula.
+_AFFINE_STARTS = (-2.5, 0.5, 1.0)  # a parameter's test values: a, a + h, a + 2h for each (a, h) pair below
+_AFFINE_STEPS = (3.0, 0.5, 0.25)
+_ZERO_TOL = 1e-9  # relative to the size of the values compared
+
+
+def _float_fn(exprs: list, syms: list):
+    """``exprs`` as one NumPy function of ``syms`` (None when SymPy cannot print one: the safe side)."""
+    try:
+        return compile_formulas(syms, exprs)
+    except Exception:  # noqa: BLE001 — anything SymPy cannot turn into NumPy code
+        return None
+
+
+def _values(f, points: np.ndarray) -> np.ndarray | None:
+    """f at each row of ``points`` as an (n_points, n_exprs) complex array (NaN where it fails)."""
+    out = []
+    with np.errstate(all="ignore"):
+        for row in points:
+            try:
+                out.append([complex(v) for v in f(*row)])
+            except Exception:  # noqa: BLE001 — a value that is not a number
+                return None
+    return np.asarray(out)
+
+
+def _close_to_zero(d: np.ndarray, scale: np.ndarray) -> bool | None:
+    """Whether every finite, nonzero-scale entry of ``d`` is zero relative to ``scale``; None if none counts."""
+    ok = np.isfinite(d) & np.isfinite(scale) & (scale > 0)
+    if not ok.any():
+        return None
+    return bool(np.all(np.abs(d[ok]) <= _ZERO_TOL * scale[ok]))
+
+
+def _linear_params(exprs: list, params: list) -> list:
+    """The parameters ``exprs`` are jointly affine in, in order: every term (of the sums) that holds a parameter
+    has a vanishing second difference in it, and every term that holds two of them a vanishing mixed difference,
+    at random values of every symbol over several offsets and step sizes (terms evaluated one by one, so a term that
+    overflows does not hide the others)."""
+    terms = [t for e in exprs for t in sp.Add.make_args(e) if t.free_symbols & set(params)]
+    syms = sorted({s for t in terms for s in t.free_symbols}, key=lambda s: s.name)
+    f = _float_fn(terms, syms) if terms else None
+    if f is None:
+        return []
+    base = np.random.default_rng(0).uniform(0.5, 1.5, size=(4, len(syms)))
+    col = {s: i for i, s in enumerate(syms)}
+
+    def at(shifts: dict) -> np.ndarray | None:
+        pts = base.copy()
+        for s, v in shifts.items():
+            pts[:, col[s]] = v
+        return _values(f, pts)
+
+    def affine(tests, cols) -> bool:
+        seen = False
+        for vals in tests:
+            if any(v is None for v in vals):
+                return False
+            vals = [v[:, cols] for v in vals]
+            with np.errstate(all="ignore"):  # inf - inf where a value overflows: NaN, not counted
+                d = vals[0] - vals[1] - vals[2] + vals[3]
+                scale = sum(np.abs(v) for v in vals)
+                if not np.all((np.isfinite(d) & np.isfinite(scale) & (scale > 0)).any(axis=0)):
+                    return False  # a term with no finite value at any point: not known to be affine
+                zero = _close_to_zero(d, scale)
+            if zero is False:
+                return False
+            seen = seen or bool(zero)
+        return seen
+
+    lin: list = []
+    for p in params:
+        ok = True
+        for a, h in zip(_AFFINE_STARTS, _AFFINE_STEPS):
+            f0, f1, f2 = at({p: a}), at({p: a + h}), at({p: a + 2 * h})
+            # the second difference f2 - 2 f1 + f0, over the terms that hold p
+            ok = ok and affine([(f2, f1, f1, f0)], [k for k, t in enumerate(terms) if p in t.free_symbols])
+            for p2 in lin:
+                both = [k for k, t in enumerate(terms) if p in t.free_symbols and p2 in t.free_symbols]
+                if ok and both:
+                    b2 = 0.7 * h
+                    ok = affine([(at({p: a + h, p2: b2 + h}), at({p: a + h, p2: b2}), at({p: a, p2: b2 + h}),
+                                  at({p: a, p2: b2}))], both)  # fmt: skip
+        if ok:
+            lin.append(p)
+    return lin
+
+
+def _is_zero(e: sp.Expr) -> bool:
+    """Whether ``e`` is zero: structurally, or its float64 value is zero (relative to its terms' sizes) at random
+    positive values of its symbols. Where it cannot be evaluated it is not zero (the safe side)."""
+    if e == 0:
+        return True
+    syms = sorted(e.free_symbols, key=lambda s: s.name)
+    f = _float_fn([e, *sp.Add.make_args(e)], syms)
+    vals = None if f is None else _values(f, np.random.default_rng(1).uniform(0.5, 1.5, size=(5, len(syms))))
+    if vals is None:
+        return False
+    return bool(_close_to_zero(vals[:, 0], np.sum(np.abs(vals[:, 1:]), axis=1)))
+
+
+def check_law_text(text: str) -> None:
+    """The checks of :func:`parse_law` that need no coordinate names, for a batch of files whose coordinates may
+    differ: the text's size, each component's formula (read by :func:`nnphd.explain.lawtext.parse_formula`, any
+    name allowed) and no component named twice. ValueError with one line, as parse_law."""
+    text = str(text).strip()
+    if not text:
+        raise ValueError("--law is empty: expected a formula such as 'c*x_dot*abs(x_dot)'")
+    if len(text) > MAX_CHARS:
+        raise ValueError(f"law {short(text)}: {len(text)} characters is too long (at most {MAX_CHARS})")
+    label, heads = f"law {short(text)}", []
+    for p in (p for p in _USER_SPLIT.split(text) if p):
+        head, sep, body = p.partition(":")
+        if sep:
+            name = head.strip().removesuffix("_ddot")
+            if name in heads:
+                raise ValueError(f"{label}: the component {short(name, 30)} is given twice (write each component once)")
+            heads.append(name)
+        # a coordinate may be named _x; dunder names stay refused
+        own = {n: sp.Symbol(n) for n in re.findall(r"(?<![\w.])_(?!_)\w*", body if sep else p)}
+        parse_formula(body if sep else p, own, label=label)
+
+
 def parse_law(text: str, coords: Sequence[str]) -> Family:
-    """A user law from a SymPy string: ``"-c*x_dot*abs(x_dot)"`` (one coordinate) or ``"x: -c*x_dot; y: -c*y_dot"``.
+    """A user law from a formula: ``"-c*x_dot*abs(x_dot)"`` (one coordinate) or ``"x: -c*x_dot; y: -c*y_dot"``.
+
+    The text is untrusted (a --law, a shared model file): :func:`nnphd.explain.lawtext.parse_formula` reads it
+    without evaluating it — numbers, names, + - * / ** (^), parentheses and the functions of
+    :data:`nnphd.explain.lawtext.FUNCTIONS` only.
 
     Symbols: the coordinate names, ``<name>_dot``, ``t``; every other symbol is a parameter (shared between
     components). Parameters the law is linear in are solved exactly, the rest (e.g. an exponent) by least squares
@@ -359,6 +501,9 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
     text = str(text).strip()
     if not text:
         raise ValueError("--law is empty: expected a formula such as 'c*x_dot*abs(x_dot)'")
+    if len(text) > MAX_CHARS:
+        raise ValueError(f"law {short(text)}: {len(text)} characters is too long (at most {MAX_CHARS})")
+    label = f"law {short(text)}"
     parts = [p for p in _USER_SPLIT.split(text) if p]
     comps: dict[int, str] = {}
     for p in parts:
@@ -367,60 +512,76 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
             name = head.strip().removesuffix("_ddot")
             if name not in coords:
                 raise ValueError(
-                    f"law {text!r}: {head.strip()!r} is not a coordinate (expected one of {', '.join(coords)})"
+                    f"{label}: {short(head.strip())} is not a coordinate (expected one of {', '.join(coords)})"
                 )
-            comps[coords.index(name)] = body
+            i = coords.index(name)
+            if i in comps:
+                raise ValueError(f"{label}: the component {name!r} is given twice (write each component once)")
+            comps[i] = body
         elif len(coords) == 1 and not comps:
             comps[0] = p
+        elif len(coords) == 1:
+            raise ValueError(
+                f"{label}: {short(p)} is a second formula for the one coordinate {coords[0]!r} "
+                "(separate components with ';' only with several coordinates)"
+            )
         else:
             raise ValueError(
-                f"law {text!r}: with {len(coords)} coordinates name the component of each term, "
+                f"{label}: with {len(coords)} coordinates name the component of each term, "
                 f"e.g. '{coords[0]}: -c*{coords[0]}_dot; {coords[1]}: -c*{coords[1]}_dot'"
             )
-    Q = [sp.Symbol(c) for c in coords]
-    V = [sp.Symbol(f"{c}_dot") for c in coords]
-    T = sp.Symbol("t")
+    # real symbols: on complex ones SymPy's automatic evaluation asks for real and imaginary parts, which took 5 s
+    # for abs(cosh(2*x**100)) (and the formula is real: the force of real states)
+    Q = [sp.Symbol(c, real=True) for c in coords]
+    V = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
+    T = sp.Symbol("t", real=True)
     known = {s.name: s for s in (*Q, *V, T)}
     exprs = [sp.Integer(0)] * len(coords)
-    for i, body in comps.items():
-        try:
-            e = sp.sympify(body, locals={**known, "abs": sp.Abs, "sign": sp.sign})
-        except (sp.SympifyError, SyntaxError, TypeError) as err:
-            raise ValueError(
-                f"law {text!r}: cannot read {body.strip()!r} as a formula ({err.__class__.__name__})"
-            ) from None
-        if not isinstance(e, sp.Expr):
-            raise ValueError(f"law {text!r}: {body.strip()!r} is not a formula")  # noqa: TRY004 (a bad --law is bad input: exit 2)
-        exprs[i] = e
+    expected = (
+        f"a formula of the coordinates, their _dot velocities, t, parameters, numbers, + - * / ** and {FUNC_LIST}"
+    )
+    for i, body in comps.items():  # never sympify: it evaluates the text with Python's eval (see lawtext)
+        exprs[i] = parse_formula(body, known, label=label, expected=expected)
     params = sorted({s for e in exprs for s in e.free_symbols} - set(known.values()), key=lambda s: s.name)
     if not params:
         raise ValueError(
-            f"law {text!r} has no free parameter to fit (symbols other than the coordinates, "
+            f"{label} has no free parameter to fit (symbols other than the coordinates, "
             f"their _dot velocities and t are parameters)"
         )
+    if len(params) > MAX_PARAMS:
+        raise ValueError(f"{label} has {len(params)} parameters; at most {MAX_PARAMS} can be fitted")
     bad = [p.name for p in params if p.name.endswith("_dot")]
     if bad:
         raise ValueError(
-            f"law {text!r}: {bad[0]!r} is not the velocity of a coordinate (coordinates: {', '.join(coords)})"
+            f"{label}: {short(bad[0])} is not the velocity of a coordinate (coordinates: {', '.join(coords)})"
         )
-    lin: list = []  # parameters the law is jointly linear in (their coefficients may hold the others)
-    for p in params:
-        if all(
-            sp.simplify(sp.diff(e, p, 2)) == 0 and all(sp.simplify(sp.diff(e, p, p2)) == 0 for p2 in lin) for e in exprs
-        ):
-            lin.append(p)
+    # the parameters the law is jointly linear in (their coefficients may hold the others)
+    lin = _linear_params(exprs, params)
+    if not lin:  # before any more SymPy work
+        raise ValueError(
+            f"{label}: it must be linear in at least one parameter (a coefficient in front of a "
+            "term), e.g. 'c*x_dot**m'"
+        )
     nl = [p for p in params if p not in lin]
-    base = [[sp.diff(e, p) for p in lin] for e in exprs]
-    rest = [sp.simplify(e - sum((p * b for p, b in zip(lin, row)), sp.Integer(0))) for e, row in zip(exprs, base)]
+    # affine in the linear parameters: the law at lin = 0 is what is left without them, and a parameter's term
+    # is the law at that parameter = 1 (the others 0) less it (substitution; no symbolic derivative)
+    # (parts that become numbers are computed in float64: exact evaluation of exp(1e30 + 0**x_dot) overflows)
+    zero = {p: sp.Integer(0) for p in lin}
+    rest = [substitute(e, zero) for e in exprs]
+    base = [[substitute(e, {**zero, p: sp.Integer(1)}) - r for p in lin] for e, r in zip(exprs, rest)]
+    if any(x.has(sp.zoo, sp.nan, sp.oo, -sp.oo) for x in (*rest, *(b for row in base for b in row))):
+        raise ValueError(f"{label}: its linear parameters cannot be separated; expected terms linear in a coefficient")
+    rest = [sp.Integer(0) if _is_zero(r) else r for r in rest]
     args = (nl, Q, V, T)
     n = len(coords)
 
     def _fn(xp, exprs_):
         mod = "jax" if xp.__name__.startswith("jax") else "numpy"
-        f = sp.lambdify(args, exprs_, modules=mod)
+        f = compile_formulas(args, exprs_, mod)  # user names never reach the generated code
 
         def ev(th, q, v, t):
-            vals = f(list(th), [q[:, j] for j in range(n)], [v[:, j] for j in range(n)], t)
+            th = [xp.asarray(x, dtype=q.dtype) for x in th]  # array arithmetic: 1/0 is inf, not ZeroDivisionError
+            vals = f(th, [q[:, j] for j in range(n)], [v[:, j] for j in range(n)], t)
             return [xp.broadcast_to(xp.asarray(x, dtype=q.dtype), t.shape) for x in vals]
 
         return ev
@@ -447,13 +608,18 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
             return xp.stack(cache[key](th, q, v, t), axis=1)
 
     def symbols(th, Qs, Vs, Ts):
+        # the caller's symbols as real ones of the same names (printed alike): over complex symbols SymPy's
+        # re-evaluation of a hostile formula took seconds
+        real = lambda b: sp.Symbol(b.name, real=True) if isinstance(b, sp.Symbol) else b  # noqa: E731
         sub = {
-            **{a: b for a, b in zip(Q, Qs)},
-            **{a: b for a, b in zip(V, Vs)},
-            T: Ts,
+            **{a: real(b) for a, b in zip(Q, Qs)},
+            **{a: real(b) for a, b in zip(V, Vs)},
+            T: real(Ts),
             **{p: sp.Float(x, DIGITS) for p, x in zip(nl, th)},
         }
-        return [[b.xreplace(sub) for b in row] for row in base]
+        # numbers in float64: SymPy would evaluate the formula with numbers in place of its parameters in arbitrary
+        # precision, and cos(sinh(1e30*m)) at m = 1 asks for π to 10³⁰ bits (a hostile model file's law hung load)
+        return [[substitute(b, sub) for b in row] for row in base]
 
     fam = Family(
         "user",
@@ -469,10 +635,5 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
         per_term=False,
         spec={"kind": "user", "text": text},
     )
-    if not lin:
-        raise ValueError(
-            f"law {text!r}: it must be linear in at least one parameter (a coefficient in front of a "
-            "term), e.g. 'c*x_dot**m'"
-        )
     _ = fam.symbols([1.0] * len(nl), Q, V, T)  # fail early on a formula SymPy cannot rebuild
     return fam

@@ -17,6 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from nnphd.explain.lawtext import parse_formula
 from nnphd.explain.sparse import READABLE_MAX_REL_RMS, BlindFormula, regression_data
 
 READABLE_MAX_LENGTH = 30  # expression-tree nodes per component
@@ -99,7 +100,8 @@ def genetic_formula(
         pred = np.asarray(reg.evaluate_model(best["tree"], x), float)
         sq_err += float(np.sum((pred - yi) ** 2))
         model = reg.get_model_string(best["tree"], 8, safe)
-        expr = sp.sympify(model.replace("^", "**"), locals={s: sp.Symbol(s) for s in safe})
+        # read without eval (nnphd.explain.lawtext); pyoperon writes e.g. ((-0.5) + (1.2 * (sin(v0) ^ 2)))
+        expr = parse_formula(model, {s: sp.Symbol(s) for s in safe}, label="pyoperon model", new_symbols=False)
         expr = _tidy(expr * scale, scale).xreplace(back)
         exprs.append(expr)
         lengths.append(int(best["length"]))

@@ -78,7 +78,17 @@ from nnphd.user.limits import (
 from nnphd.user.localpoly import MIN_SAMPLES
 from nnphd.user.sampling import _grid_step
 
-__all__ = ["DataError", "Trajectory", "UserData", "MIN_SAMPLES", "MIN_ROWS", "load_trajectories", "suggest_angles"]
+__all__ = [
+    "DataError",
+    "Trajectory",
+    "UserData",
+    "MIN_SAMPLES",
+    "MIN_ROWS",
+    "from_arrays",
+    "from_table",
+    "load_trajectories",
+    "suggest_angles",
+]
 
 
 # ---- records ------------------------------------------------------------------------------------------------------
@@ -797,6 +807,101 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
         given_qdd=given_qdd,
         trajectories=tuple(trajectories),
     )
+
+
+# ---- arrays and tables from Python (nnphd.Trajectories) -----------------------------------------------------------
+def from_arrays(
+    t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (), qd=None, qdd=None
+) -> UserData:
+    """Validate arrays as :class:`nnphd.Trajectories` takes them (see there) into :class:`UserData`: the same rules
+    as a file, plus the array checks (numbers only — no complex, text or object arrays —, shapes, exact integer
+    trajectory ids within ±2⁵³, usable names; a single str of ``names``/``angles`` is one name). One-line
+    :class:`DataError` on any problem."""
+    w = "<arrays>"  # how messages name these arrays
+    try:
+        per_traj = isinstance(t, (list, tuple)) and len(t) > 0 and np.ndim(t[0]) == 1
+    except (ValueError, TypeError):  # a ragged first element: refused below
+        per_traj = False
+    if per_traj:
+        if traj is not None:
+            raise DataError(f"{w}: give either lists of per-trajectory arrays or traj ids, not both")
+        for what, a in (("q", q), ("qd", qd), ("qdd", qdd)):
+            if (a is not None or what == "q") and (not isinstance(a, (list, tuple)) or len(a) != len(t)):
+                raise DataError(f"{w}: {what} must be a list of {len(t)} arrays, one per array of t")
+        ts = [_api_numbers(w, f"t[{i}]", x) for i, x in enumerate(t)]
+        for i, x in enumerate(ts):
+            if x.ndim != 1 or not len(x):
+                raise DataError(f"{w}: t[{i}] must be a non-empty 1-D array, got shape {_cut(x.shape, 30)}")
+
+        def cat(a, what):
+            if a is None:
+                return None
+            parts = []
+            for i, (x, ti) in enumerate(zip(a, ts)):
+                x = _api_numbers(w, f"{what}[{i}]", x)
+                x = x[:, None] if x.ndim == 1 else x
+                if x.ndim != 2 or x.shape[0] != len(ti) or (parts and x.shape[1] != parts[0].shape[1]):
+                    cols = f", {parts[0].shape[1]})" if parts else ") or (N, n)"
+                    raise DataError(
+                        f"{w}: {what}[{i}] must have shape ({len(ti)}{cols} like t[{i}], got {_cut(x.shape, 30)}"
+                    )
+                parts.append(x)
+            return np.concatenate(parts)
+
+        ids = np.concatenate([np.full(len(x), i, dtype=np.int64) for i, x in enumerate(ts)])
+        t, q, qd, qdd, traj = np.concatenate(ts), cat(q, "q"), cat(qd, "qd"), cat(qdd, "qdd"), ids
+    t = _api_numbers(w, "t", t)
+    if t.ndim != 1 or not len(t):
+        raise DataError(f"{w}: t must be a non-empty 1-D array (one time per sample), got shape {_cut(t.shape, 30)}")
+    q = _api_numbers(w, "q", q)
+    q = q[:, None] if q.ndim == 1 else q
+    if q.ndim != 2 or q.shape[0] != len(t):
+        raise DataError(
+            f"{w}: q must be (N,) or (N, n) with N = {len(t)} (the length of t), got shape {_cut(q.shape, 30)}"
+        )
+    n = q.shape[1]
+    if names is None:
+        names = [f"q{i + 1}" for i in range(n)]
+    else:
+        names = [names] if isinstance(names, str) else list(names)  # a single str is one name, not its letters
+    if len(names) != n:
+        raise DataError(f"{w}: names must be {n} distinct names (one per column of q), got {len(names)}")
+    _check_names(w, names, "names[{}]")
+    bad = [c for c in names if c in ("t", "traj") or c.endswith(("_dot", "_ddot"))]
+    if bad:
+        raise DataError(f"{w}: coordinate names must not be 't', 'traj' or end in _dot/_ddot, got {_q(bad[0])}")
+    cols: dict[str, np.ndarray] = {"t": t}
+    if traj is not None:
+        cols["traj"] = _api_ids(w, traj, len(t))  # exact: 2**53 and 2**53 + 1 stay apart, 0.2 is refused
+    for j, c in enumerate(names):
+        cols[c] = q[:, j]
+    for suffix, arr in (("_dot", qd), ("_ddot", qdd)):
+        if arr is not None:
+            a = _api_numbers(w, f"q{suffix}", arr)
+            a = a[:, None] if a.ndim == 1 else a
+            if a.shape != q.shape:
+                raise DataError(f"{w}: q{suffix} must have the shape of q {q.shape}, got {_cut(a.shape, 30)}")
+            for j, c in enumerate(names):
+                cols[c + suffix] = a[:, j]
+    return _validate(w, cols, _Rows(None), _angle_names(w, angles))
+
+
+def from_table(df, angles: Sequence[str] = ()) -> UserData:
+    """Validate a pandas DataFrame (or any mapping of column names to arrays) with a CSV file's columns into
+    :class:`UserData`; names are checked before any column is converted. One-line :class:`DataError`."""
+    w = "<dataframe>"
+    try:
+        keys = list(df)  # the column labels
+    except TypeError:
+        raise DataError(
+            f"{w}: expected a DataFrame or a mapping of column names to arrays, got {type(df).__name__}"
+        ) from None
+    names = [str(k) for k in keys]
+    _check_names(w, names)  # how many, usable, distinct: before any column is converted
+    cols = {}
+    for k, name in zip(keys, names):
+        cols[name] = _api_ids(w, df[k]) if name == "traj" else _api_numbers(w, f"column {name!r}", df[k])
+    return _validate(w, cols, _Rows(None), _angle_names(w, angles))
 
 
 # ---- angle hints --------------------------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from nnphd.io.cache import Cache, fingerprint, load_npz, save_npz
+from nnphd.io.cache import Cache, IgnoredFileWarning, fingerprint, load_npz, save_npz
 from nnphd.io.progress import Stages
 
 
@@ -24,9 +24,11 @@ def test_result_cache_is_keyed_by_settings(tmp_path):
     assert Cache(tmp_path, {"steps": 10, "seed": 0}).load() == saved
     assert Cache(tmp_path, {"seed": 1, "steps": 10}).load() is None  # other settings: not used
     (tmp_path / "results.json").write_text("{not json")
-    assert c.load() is None  # unreadable: treated as absent
+    with pytest.warns(IgnoredFileWarning, match="not valid JSON"):
+        assert c.load() is None  # unreadable: treated as absent, with a warning
     (tmp_path / "results.json").write_text("[1]")
-    assert c.load() is None  # valid JSON but not a result: absent, no crash
+    with pytest.warns(IgnoredFileWarning, match="not a JSON object"):
+        assert c.load() is None  # valid JSON but not a result: absent, no crash
 
 
 def test_checkpoint_round_trip_without_pickle(tmp_path):
@@ -39,7 +41,8 @@ def test_checkpoint_round_trip_without_pickle(tmp_path):
     with np.load(tmp_path / Cache.CHECKPOINT, allow_pickle=False) as z:  # plain arrays and a JSON string
         assert json.loads(str(z["__meta__"]))["fingerprint"] == c.fingerprint
     assert Cache(tmp_path, {"k": 2}).restore(tree) == {}  # other settings
-    assert c.restore([{"w": jnp.zeros((2, 2)), "b": jnp.zeros(3)}, tree[1]]) == {}  # other shapes
+    with pytest.warns(IgnoredFileWarning, match=r"has shape \(2, 3\), expected \(2, 2\)"):
+        assert c.restore([{"w": jnp.zeros((2, 2)), "b": jnp.zeros(3)}, tree[1]]) == {}  # other shapes
     c.clear_checkpoint()
     assert not (tmp_path / Cache.CHECKPOINT).exists() and c.restore(tree) == {}
 

@@ -204,6 +204,8 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
     back = lambda r: sc.force_back(r)  # noqa: E731
     fnorm = _l1(back(qdd))  # ‖f‖ over all data, original units
     fnorm_te = _l1(back(qdd[te]))
+    if not fnorm_te > 0:  # a held-out stretch at rest (a recording that ends stuck): scale by the whole record's
+        fnorm_te = fnorm  # force instead of dividing by zero (the relative held-out errors are then of that scale)
     fnorm_tr = _l1(back(qdd[tr]))
     key = jax.random.PRNGKey(seed)
     k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)

@@ -227,3 +227,14 @@ def test_lm_judges_trial_steps_on_the_residuals_alone():
     assert c_b == pytest.approx(c_a, rel=1e-12) and np.allclose(th_b, th_a, rtol=0, atol=1e-10)
     assert np.allclose(s_b, s_a, rtol=0, atol=1e-10) and np.allclose(j_b, j_a, rtol=1e-9, atol=1e-12)
     assert abs(th_b[1] - 0.011) < 0.003  # and it is the damping
+
+
+def test_percent_per_period_is_a_share_of_the_energy():
+    """E ∝ exp(−r t): a decay of r·period = 2 loses 86.5 % of the energy per period (it was printed as
+    "2e+02 %/period"); a growth of 2 gains 639 %; small rates ≈ 100·|r·period|."""
+    from nnphd.engine.evidence import percent_per_period
+
+    assert percent_per_period(2.0) == pytest.approx(100 * (1 - np.exp(-2.0)))  # 86.47 %
+    assert percent_per_period(-2.0) == pytest.approx(100 * (np.exp(2.0) - 1))
+    assert percent_per_period(1e-3) == pytest.approx(0.1, rel=1e-3) and percent_per_period(0.0) == 0.0
+    assert all(0 < percent_per_period(x) <= 100 for x in (0.5, 5.0, 50.0, 1e3))  # never more than all of it

@@ -39,7 +39,7 @@ import math
 
 import numpy as np
 
-__all__ = ["dominant_period", "energy_trend", "period_blocks"]
+__all__ = ["dominant_period", "energy_trend", "percent_per_period", "period_blocks"]
 
 MIN_BLOCKS = 4  # energy trend: at least this many whole periods in all (and 2 per trajectory used)
 
@@ -196,6 +196,14 @@ def _block_trend(V, floor: float, t, blocks, period: float, n_boot: int, seed: i
     if not ok:
         out["reason"] = "the mean is at or below the floor in some period"
     return out
+
+
+def percent_per_period(rate_per_period: float) -> float:
+    """The energy lost (r·period > 0) or gained per period, in % of the energy at its start: E ∝ exp(−r t), so a
+    decay is 100·(1 − e^(−r·period)) — never above 100 % (r·period = 2 is 86 %, not "200 %/period") — and a growth
+    100·(e^(r·period) − 1); the magnitude. For small r·period both are ≈ 100·|r·period|."""
+    x = float(rate_per_period)
+    return 100.0 * (-np.expm1(-x) if x >= 0 else np.expm1(-x))
 
 
 def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, seed: int = 0, kinetic=None) -> dict:

@@ -86,6 +86,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from nnphd.engine.evidence import percent_per_period
+
 __all__ = [
     "net_power_fraction",
     "energy_net_fraction",
@@ -359,7 +361,7 @@ def _effect(traj: dict, trend: dict, shoot: dict) -> str:
         r, rp = trend["rate"], trend.get("rate_per_period", float("nan"))
         word = "decays" if r > 0 else "grows"
         parts.append(
-            f"the learned energy {word} {100 * abs(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
+            f"the learned energy {word} {percent_per_period(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
             f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)"
         )
     if shoot.get("valid"):

@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 
+from nnphd.engine.evidence import percent_per_period
 from nnphd.io.escape import mpl as _m
 from nnphd.io.html import bullets, details, figure, figures, page, section, table
 from nnphd.io.html import escape as _e
@@ -83,7 +84,7 @@ def fig_energy(trend: dict):
     ax.set_ylabel("learned energy above its minimum (per-period mean)")
     if trend.get("valid") and r is not None and np.isfinite(r):
         ax.set_title(
-            f"energy {'decays' if r > 0 else 'grows'} {100 * abs(trend['rate_per_period']):.2g}%/period, "
+            f"energy {'decays' if r > 0 else 'grows'} {percent_per_period(trend['rate_per_period']):.2g}%/period, "
             f"z = {trend['z']:.1f}",
             fontsize=10,
         )
@@ -169,7 +170,7 @@ def _evidence_rows(report: dict) -> list[list[str]]:
         rows.append(
             row(
                 "energy trend of the learned Lagrangian (whole record)",
-                f"{'decays' if tr['rate'] > 0 else 'grows'} {100 * abs(tr['rate_per_period']):.3g}%/period, "
+                f"{'decays' if tr['rate'] > 0 else 'grows'} {percent_per_period(tr['rate_per_period']):.3g}%/period, "
                 f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
                 f"z = {tr['z']:.1f}",
                 f"{tr['n_blocks']} whole periods of {tr['period']:.3g}",

@@ -402,11 +402,11 @@ def test_api_names_and_angles():
     assert T(t, q[:, 0], names="theta", angles="theta").angles == ("theta",)  # one name, not its letters
     assert T(t, q, names=["x", "theta"], angles="theta").angles == ("theta",)
     _api_refused(lambda: T(t, q, names="xy"), "names must be 2 distinct names (one per column of q), got 1")
-    _api_refused(lambda: T(t, q[:, 0], names=[""]), "names[1] has no name")
+    _api_refused(lambda: T(t, q[:, 0], names=[""]), "names[0] has no name")
     _api_refused(lambda: T(t, q[:, 0], names=[" x"]), "leading or trailing whitespace")
     _api_refused(lambda: T(t, q[:, 0], names=["x\ny"]), "control character '\\n'")
     _api_refused(lambda: T(t, q[:, 0], names=["a" * 200]), f"expected at most {MAX_NAME}")
-    _api_refused(lambda: T(t, q[:, 0], names=[3]), "names[1]: the name 3 is a int; expected a str")
+    _api_refused(lambda: T(t, q[:, 0], names=[3]), "names[0]: the name 3 is a int; expected a str")
     _api_refused(lambda: T(t, q, names=["x", "x"]), "duplicate column name 'x'")
     _api_refused(lambda: T(t, q, names=["x", "t"]), "must not be 't'")
     _api_refused(lambda: T(t, q, names=["x", "y"], angles="theta"), "angle 'theta' is not a coordinate")

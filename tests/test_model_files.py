@@ -230,6 +230,14 @@ def test_a_planted_law_is_not_executed(model_file, tmp_path):
     path = _variant(model_file, tmp_path, _set(["law"], law))
     _refused(path, "not a valid nnphd model file", "meta.law")
     assert not marker.exists()
+    # the laws of its settings too (a refit would parse them): refused on load, not only later
+    path = _variant(model_file, tmp_path, _set(["settings", "laws"], [text]), name="s.npz")
+    _refused(path, "meta.settings.laws[0]", "attribute access")
+    assert not marker.exists()
+
+
+def test_a_law_given_as_one_string_is_one_law():
+    assert NNPhD(laws="c*x_dot*abs(x_dot)").laws == ("c*x_dot*abs(x_dot)",)
 
 
 FUZZ = settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -164,7 +164,8 @@ class NNPhD:
         trim: bool | str = "auto",
         **assess_kw: Any,
     ):
-        self.seed, self.steps, self.n_seeds, self.laws = int(seed), int(steps), int(n_seeds), tuple(laws)
+        self.seed, self.steps, self.n_seeds = int(seed), int(steps), int(n_seeds)
+        self.laws = (laws,) if isinstance(laws, str) else tuple(laws)  # one str is one law, not its characters
         self.law_fit, self.sr_time, self.trim, self.assess_kw = law_fit, float(sr_time), trim, dict(assess_kw)
         self._model: dict | None = None
         self._fc_jit = None

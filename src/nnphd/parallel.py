@@ -88,22 +88,25 @@ class SchedulerError(ValueError):
 
 
 def check_scheduler_address(address: str) -> str:
-    """``address`` if it has the form of a Dask scheduler address (``tcp://host:port``, also ``tls://``, ``ws://``,
-    ``wss://``, ``ucx://``; a bare ``host:port`` is tcp), else :class:`SchedulerError`. Nothing is contacted."""
+    """``address`` if it has the form of a Dask scheduler address over TCP (``tcp://host:port``; a bare
+    ``host:port`` is tcp), else :class:`SchedulerError`. Nothing is contacted. Other transports (``tls://`` needs a
+    security context, ``ucx://``, ``ws://``) are refused: nnphd passes no configuration for them."""
     from distributed.comm import get_address_host_port, parse_address
-    from distributed.comm.registry import backends
 
     text = str(address).strip()
     bad = SchedulerError(f"--scheduler {address!r} is not a Dask scheduler address (expected tcp://host:port)")
     try:
         scheme, loc = parse_address(text)
-        if scheme not in backends or scheme == "inproc":
+        if scheme != "tcp":
+            raise SchedulerError(
+                f"--scheduler {address!r}: the {scheme}:// transport is not supported (expected tcp://host:port)"
+            )
+        host, port = get_address_host_port(text)
+        if not host or not 0 < int(port) < 65536 or any(c.isspace() or c in "/?#@" for c in loc):
             raise bad
-        if scheme != "ucx":  # (Dask extracts no host and port of a ucx:// address)
-            host, port = get_address_host_port(text)
-            if not host or not 0 < int(port) < 65536 or any(c.isspace() or c in "/?#@" for c in loc):
-                raise bad
-    except (ValueError, TypeError):
+    except (ValueError, TypeError) as e:
+        if isinstance(e, SchedulerError):
+            raise
         raise bad from None
     return text
 
@@ -316,18 +319,46 @@ def local_cluster(n: int):
 
 
 def _client(scheduler: str):
-    """A Client of the existing scheduler at ``scheduler``; :class:`SchedulerError` if none answers in time."""
+    """A Client of the existing scheduler at ``scheduler``; :class:`SchedulerError` (one line) if none answers in
+    time or what answers is no Dask scheduler. The connection is made on a daemon thread given 2·``timeout`` + 1 s in
+    all: Dask's own timeout does not cover a server that accepts and then says nothing Dask understands (an HTTP
+    server hung it for minutes), and a reply read as a frame length asks for exabytes (a MemoryError)."""
+    import threading
+
     from distributed import Client
 
     timeout = _connect_timeout()
-    try:
-        return Client(scheduler, timeout=timeout)
-    except (OSError, TimeoutError) as e:  # refused, unknown host, or no answer in time
-        why = " ".join(str(e).split())[:200]
+    box: dict = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = Client(scheduler, timeout=timeout)
+        except BaseException as e:  # noqa: BLE001 — handed to the caller below
+            box["error"] = e
+
+    th = threading.Thread(target=connect, name="nnphd-scheduler-connect", daemon=True)
+    th.start()
+    th.join(2.0 * timeout + 1.0)
+    if th.is_alive():
+        raise SchedulerError(
+            f"--scheduler {scheduler!r}: no Dask scheduler answered within {timeout:g} s (something may listen "
+            "there that is not a Dask scheduler; expected the address printed by `dask scheduler`)"
+        )
+    e = box.get("error")
+    if e is None:
+        return box["client"]
+    why = " ".join(str(e).split())[:200]
+    if isinstance(e, (OSError, TimeoutError)):  # refused, unknown host, or no answer in time
         why = "" if why.startswith("Timed out") else f" ({type(e).__name__}: {why})"
         raise SchedulerError(
             f"--scheduler {scheduler!r} cannot be reached within {timeout:g} s: no Dask scheduler answers there{why}"
         ) from None
+    if isinstance(e, KeyboardInterrupt):
+        raise e
+    raise SchedulerError(
+        f"--scheduler {scheduler!r}: what answers there is not a Dask scheduler ({type(e).__name__}: {why[:100]}); "
+        "expected the address printed by `dask scheduler`"
+    ) from None
 
 
 def _run_dask(units, n, scheduler, progress, retries, on_outcome) -> dict[str, Outcome]:

@@ -88,6 +88,18 @@ def string(*, nonempty: bool = False, max_len: int = 1000) -> Check:
     return check
 
 
+def law_text(x, where):
+    """A law the model's settings name (used again by a refit): read by the safe parser, never run."""
+    from nnphd.explain.families import check_law_text
+
+    string(nonempty=True, max_len=MAX_TEXT)(x, where)
+    try:
+        check_law_text(x)
+    except ValueError as e:
+        raise _Bad(f"{where}: {e}") from None
+    return x
+
+
 def one_of(*values) -> Check:
     def check(x, where):
         if not any(type(x) is type(v) and x == v for v in values):
@@ -225,7 +237,7 @@ SETTINGS = {  # NNPhD's arguments
     "seed": integer(-(2**63), 2**63 - 1),
     "steps": integer(0, 2**31),
     "n_seeds": integer(1, 1000),
-    "laws": list_of(string(nonempty=True, max_len=MAX_TEXT), max_len=100),
+    "laws": list_of(law_text, max_len=100),
     "law_fit": one_of("auto", "pointwise", "trajectory"),
     "sr_time": number(nonneg=True),
     "trim": either(boolean, string(max_len=100)),

@@ -398,8 +398,9 @@ def _check_names(path: str, names: Sequence, label: str = "column {}") -> None:
             f"{path}: {len(names):,} columns; expected at most {MAX_COLUMNS} (t, traj and at most {MAX_COORDS} "
             "coordinates with their _dot and _ddot): keep the columns of one system"
         )
+    base = 0 if "[" in label else 1  # names[0] (a Python list), column 1 (a file's header)
     for j, name in enumerate(names):
-        where = f"{path}: {label.format(j + 1)}"
+        where = f"{path}: {label.format(j + base)}"
         if not isinstance(name, str):
             raise DataError(f"{where}: the name {_value(name)} is a {type(name).__name__}; expected a str")
         if not name:

@@ -111,6 +111,19 @@ def _peak(fn) -> int:
     return peak
 
 
+def _refused_peak(path) -> tuple[DataError, int]:
+    """The DataError that reading ``path`` raises, and the peak of Python memory allocated until then."""
+    box = {}
+
+    def read():
+        with pytest.raises(DataError) as err:
+            load_trajectories(path)
+        box["e"] = err.value
+
+    peak = _peak(read)
+    return box["e"], peak
+
+
 def test_a_20_mb_line_without_newline_is_refused_in_bounded_memory(tmp_path):
     path = tmp_path / "one_line.csv"
     size = 20 * 2**20
@@ -119,15 +132,8 @@ def test_a_20_mb_line_without_newline_is_refused_in_bounded_memory(tmp_path):
         chunk = "1" * 2**20
         for _ in range(size // len(chunk)):
             fh.write(chunk)
-    box = {}
-
-    def read():
-        with pytest.raises(DataError) as err:
-            load_trajectories(path)
-        box["e"] = err.value
-
-    peak = _peak(read)
-    _one_line(box["e"], "line 3 is longer than 1,048,576 characters", "line breaks")
+    e, peak = _refused_peak(path)
+    _one_line(e, "line 3 is longer than 1,048,576 characters", "line breaks")
     assert peak < 4 * MAX_LINE < size / 4, peak  # a couple of copies of one bounded line (measured 2.1 MB)
 
 
@@ -136,15 +142,8 @@ def test_a_record_spanning_lines_is_bounded_too(tmp_path):
     path = tmp_path / "quotes.csv"
     field = '"' + "a" * 1000 + '\n",'  # one line each, within the csv module's field limit
     path.write_text("t,x\n" + "0," + field * 3000 + "\n")
-    box = {}
-
-    def read():
-        with pytest.raises(DataError) as err:
-            load_trajectories(path)
-        box["e"] = err.value
-
-    peak = _peak(read)
-    _one_line(box["e"], "the record from line 2 to", "unclosed quote")
+    e, peak = _refused_peak(path)
+    _one_line(e, "the record from line 2 to", "unclosed quote")
     assert peak < 4 * MAX_LINE, peak
     path.write_text("t,x\n" + '0,"' + "1\n" * 100_000 + '"\n')  # one field beyond the csv module's limit
     _refused(path, "line", "field larger than field limit", "expected a CSV file")
@@ -181,15 +180,8 @@ def test_thousand_coordinate_columns_are_refused_from_the_header(tmp_path):
     names = [f"c{j}" for j in range(1000)]
     row = ",".join("1.5" for _ in names)
     path.write_text("t," + ",".join(names) + "\n" + "".join(f"{i},{row}\n" for i in range(120)))
-    box = {}
-
-    def read():
-        with pytest.raises(DataError) as err:
-            load_trajectories(path)
-        box["e"] = err.value
-
-    peak = _peak(read)
-    _one_line(box["e"], "1,001 columns", f"expected at most {MAX_COLUMNS}", "keep the columns of one system")
+    e, peak = _refused_peak(path)
+    _one_line(e, "1,001 columns", f"expected at most {MAX_COLUMNS}", "keep the columns of one system")
     assert peak < 2 * 2**20, peak
     names = [f"c{j}" for j in range(MAX_COORDS + 1)]
     path.write_text("t," + ",".join(names) + "\n" + "".join(f"{i},{','.join('1' for _ in names)}\n" for i in range(9)))
@@ -271,15 +263,8 @@ def test_npz_shapes_dtypes_and_sizes_come_from_the_headers(tmp_path):
     }
     for key, (members, *parts) in cases.items():
         path = _zip(tmp_path / f"{key}.npz", members)
-        box = {}
-
-        def read(path=path, box=box):
-            with pytest.raises(DataError) as err:
-                load_trajectories(path)
-            box["e"] = err.value
-
-        peak = _peak(read)
-        _one_line(box["e"], *parts)
+        e, peak = _refused_peak(path)
+        _one_line(e, *parts)
         assert peak < 4 * 2**20, (key, peak)
 
 

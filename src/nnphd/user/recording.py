@@ -610,15 +610,18 @@ def _angle_names(path: str, angles) -> tuple[str, ...]:
     return out
 
 
+def _api_array(path: str, x, what: str, expected: str) -> np.ndarray:
+    """``np.asarray(x)``; a ragged or unconvertible input is one line: ``path: what (numpy's reason); expected …``."""
+    try:
+        return np.asarray(x)
+    except (ValueError, TypeError) as e:
+        raise DataError(f"{path}: {what} ({_err(e, 60)}); expected {expected}") from None
+
+
 def _api_numbers(path: str, what: str, x) -> np.ndarray:
     """``x`` as a float64 array of real numbers; ragged lists, text, objects that are not real numbers, booleans and
     complex numbers (whose imaginary part would be dropped) give one line."""
-    try:
-        a = np.asarray(x)
-    except (ValueError, TypeError) as e:
-        raise DataError(
-            f"{path}: {what} is not an array of numbers ({_err(e, 60)}); expected a rectangular array"
-        ) from None
+    a = _api_array(path, x, f"{what} is not an array of numbers", "a rectangular array")
     if a.dtype.kind == "O":
         bad = next((v for v in a.flat if not isinstance(v, numbers.Real) or isinstance(v, (bool, np.bool_))), None)
         if bad is not None or any(v is None for v in a.flat):
@@ -641,12 +644,7 @@ def _api_numbers(path: str, what: str, x) -> np.ndarray:
 def _api_ids(path: str, x, n: int | None = None) -> np.ndarray:
     """Trajectory ids given from Python as exact int64 (the CSV reader's rule: integers within ±2⁵³, whole floats),
     a 1-D array of ``n`` ids (one per sample; any length if None)."""
-    try:
-        a = np.asarray(x)
-    except (ValueError, TypeError) as e:
-        raise DataError(
-            f"{path}: traj is not an array of ids ({_err(e, 60)}); expected one integer per sample"
-        ) from None
+    a = _api_array(path, x, "traj is not an array of ids", "one integer per sample")
     if a.ndim != 1 or (n is not None and a.shape != (n,)):
         raise DataError(f"{path}: traj must have one id per sample ({n or 'N'}), got shape {_cut(a.shape, 30)}")
     if a.dtype.kind == "O":

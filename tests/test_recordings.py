@@ -43,11 +43,10 @@ def test_unknown_name_lists_the_cases():
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_build_time_shapes_and_fields(recs, name):
-    out, times = recs
+def test_shapes_and_fields(recs, name):
+    out, _ = recs
     r = out[name]
     assert isinstance(r, Recording) and r.name == name
-    assert times[name] < 2.0, f"{name} built in {times[name]:.2f} s"
     N, n = r.q.shape
     assert r.t.shape == (N,) and n == len(r.coords) and N == r.truth["n_samples"]
     assert np.all(np.isfinite(r.t)) and np.all(np.isfinite(r.q))

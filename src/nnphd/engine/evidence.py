@@ -26,9 +26,12 @@ energy over 16 swings. Two statistics read that effect, both from a conservative
    the jackknife and the model-based (reduced-χ² scaled) standard error; z = d̄ / se(d̄) for the kinetic-energy
    weighted mean d̄ of d (with d in 1/time, energy decays at ≈ d̄).
 
-Window length and noise: the windows are ≈ 0.75 of the dominant period (from mean crossings of q and q̇), at least
-``MIN_WINDOW`` and at most ``MAX_WINDOW`` samples; the residuals are weighted by the estimated position noise of each
-coordinate (floored at 1e-3 of its spread, for noise-free data).
+Window length and noise: the windows are ≈ 0.75 of the dominant period (from mean crossings of q and q̇, swings within
+the position noise not counted), at least ``MIN_WINDOW`` and at most ``MAX_WINDOW`` samples; the residuals are
+weighted by the estimated position noise of each coordinate (floored at 1e-3 of its spread, for noise-free data).
+Motion that does not oscillate (a throw, a fall) has no period: both statistics then use blocks of 1/NONOSC_BLOCKS of
+the record (:func:`evidence_block`), a trend is per block, and its absence proves little — a conservative potential
+can be shaped to follow a path that never returns to its states.
 
 Both statistics are computed in the standardised units of :mod:`nnphd.user.assess` and reported in the file's units.
 """
@@ -39,29 +42,48 @@ import math
 
 import numpy as np
 
-__all__ = ["dominant_period", "energy_trend", "percent_per_period", "period_blocks"]
+__all__ = [
+    "dominant_period",
+    "evidence_block",
+    "velocity_time_scale",
+    "energy_trend",
+    "percent_per_period",
+    "period_blocks",
+]
 
 MIN_BLOCKS = 4  # energy trend: at least this many whole periods in all (and 2 per trajectory used)
+RESOLVED_SNR = 3.0  # dominant_period: a column's swing must reach this many position-noise σ to count as oscillating
+NONOSC_BLOCKS = 8  # motion that does not oscillate: blocks (and shooting windows) of 1/NONOSC_BLOCKS of the record
 
 
 # ------------------------------------------------------------------------------------------------------------------
 # periods and blocks
 
 
-def dominant_period(x, t, segs) -> float:
+def dominant_period(x, t, segs, position_noise=None) -> float:
     """Time of one oscillation of the column of x (N, k) that oscillates most: twice the mean time between
     consecutive crossings of its mean (crossing times interpolated linearly; from the first to the last crossing of
-    each segment, so the partial oscillations at the ends do not bias it). inf if nothing oscillates."""
+    each segment, so the partial oscillations at the ends do not bias it). inf if nothing oscillates.
+
+    ``position_noise`` (n,), optional, with x = [q, q̇] (k = 2n columns): a column whose swing is not resolved
+    above the position noise does not count — noise around a steady value crosses its mean again and again (the
+    constant horizontal velocity of a throw, the still coordinate of a fall) but is no oscillation. Resolved: √2·std
+    of q_j at least RESOLVED_SNR·σ_j, and for q̇_j also the swing of position it implies, √2·std(q̇_j)·P_j/2π with
+    P_j that column's own period. When no column is resolved (white noise; a cosine sampled below its Nyquist rate
+    looks like noise to a noise estimate) all columns count, as without ``position_noise``."""
     x = np.asarray(x, float)
     x = x[:, None] if x.ndim == 1 else x
     t = np.asarray(t, float)
     k = x.shape[1]
     spans, gaps = np.zeros(k), np.zeros(k)
+    sq, cnt = np.zeros(k), 0
     for s in segs:
         if len(s) < 3:
             continue
         ts = t[s]
         xs = x[s] - x[s].mean(axis=0)
+        sq += np.sum(xs**2, axis=0)
+        cnt += len(s)
         for j in range(k):
             y = xs[:, j]
             i = np.flatnonzero(np.sign(y[1:]) * np.sign(y[:-1]) < 0)
@@ -70,8 +92,48 @@ def dominant_period(x, t, segs) -> float:
             tc = ts[i] - y[i] * (ts[i + 1] - ts[i]) / (y[i + 1] - y[i])
             spans[j] += tc[-1] - tc[0]
             gaps[j] += len(tc) - 1
+    if position_noise is not None and cnt:
+        sig = np.asarray(position_noise, float)
+        n = len(sig)
+        if k != 2 * n:
+            raise ValueError(f"position_noise needs x = [q, q̇] ({2 * n} columns), got {k}")
+        amp = np.sqrt(2 * sq / cnt)
+        per = np.where(gaps > 0, 2.0 * spans / np.maximum(gaps, 1), 0.0)
+        amp[n:] *= per[n:] / (2 * np.pi)  # a velocity swing as the swing of position it implies
+        ok = amp >= RESOLVED_SNR * np.concatenate([sig, sig])
+        ok[n:] &= ok[:n]  # the velocity of positions that are all noise is noise too
+        if ok.any():  # else every column is noise-like (white noise, a cosine sampled below Nyquist): count them all
+            gaps = np.where(ok, gaps, 0.0)
     j = int(np.argmax(gaps))
     return 2.0 * spans[j] / gaps[j] if gaps[j] >= 2 else math.inf
+
+
+def evidence_block(period: float, t, segs) -> float:
+    """The time of one block of the record-level evidence: the period when the motion oscillates, else (a throw, a
+    fall, a coast-down, an arc of an orbit: no period exists) 1/NONOSC_BLOCKS of the median trajectory's duration."""
+    if np.isfinite(period) and period > 0:
+        return float(period)
+    t = np.asarray(t, float)
+    spans = [float(t[s][-1] - t[s][0]) for s in segs if len(s) > 1]
+    span = float(np.median(spans)) if spans else 0.0
+    return span / NONOSC_BLOCKS if span > 0 else math.inf
+
+
+def velocity_time_scale(qd, qdd, segs, columns=None) -> float:
+    """The time over which the velocity changes by its own size: per coordinate rms(q̇)/rms(q̈) over the rows of
+    ``segs``, the smallest over ``columns`` (default all; pass those whose q̈ is resolved above the noise). For
+    q = A cos ωt it is 1/ω = period/2π, so 2π times it is the time scale of motion that does not oscillate.
+    inf when no coordinate accelerates."""
+    qd, qdd = np.atleast_2d(np.asarray(qd, float)), np.atleast_2d(np.asarray(qdd, float))
+    rows = np.concatenate(list(segs)) if len(segs) else np.arange(len(qd))
+    cols = range(qd.shape[1]) if columns is None else columns
+    taus = []
+    for j in cols:
+        v = math.sqrt(float(np.mean(qd[rows, j] ** 2)))
+        a = math.sqrt(float(np.mean(qdd[rows, j] ** 2)))
+        if a > 0 and v > 0:
+            taus.append(v / a)
+    return min(taus) if taus else math.inf
 
 
 def period_blocks(t, segs, period) -> list[list[np.ndarray]]:

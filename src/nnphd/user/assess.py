@@ -19,7 +19,9 @@ Method (per seed; ``n_seeds`` repeats with other initialisations, minibatches an
   every network as (sin θ, cos θ) (:attr:`nnphd.engine.models.ModelConfig.periodic`), so whole turns and unwrapped values
   of ±100 rad are the same states as their remainders; they are unwrapped per trajectory for integration.
 * **Data quality** (:func:`nnphd.user.checks.data_quality`, before any training): positions that are mostly noise (σ/std ≥
-  NOISE_REL_MAX for every coordinate) or motion sampled below MIN_SAMPLES_PER_PERIOD samples per oscillation →
+  NOISE_REL_MAX for every coordinate) or motion sampled below MIN_SAMPLES_PER_PERIOD samples per time scale (its
+  period; for motion that does not oscillate — a throw, a fall — 2π × the time in which the velocity changes by its own
+  size, :func:`nnphd.user.checks.motion_time_scale`) →
   "inconclusive" at once, with the reason and no training; an estimated relative q̈ error ≥ QDD_ERR_MAX for every
   coordinate marks the pointwise tests as blind (only trajectory-level evidence can then decide).
 * **Hold-out.** Whole trajectories (a quarter, at least one); with a single trajectory, its last quarter.
@@ -71,6 +73,7 @@ from nnphd.user.checks import (
     Z_ONE,
     clock_testable,
     data_quality,
+    motion_time_scale,
 )
 from nnphd.user.limits import MIN_ROWS
 from nnphd.user.rounds import (
@@ -152,18 +155,20 @@ def assess(
     q_pos = q.copy()  # positions for integration: angles unwrapped per trajectory
     for s in segs:
         q_pos[np.ix_(s, np.flatnonzero(is_angle))] = np.unwrap(q[np.ix_(s, np.flatnonzero(is_angle))], axis=0)
-    period = dominant_period(np.concatenate([q_pos, qd], axis=1), tp, segs)
-    dts = np.concatenate([np.diff(tp[s]) for s in segs])
-    period_samples = period / float(np.median(dts)) if np.isfinite(period) else 0.0
     if position_noise is None:
         from nnphd.user.sampling import noise_level
 
         position_noise = [
             float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs]))) for j in range(n)
         ]
+    # the period of the motion (inf: it does not oscillate — a throw, a fall); swings within the noise do not count
+    period = dominant_period(np.concatenate([q_pos, qd], axis=1), tp, segs, np.asarray(position_noise) / sc.s_q)
+    dts = np.concatenate([np.diff(tp[s]) for s in segs])
+    scale, scale_kind = motion_time_scale(period, tp, qd, qdd, segs, derivative_error)
+    period_samples = scale / float(np.median(dts))
     sd = np.std(q_pos * sc.s_q, axis=0)
     noise_rel = [p / s if s > 0 else 0.0 for p, s in zip(position_noise, sd)]
-    quality = data_quality(period_samples, noise_rel, derivative_error)
+    quality = data_quality(period_samples, noise_rel, derivative_error, time_scale=scale_kind)
     clock = clock_testable(tp, segs)
     if not quality["usable"]:  # nothing to learn from: say so at once instead of training on noise
         return _unusable(quality, sc, data, is_angle, clock, time.perf_counter() - t_start)

@@ -39,6 +39,13 @@ Checks (all numbers in ``checks``; every threshold is a module constant)
    LNN is not at its floor (used in the reason when inconclusive).
 5. **Naive ratio** of the sweep on held-out data and the power of the UAN's f_n at λ = 0.2 — reported, not used.
 
+Motion that does not oscillate (a throw, a fall, a coast-down, an arc of an orbit: no period,
+:func:`nnphd.engine.evidence.dominant_period` is inf) is data too: the sampling gate uses 2π × the time in which its
+velocity changes (:func:`motion_time_scale`) instead of a period, the record-level statistics use blocks and windows
+of a fraction of the record (:func:`nnphd.engine.evidence.evidence_block`), and the status follows
+:func:`_status_not_oscillating` — such a path never returns to its states, so a potential can be shaped to follow it
+whatever force acts: "detected" only when both record-level statistics agree, never "none".
+
 Status per seed (:func:`_seed_status`): ``inconclusive`` if the data cannot decide (quality gate); ``detected`` if
 check 2 is significant and testable, or the trajectory-level evidence (0) is significant, or check 1 is significant
 with ≥ 3 trajectories and usable derivatives (and valid or gap_train ≥ GAP_MIN); otherwise ``inconclusive`` when the
@@ -76,8 +83,9 @@ script (benchmarks/trust_table.py, 24 runs at each of the two configs, all corre
   correlated blocks; shooting: max of jackknife and model), set before looking at the stress set; on it
   (tests/fixtures/recordings.py, benchmarks/detect_recordings.py) the conservative recordings gave |z| ≤ 1.7 for
   both statistics and the damped ones z ≥ 4.1 (shooting) and ≥ 34 (energy). NOISE_REL_MAX = 0.3,
-  MIN_SAMPLES_PER_PERIOD = 6, QDD_ERR_MAX = 50 %, CLOCK_MIN_TRAJ = 3 and CLOCK_MANY_TRAJ = 8 are judgement (white
-  noise gives σ/std ≈ 1 and q̈ errors > 100 %; a cosine sampled every 2.9 s has 2.2 samples per period).
+  MIN_SAMPLES_PER_PERIOD = 6 (per period, or per 2π·rms(q̇)/rms(q̈) without one), QDD_ERR_MAX = 50 %,
+  CLOCK_MIN_TRAJ = 3 and CLOCK_MANY_TRAJ = 8 are judgement (white noise gives σ/std ≈ 1 and q̈ errors > 100 %; a
+  cosine sampled every 2.9 s has 2.2 samples per period).
 """
 
 from __future__ import annotations
@@ -86,7 +94,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from nnphd.engine.evidence import percent_per_period
+from nnphd.engine.evidence import percent_per_period, velocity_time_scale
 
 __all__ = [
     "net_power_fraction",
@@ -101,6 +109,7 @@ __all__ = [
     "clock_testable",
     "trajectory_evidence",
     "data_quality",
+    "motion_time_scale",
 ]
 
 # thresholds (see the module docstring for how they were set)
@@ -354,15 +363,24 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
     }
 
 
+def _both_agree(traj: dict) -> bool:
+    """Both record-level statistics valid, of one sign and at least Z_BOTH."""
+    zt, zs = traj.get("z_energy"), traj.get("z_shooting")
+    return zt is not None and zs is not None and np.sign(zt) == np.sign(zs) and min(abs(zt), abs(zs)) >= Z_BOTH
+
+
 def _effect(traj: dict, trend: dict, shoot: dict) -> str:
-    """ "energy decays 3.2 %/period (r = 0.011/time unit), z = 41" from the evidence."""
+    """ "energy decays 3.2 %/period (r = 0.011/time unit), z = 41" from the evidence (motion that does not oscillate:
+    per block of a fraction of the record, :func:`nnphd.engine.evidence.evidence_block`)."""
     parts = []
     if trend.get("valid"):
         r, rp = trend["rate"], trend.get("rate_per_period", float("nan"))
         word = "decays" if r > 0 else "grows"
+        unit = "period" if trend.get("oscillating", True) else "block"
+        blocks = f"{trend['n_blocks']} {unit}s" + ("" if unit == "period" else f" of {trend['period']:.3g}")
         parts.append(
-            f"the learned energy {word} {percent_per_period(rp):.2g}%/period (rate {abs(r):.3g} per time unit, "
-            f"z = {trend['z']:.1f} over {trend['n_blocks']} periods)"
+            f"the learned energy {word} {percent_per_period(rp):.2g}%/{unit} (rate {abs(r):.3g} per time unit, "
+            f"z = {trend['z']:.1f} over {blocks})"
         )
     if shoot.get("valid"):
         parts.append(
@@ -385,6 +403,8 @@ def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tu
     eff = traj.get("effect", "")
     if not quality["usable"]:
         return ("inconclusive", f"the data cannot decide: {quality['reason']}", 1.0)
+    if not quality.get("oscillating", True):
+        return _status_not_oscillating(tchk, traj, n_traj)
     if tchk["significant"] and tchk["valid"]:
         return (
             "detected",
@@ -456,18 +476,86 @@ def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tu
     )
 
 
+def _status_not_oscillating(tchk, traj, n_traj) -> tuple[str, str, float]:
+    """The status of one seed when the motion does not oscillate (a throw, a fall, a coast-down, an arc of an orbit).
+
+    Such a path never returns to a state it has visited, so a conservative Lagrangian can shape its potential to
+    follow it whatever force acts (in 1-D V(q) = E − ½q̇(q)² reproduces every monotonic motion exactly): the LNN
+    can absorb a drag, and a silent record is no evidence of conservation — never "none". Measured (issue 29:
+    throws of 1.2 s at 60 Hz, 2 mm noise, with 7.8 % quadratic drag and without, three noise draws × two seeds;
+    1-D falls with and without drag): the LNN absorbed the drag every time — both record-level statistics |z| ≤ 2.2
+    with drag and without (the energy's z even negative with drag) — four throws with drag from one point gave a
+    wrong "none" under the oscillation rules, and four drag-free ones a clock "detection" (the time since release
+    is the state along every throw). So "detected" only when both record-level statistics agree
+    (:func:`_both_agree`), else "inconclusive"."""
+    eff = traj.get("effect", "")
+    if traj["significant"] and _both_agree(traj):
+        return ("detected", f"non-conservation accumulates along the record: {eff}", traj["bootstrap_fraction"] or 1.0)
+    many = f"{n_traj} trajector{'y' if n_traj == 1 else 'ies'}"
+    clock = ""
+    if tchk.get("significant") and tchk.get("valid"):
+        clock = (
+            f"; time features help (x{tchk['gain']:.2f}) but the time since each trajectory began is part of its "
+            "state on motion that does not return, so that is no evidence of a clock either"
+        )
+    return (
+        "inconclusive",
+        f"the motion does not oscillate ({many}): it never returns to a state it has visited, so a conservative "
+        f"Lagrangian can shape its potential to follow it whatever force acts (in 1-D V(q) = E − ½q̇(q)² reproduces "
+        f"any monotonic motion exactly) and a drag can hide in the fitted potential; record-level evidence: "
+        f"{eff if traj['valid'] else 'none could be computed'}"
+        + (
+            f" (with no oscillation both statistics must reach |z| ≥ {Z_BOTH:g} with one sign)"
+            if traj["significant"]
+            else ""
+        )
+        + f"{clock}; motion that oscillates (returns to its states) can decide",
+        1.0,
+    )
+
+
 # ------------------------------------------------------------------------------------------------------------------
 # can the data decide?
 
 
-def data_quality(period_samples: float, noise_rel, derivative_error=None) -> dict:
+TIME_SCALES = {
+    "oscillation": "oscillation",
+    "velocity": "2π × the time in which the velocity changes by its own size (the motion does not oscillate)",
+    "record": "record duration (the motion does not oscillate, and its velocity changes more slowly or its q̈ is noise)",
+}
+
+
+def motion_time_scale(period: float, t, qd, qdd, segs, derivative_error=None) -> tuple[float, str]:
+    """(the time scale of the motion, its kind — a key of TIME_SCALES) for the sampling gate of :func:`data_quality`.
+
+    Oscillating motion (``period`` finite, :func:`nnphd.engine.evidence.dominant_period`): the period. Motion that does
+    not oscillate (a throw, a fall, a coast-down, an arc of an orbit) has no period; its time scale is 2π·τ with τ
+    the time in which the velocity changes by its own size, rms(q̇)/rms(q̈) per coordinate, the smallest over the
+    coordinates whose q̈ is resolved (estimated relative error ``derivative_error`` below QDD_ERR_MAX, or unknown) —
+    for q = A cos ωt that is the period again — at most the median duration of a trajectory (2πτ beyond it: the
+    velocity hardly changes over the record; with no resolved q̈, the duration itself)."""
+    if np.isfinite(period) and period > 0:
+        return float(period), "oscillation"
+    t = np.asarray(t, float)
+    span = float(np.median([t[s][-1] - t[s][0] for s in segs]))
+    qd = np.atleast_2d(np.asarray(qd, float))
+    n = qd.shape[1]
+    err = [None] * n if derivative_error is None else list(derivative_error)
+    cols = [j for j in range(n) if err[j] is None or not np.isfinite(err[j]) or err[j] < QDD_ERR_MAX]
+    scale = 2 * np.pi * velocity_time_scale(qd, qdd, segs, cols) if cols else np.inf
+    return (float(scale), "velocity") if scale < span else (span, "record")
+
+
+def data_quality(period_samples: float, noise_rel, derivative_error=None, time_scale: str = "oscillation") -> dict:
     """Can these data decide at all, and can a pointwise test see anything?
 
     ``noise_rel`` (n,): position noise over the spread of each coordinate. ``usable`` is False when the positions
     are mostly noise (σ/std ≥ NOISE_REL_MAX for every coordinate) or the motion is sampled below
-    MIN_SAMPLES_PER_PERIOD samples per oscillation (derivatives, periods and integration all fail there).
-    ``pointwise_ok`` is False when the estimated relative q̈ error (``derivative_error``, per coordinate, from
-    nnphd.user.derivatives) exceeds QDD_ERR_MAX for every coordinate.
+    MIN_SAMPLES_PER_PERIOD samples per time scale (derivatives, periods and integration all fail there).
+    ``period_samples``: samples per time scale of the motion (:func:`motion_time_scale`), ``time_scale`` its kind:
+    the oscillation period, or for motion that does not oscillate the time in which the velocity changes (×2π) or
+    the record's duration. ``pointwise_ok`` is False when the estimated relative q̈ error (``derivative_error``,
+    per coordinate, from nnphd.user.derivatives) exceeds QDD_ERR_MAX for every coordinate.
     """
     noise_rel = np.asarray(noise_rel, float)
     reasons, usable = [], True
@@ -481,7 +569,7 @@ def data_quality(period_samples: float, noise_rel, derivative_error=None) -> dic
         usable = False
         reasons.append(
             f"the motion is sampled far below its time scale ({period_samples:.1f} samples per "
-            f"oscillation, at least {MIN_SAMPLES_PER_PERIOD:g} are needed)"
+            f"{TIME_SCALES[time_scale]}, at least {MIN_SAMPLES_PER_PERIOD:g} are needed)"
         )
     err = (
         None if derivative_error is None else np.asarray([np.nan if e is None else e for e in derivative_error], float)
@@ -498,6 +586,8 @@ def data_quality(period_samples: float, noise_rel, derivative_error=None) -> dic
         "reason": "; ".join(reasons),
         "noise_relative": noise_rel.tolist(),
         "samples_per_period": float(period_samples),
+        "time_scale": time_scale,
+        "oscillating": time_scale == "oscillation",
         "qdd_relative_error": None if err is None else [None if not np.isfinite(e) else float(e) for e in err],
         "thresholds": {
             "noise_rel_max": NOISE_REL_MAX,

@@ -11,7 +11,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from nnphd.engine.batching import by_rows
-from nnphd.engine.evidence import energy_trend
+from nnphd.engine.evidence import energy_trend, evidence_block
 from nnphd.engine.models import (
     ModelConfig,
     embed_periodic,
@@ -284,15 +284,19 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
 
     # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
     # the multiple-shooting fit of the positions with a damping probe (nnphd.engine.evidence)
-    period = ctx["period"]
-    trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, period, seed=seed, kinetic=kin_l)
+    # blocks of one period; motion that does not oscillate (a throw, a fall) has no period: blocks of a fraction of
+    # the record (nnphd.engine.evidence.evidence_block), and the trend then reads "per block", not "per period"
+    oscillating = bool(np.isfinite(ctx["period"]))
+    block = evidence_block(ctx["period"], tp, segs)
+    trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, block, seed=seed, kinetic=kin_l)
     trend["orientation"] = orient
     if np.all(np.isfinite(power_l)):
-        shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], period, seed=seed)
+        shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], block, seed=seed)
     else:
         shoot = {"valid": False, "reason": "the conservative model diverged"}
     trend = _trend_units(trend, sc)
     shoot = _shoot_units(shoot, sc)
+    trend["oscillating"] = shoot["oscillating"] = oscillating
 
     # checks
     osc = oscillations(np.concatenate([ctx["q_pos"], qd], axis=1), segs)

@@ -62,7 +62,10 @@ def test_positions_only_verdicts(system, expected, tmp_path, capsys):
         assert (out / name).stat().st_size > 1000
     html = (out / "report.html").read_text()
     # data, energy trend, L_e(λ), forces; the report leads with the verdict
-    assert expected.upper() in html and html.count("data:image/png;base64,") == 4
+    # (and the amplitude envelope where the law table measured one: one oscillating coordinate)
+    env = (rep["law"].get("envelope") or {}).get("measured", {}).get("A")
+    assert bool(env) == (out / "envelope.png").exists()
+    assert expected.upper() in html and html.count("data:image/png;base64,") == 4 + bool(env)
     assert html.index(expected.upper()) < html.index("Evidence") < html.index("Figures")
     if expected == "detected":
         # the blind formula speaks the file's names; HO+LD's f_n = −½ q̇ → a q1_dot term near −0.5

@@ -122,7 +122,9 @@ class Verdict:
 
 @dataclass(frozen=True)
 class Law:
-    """The claimed law of f_n: the winner of the ranked candidates (``table``: every candidate, best first)."""
+    """The law of f_n: the winner of the ranked candidates (``table``: every candidate, best first). ``status``
+    "claimed", or "tie" when the record cannot tell this family from those in ``ties`` (the same number of
+    parameters, within ΔIC 6): then no family is claimed, and this one (the first) is only what predictions use."""
 
     key: str
     title: str
@@ -132,6 +134,8 @@ class Law:
     stderr: dict[str, float]
     method: str
     table: tuple[dict, ...] = field(default=(), repr=False)
+    status: str = "claimed"
+    ties: tuple[dict, ...] = field(default=(), repr=False)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -223,6 +227,8 @@ class NNPhD:
                 w["stderr"],
                 w["method"],
                 tuple(report["law"].get("candidates", ())),
+                status=report["law"].get("status", "claimed"),
+                ties=tuple(report["law"].get("ties", ())),
             )
         )
         self._law = law_fit
@@ -311,7 +317,8 @@ class NNPhD:
         return Path(out)
 
     def figures(self) -> dict:
-        """The report's figures as matplotlib Figures (data, L_e(λ), forces, energy trend where computed)."""
+        """The report's figures as matplotlib Figures (data, L_e(λ), forces, energy trend where computed, the
+        amplitude envelope with the leading candidate laws' predictions for one oscillating coordinate)."""
         from nnphd.user import report as rp
 
         self._check_fitted()
@@ -326,6 +333,9 @@ class NNPhD:
         if r["table"]:
             figs["loss_vs_lambda"] = rp.fig_loss(r["table"])
             figs["forces"] = rp.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
+        env = rp.fig_envelope((r.get("law") or {}).get("envelope"), m["coords"][0])
+        if env is not None:
+            figs["envelope"] = env
         return figs
 
     # ------------------------------------------------------------------------------------------ persistence

@@ -145,23 +145,33 @@ def detect(
     f = rep["formula"]
     lw = rep.get("law") or {}
     if lw.get("law"):
-        w = lw["law"]
-        console.print(
-            _r(f"  law: {w['title']}: " + "; ".join(f"{k} = {v}" for k, v in w["formula"].items())), highlight=False
-        )
-        console.print(
-            _r("       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items())),
-            highlight=False,
-        )
-    elif f is not None:
-        console.print(
-            _r("  formula: " + "; ".join(f"{k} = {v}" for k, v in f["formula"].items()) + f"  [{f['method']}]"),
-            highlight=False,
-        )
+        tie = lw.get("status") == "tie"
+        if tie:
+            console.print(f"  law: [bold]tie[/] — {_r(lw['reason'])}", highlight=False)
+        for w in [lw["law"], *(lw.get("ties") or [])]:
+            console.print(
+                _r(
+                    f"  {'   or' if tie else 'law'}: {w['title']}: "
+                    + "; ".join(f"{k} = {v}" for k, v in w["formula"].items())
+                ),
+                highlight=False,
+            )
+            console.print(
+                _r("       " + ", ".join(f"{k} = {v:.4g} ± {w['stderr'][k]:.2g}" for k, v in w["params"].items())),
+                highlight=False,
+            )
     if lw.get("reason") and not lw.get("law"):
         console.print(f"  law: none — {_r(lw['reason'])}", highlight=False)
+    h = rep.get("hint")
+    if h is not None:
+        console.print(
+            _r(
+                "  hint (not a law): " + "; ".join(f"{k} = {v}" for k, v in h["formula"].items()) + f"  [{h['method']}]"
+            ),
+            highlight=False,
+        )
     elif rep["blind"] and f is None:
-        console.print("  formula: nothing readable", highlight=False)
+        console.print("  blind formula: nothing readable", highlight=False)
     console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
 
 

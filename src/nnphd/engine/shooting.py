@@ -19,15 +19,22 @@ MAX_WINDOW = 80
 WINDOW_PERIODS = 0.75
 
 
-def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> list[np.ndarray]:
-    """Row indices of consecutive windows of ≈ WINDOW_PERIODS·period within each segment (MIN_WINDOW…MAX_WINDOW
-    samples; a short remainder is merged into the previous window when that stays ≤ MAX_WINDOW, else dropped)."""
+def shooting_windows(
+    segs,
+    t,
+    period: float,
+    dt_median: float | None = None,
+    periods: float = WINDOW_PERIODS,
+    max_window: int = MAX_WINDOW,
+) -> list[np.ndarray]:
+    """Row indices of consecutive windows of ≈ ``periods``·period within each segment (MIN_WINDOW…``max_window``
+    samples; a short remainder is merged into the previous window when that stays ≤ max_window, else dropped)."""
     t = np.asarray(t, float)
     if dt_median is None:
         dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1])
         dt_median = float(np.median(dts)) if dts.size else 1.0
-    L = WINDOW_PERIODS * period / dt_median if np.isfinite(period) else MAX_WINDOW
-    L = int(min(MAX_WINDOW, max(MIN_WINDOW, round(L))))
+    L = periods * period / dt_median if np.isfinite(period) else max_window
+    L = int(min(max_window, max(MIN_WINDOW, round(L))))
     wins = []
     for s in segs:
         k = len(s) // L
@@ -39,7 +46,7 @@ def shooting_windows(segs, t, period: float, dt_median: float | None = None) -> 
         rest = s[k * L :]
         if len(rest) >= MIN_WINDOW:
             parts.append(rest)
-        elif len(rest) and len(parts[-1]) + len(rest) <= MAX_WINDOW:
+        elif len(rest) and len(parts[-1]) + len(rest) <= max_window:
             parts[-1] = np.concatenate([parts[-1], rest])
         wins.extend(parts)
     return wins

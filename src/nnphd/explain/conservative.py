@@ -35,11 +35,12 @@ def _position_features(xp, q, angles, center=None):
     return xp.stack(feats, axis=1), xp.stack(ders, axis=1), owner
 
 
-def _pot_monomials(d: int) -> list[tuple[int, ...]]:
-    """Exponents of the potential monomials in d position features: degree 1…4 (1…3 beyond two features)."""
+def _pot_monomials(d: int, deg: int | None = None) -> list[tuple[int, ...]]:
+    """Exponents of the potential monomials in d position features: degree 1…4 (1…3 beyond two features), or
+    1…``deg``."""
     import itertools
 
-    deg = 4 if d <= 2 else 3
+    deg = deg or (4 if d <= 2 else 3)
     return sorted(
         (e for e in itertools.product(range(deg + 1), repeat=d) if 0 < sum(e) <= deg), key=lambda e: (sum(e), e[::-1])
     )
@@ -51,7 +52,12 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
     features; angles enter as sin θ, cos θ) — curl-free, so that no combination of them is a rotation field, which
     on an orbit would mimic friction (v ∝ a rotation of q); quadratic velocity terms; and the antisymmetric
     gyroscopic term (n ≥ 2). ``library=False``: the scale of ``fc`` alone (when ``fc`` comes from a trusted form,
-    e.g. a system's feature Lagrangian)."""
+    e.g. a system's feature Lagrangian); ``library="minimal"``: ``fc``'s scale and the uniform field (degree-1
+    potentials) only — for motion that does not oscillate (a throw, a fall), where one arc visits each position once
+    and any force of time is a force of position along it: a richer library absorbs the drag; ``"short"``: ``fc``'s
+    scale, sin θ and cos θ of angles to degree 1 (−a sin(θ − θ₀)), other coordinates' potentials to degree 3, no
+    velocity terms — for a record of a few periods, where the full library's ~15 shapes trade against the friction
+    (a servo drop's dry friction went into them)."""
     N, n = q.shape
     cols = []
     if fc is not None:
@@ -66,7 +72,13 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
     onehot[np.arange(d), owner] = 1.0
     onehot = xp.asarray(onehot, dtype=q.dtype)
     grads = []
-    for e in _pot_monomials(d):
+    minimal = library in ("minimal", "short")
+    mons = _pot_monomials(d, 1 if library == "minimal" else (3 if library == "short" else None))
+    if library == "short":  # the angles' sin/cos to degree 1 (a pendulum about any rest angle), the rest to 3
+        is_ang = [bool(angles[o]) for o in owner]
+        mons = [e for e in mons if sum(k for k, a in zip(e, is_ang) if a) <= 1 and (sum(e) == 1 or not any(
+            k and a for k, a in zip(e, is_ang)))]  # fmt: skip
+    for e in mons:
         parts = []
         for f in range(d):  # ∂V_e/∂u_f
             if e[f] == 0:
@@ -80,6 +92,8 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
         dV = xp.stack(parts, axis=1) * du  # (N, d): ∂V/∂u_f · du_f/dq_owner(f)
         grads.append(dV @ onehot)  # (N, n)
     cols.append(xp.stack(grads, axis=2))
+    if minimal:
+        return xp.concatenate(cols, axis=2)
     pc = []
     for a in range(n):
         for b in range(a, n):

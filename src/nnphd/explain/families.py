@@ -38,6 +38,7 @@ SPARSE_DEGREE = 3
 DIGITS = 4
 MAX_PARAMS = 20  # of a user law
 FUNC_LIST = ", ".join(FUNCTIONS)
+TERM_TITLES = {"linear": "viscous −γ q̇", "coulomb": "dry (Coulomb) −μ sign(q̇)", "quadratic": "quadratic drag −c |q̇| q̇"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,6 +155,34 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]),
         terms=("sign(q̇_i)",) if not one else ("sign(q̇)",),
     )
+
+    # mixed friction: sums of the textbook terms per coordinate (real friction is rarely one family: gearboxes and
+    # bearings are viscous + dry, air is linear + quadratic drag); each term must be significant on its own
+    term = {
+        "linear": ("gamma", lambda xp, v: -v, lambda x: -x, "q̇"),
+        "coulomb": ("mu", lambda xp, v: -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2), lambda x: -sp.sign(x),
+                    "sign(q̇)"),
+        "quadratic": ("c", lambda xp, v: -xp.abs(v) * v, lambda x: -sp.Abs(x) * x, "|q̇|q̇"),
+    }  # fmt: skip
+    for combo in (("linear", "coulomb"), ("linear", "quadratic"), ("coulomb", "quadratic"),
+                  ("linear", "coulomb", "quadratic")):  # fmt: skip
+        parts = [term[c] for c in combo]
+
+        def _mixed_basis(xp, th, q, v, t, parts=parts):
+            return xp.concatenate([_eye_cols(xp, f(xp, v)) for _, f, _, _ in parts], axis=2)
+
+        def _mixed_sym(th, Q, V, T, parts=parts):
+            rows = [_sym_diag(n, [s(x) for x in V]) for _, _, s, _ in parts]
+            return [sum((r[i] for r in rows), []) for i in range(n)]
+
+        add(
+            "+".join(combo),
+            " + ".join(TERM_TITLES[c] for c in combo) + ("" if one else " (per coordinate)"),
+            tuple(f"{p}{'' if one else '_' + c}" for p, _, _, _ in parts for c in nm),
+            _mixed_basis,
+            _mixed_sym,
+            terms=tuple(lbl for _, _, _, lbl in parts),
+        )
 
     # power law with m free
     def _pow_basis(xp, th, q, v, t):

@@ -112,7 +112,7 @@ def rank_laws(
     n_boot: int = N_BOOT,
     seed: int = 0,
     max_rows: int = 20000,
-    library: bool = True,
+    library: bool | str = True,
     conservative_cols=None,
     perturber: bool = False,
 ) -> LawTable:
@@ -121,7 +121,8 @@ def rank_laws(
     q, qd, qdd (N, n); t (N,); traj (N,) trajectory ids (rows of a trajectory contiguous; None: one trajectory);
     names: coordinate names (default q1…); angles: n booleans; qdd_err (N, n) per-row q̈ errors (weights); fc (N, n) a
     conservative force to scale (e.g. the LNN's); user_laws: SymPy strings (:func:`nnphd.explain.families.parse_law`); include: family keys
-    to try (default all but the opt-in ``"perturber"``); library: add the conservative correction library to the
+    to try (default all but the opt-in ``"perturber"``); library: add the conservative correction library ("minimal":
+    the uniform field only, :func:`nnphd.explain.conservative.conservative_basis`) to the
     scale of fc (False: fc's scale alone — for a system's own feature Lagrangian). Rows beyond ``max_rows`` are
     thinned evenly. conservative_cols (N, n, K): more conservative columns, e.g. the derivatives ∂f_c/∂c of a feature
     Lagrangian's force by its coefficients, so that the joint fit re-fits c (linearised at the trained c); a table
@@ -199,7 +200,7 @@ def rank_laws(
             row = _zero_row(names, mse, N, "pointwise")
         else:
             row = _law_row(f, fit["beta"], fit["theta"], np.maximum(se_b, se_m), names, mse, "pointwise")
-            row.fn = row.predict(q, qd, t)
+            row.on_rows(q, qd, t)
         rows.append(row)
         alphas[id(row)] = fit["alpha"]
     c_hat = _c_hat([x[2] for x in stats], [x[0] for x in stats])  # IC once the overdispersion is known
@@ -227,7 +228,7 @@ def rank_laws(
         "conservative_rank": int(Kc),
         "conservative_base": fc is not None,
         "names": names,
-        "library": bool(library),
+        "library": library if library in ("minimal", "short") else bool(library),
         "conservative_extra": int(n_extra),
         "_alpha": alphas,
         "_center": center,

@@ -6,9 +6,14 @@ Candidates are ranked by
 
 k the number of law parameters (τ and N_eff shrunk by the overdispersion ĉ, :func:`_c_hat`); the zero law (f_c
 alone) is a candidate too. A candidate with a term within :data:`Z_TERM` standard errors of zero, a nonlinear
-parameter at the edge of its range, or a size at the rounding level of the data is not eligible. The winner is the
+parameter at the edge of its range, a size at the rounding level of the data, (a sum of terms) a term carrying
+less than :data:`MIN_TERM_SHARE` of the law's force, or a drive whose force over the record is a force of the state
+(R² ≥ :data:`DRIVE_STATE_R2` against 1, q, q̇, or a frequency within half a beat of the motion's over the record:
+phase-locked to the motion, e.g. a few periods of a free decay) is not eligible. The winner is the
 lowest IC; among the candidates within :data:`IC_TIE` of it the one with the fewest parameters (then the earlier,
-more specific family). When no candidate beats zero, there is no law and the table says so
+more specific family). Other families with as many parameters within :data:`IC_TIE` are a tie
+(:attr:`LawTable.ties`, :attr:`LawTable.status` "tie"): the record cannot tell them apart, no family is claimed
+and all are reported with their coefficients. When no candidate beats zero, there is no law and the table says so
 (:attr:`LawTable.reason`).
 """
 
@@ -27,6 +32,10 @@ __all__ = ["IC_TIE", "Z_TERM", "LawFit", "LawTable"]
 IC_TIE = 6.0  # candidates within this IC of the best count as equally good: the simplest wins (ΔIC < 6: no strong preference)
 Z_TERM = 2.0  # a term whose coefficient is within Z_TERM standard errors of zero makes its candidate ineligible
 C_HAT_MAX = 20.0  # at most this overdispersion ĉ
+DRIVE_STATE_R2 = 0.9  # a drive whose force is this much a force of the state (1, q, q̇) is not eligible
+MIN_TERM_SHARE = 0.05  # a term of a sum that carries less than this share of the law's rms force is not needed:
+# statistically "significant" on long clean records (it soaks up the smoothing of sign(q̇), the shape of the
+# potential), physically negligible — the law without it is the answer
 
 
 @dataclass
@@ -48,6 +57,8 @@ class LawFit:
     terms: tuple[str, ...]
     method: str = "pointwise"
     significant: bool = True  # every term's coefficient is ≥ Z_TERM standard errors from zero
+    shares: dict[str, float] = field(default_factory=dict)  # each coefficient's rms force / the law's rms force
+    state_like: float = 0.0  # a drive: R² of its force against (1, q, q̇) over the record (1: phase-locked)
     fn: np.ndarray | None = field(default=None, repr=False)  # the law on the data rows (N, n)
     family: Family | None = field(default=None, repr=False)
     theta: np.ndarray | None = field(default=None, repr=False)
@@ -70,7 +81,22 @@ class LawFit:
             "terms": list(self.terms),
             "method": self.method,
             "significant": self.significant,
+            "shares": self.shares,
+            "state_like": self.state_like,
         }
+
+    def on_rows(self, q, qd, t) -> None:
+        """Set :attr:`fn` (the law on the rows) and :attr:`shares` (each term's rms force over the law's)."""
+        self.fn = self.predict(q, qd, t)
+        if self.family is None:
+            return
+        q, qd, t = (np.asarray(a, float) for a in (q, qd, t))
+        B = self.family.basis(np, self.theta, q, qd, t) * self.beta[None, None, :]
+        total = float(np.sqrt(np.mean(self.fn**2)))
+        rms = np.sqrt(np.mean(B**2, axis=(0, 1)))
+        self.shares = {p: float(x / total) if total > 0 else 0.0 for p, x in zip(self.family.coef_names, rms)}
+        if self.family.key == "drive":
+            self.state_like = max(_state_r2(self.fn, q, qd), _phase_locked(float(self.theta[0]), qd, t))
 
     def predict(self, q, qd, t, xp=np):
         """The law at new states (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an integrator)."""
@@ -95,10 +121,19 @@ class LawTable:
     tau: float
     folds: str
     settings: dict
+    ties: list[LawFit] = field(default_factory=list)  # other families as good as the law (same k, within IC_TIE)
+
+    @property
+    def status(self) -> str:
+        """ "claimed" (one family, the others clearly worse), "tie" (the record cannot tell :attr:`law` from
+        :attr:`ties`: no family is claimed) or "none" (no candidate beats zero)."""
+        return "none" if self.law is None else ("tie" if self.ties else "claimed")
 
     def to_dict(self) -> dict:
         return {
             "law": self.law.to_dict() if self.law else None,
+            "status": self.status,
+            "ties": [r.to_dict() for r in self.ties],
             "reason": self.reason,
             "candidates": [r.to_dict() for r in self.rows],
             "n_eff": self.n_eff,
@@ -137,8 +172,43 @@ def _at_bound(fam: Family, theta) -> bool:
     return bool(np.any((np.isfinite(lo) & (th <= lo + tol)) | (np.isfinite(hi) & (th >= hi - tol))))
 
 
+def _state_r2(fn: np.ndarray, q: np.ndarray, qd: np.ndarray) -> float:
+    """R² of a time-dependent force against a force of the state, (1, q_i, q̇_i) per coordinate i, over the rows:
+    a drive phase-locked to the motion (at its own frequency over a few periods, or in a steady state) is a friction
+    or spring force in disguise — the record cannot tell it from one."""
+    res = tot = 0.0
+    for i in range(fn.shape[1]):
+        X = np.stack([np.ones(len(q)), q[:, i] - q[:, i].mean(), qd[:, i]], axis=1)
+        y = fn[:, i]
+        beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+        res += float(np.sum((y - X @ beta) ** 2))
+        tot += float(np.sum((y - y.mean()) ** 2))
+    return 1.0 - res / tot if tot > 0 else 1.0
+
+
+def _phase_locked(omega: float, qd: np.ndarray, t: np.ndarray) -> float:
+    """1.0 when a drive at angular frequency ``omega`` stays within half a beat of the motion's own frequency (from
+    the mean crossings of each velocity) over the record — over a free decay of a few periods a drive in phase with
+    q̇ is a damping force in disguise (it fitted a servo's free drop better than any friction law) — else 0.0."""
+    span = float(np.ptp(t)) if len(t) > 1 else 0.0
+    if span <= 0:
+        return 0.0
+    for j in range(qd.shape[1]):
+        y = qd[:, j] - qd[:, j].mean()
+        i = np.flatnonzero(np.sign(y[1:]) * np.sign(y[:-1]) < 0)
+        if len(i) < 2:
+            continue
+        w = np.pi * (len(i) - 1) / float(t[i[-1]] - t[i[0]]) if t[i[-1]] > t[i[0]] else np.inf
+        if abs(abs(omega) - w) * span < np.pi:
+            return 1.0
+    return 0.0
+
+
 def _significance(rows: list[LawFit]) -> None:
     for r in rows:
+        if r.family is not None and r.state_like >= DRIVE_STATE_R2:
+            r.significant = False
+            continue
         if r.family is not None and r.fn_rel < 1e-9:  # a law at the rounding level of the data is no law
             r.significant = False
             continue
@@ -148,6 +218,8 @@ def _significance(rows: list[LawFit]) -> None:
         if r.family is not None and r.family.per_term:
             z = [abs(r.params[p]) / r.stderr[p] if r.stderr[p] > 0 else np.inf for p in r.family.coef_names]
             r.significant = bool(min(z) >= Z_TERM) if z else True
+            if r.significant and len(r.family.terms) > 1 and r.shares:
+                r.significant = min(r.shares.values()) >= MIN_TERM_SHARE
 
 
 def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
@@ -221,9 +293,10 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
     eligible = [r for r in rows if r.significant]
     best = eligible[0]
     tied = [r for r in eligible if r.ic <= best.ic + IC_TIE]
-    win = min(tied, key=lambda r: (r.k, r.key == "sparse", order[id(r)]))
+    win = min(tied, key=lambda r: (r.k, r.key == "sparse", r.ic, order[id(r)]))
     rows.remove(win)
     rows.insert(0, win)
+    ties: list[LawFit] = []
     if win.key == "none":
         nxt = rows[1] if len(rows) > 1 else None
         reason = "no candidate beats zero: " + (
@@ -238,14 +311,35 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
             f"{win.title} lowers the held-out error by {100 * (1 - win.heldout_ratio):.2f}% with {win.k} "
             f"parameter(s) (ΔIC = {win.delta_ic:.1f} against no law)"
         )
-        if len(tied) > 1:
+        ties = [r for r in tied if r is not win and r.k == win.k and r.key != win.key]
+        if ties:
+            reason = _tie_reason(win, ties)
+            rows = [win, *ties, *(r for r in rows[1:] if r not in ties)]  # the tied families first
+        elif len(tied) > 1:
             reason += f"; {len(tied) - 1} other candidate(s) within ΔIC {IC_TIE:g} — the simplest is kept"
         skipped = [r for r in rows if not r.significant and r.ic < win.ic]
         if skipped:
             reason += (
                 f"; {len(skipped)} candidate(s) with a lower IC have a term within {Z_TERM:g} standard errors "
-                f"of zero or a parameter at the edge of its range and are not eligible "
+                f"of zero, a term carrying < {100 * MIN_TERM_SHARE:g}% of the law's force, a parameter at the "
+                f"edge of its range or (a drive) a force phase-locked to the motion, and are not eligible "
                 f"({', '.join(r.key for r in skipped)})"
             )
         law = win
-    return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings)
+    return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings, ties)
+
+
+def _coefs(r: LawFit) -> str:
+    return ", ".join(f"{p} = {v:.3g} ± {r.stderr.get(p, float('nan')):.2g}" for p, v in r.params.items())
+
+
+def _tie_reason(win: LawFit, ties: list[LawFit]) -> str:
+    """The words of a tie: the families, their coefficients and how close they are."""
+    gap = max(abs(r.ic - win.ic) for r in ties)
+    names = " or ".join([win.title, *(r.title for r in ties)])
+    return (
+        f"{names}: this record cannot tell them apart (ΔIC {gap:.1f} < {IC_TIE:g}, the same number of parameters); "
+        f"no family is claimed, all are shown — {win.key}: {_coefs(win)}; "
+        + "; ".join(f"{r.key}: {_coefs(r)}" for r in ties)
+        + f" (the first, {win.key}, is used for predictions)"
+    )

@@ -17,6 +17,9 @@ from nnphd.explain.table import LawTable, _c_hat, _law_row, _overdispersion, _re
 
 __all__ = ["rank_trajectory"]
 
+MIN_WINDOWS = 6  # fewer shooting windows: the pointwise table stands (or, allowed, whole trajectories in-sample)
+IN_SAMPLE_MAX_ROWS = 4000  # whole-trajectory fits only for short records (one window per trajectory)
+
 
 def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center, library: bool = True):
     """q̈ = f_c + gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…) and the candidate's number f (0: no
@@ -72,6 +75,10 @@ def rank_trajectory(
     n_boot: int = N_BOOT,
     seed: int = 0,
     max_windows: int = 200,
+    window_periods: Sequence[float] | None = None,
+    max_window_rows: int | None = None,
+    min_windows: int = MIN_WINDOWS,
+    allow_in_sample: bool = False,
 ) -> LawTable:
     """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* by multiple shooting and
     rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
@@ -86,6 +93,9 @@ def rank_trajectory(
     import jax.numpy as jnp
 
     from nnphd.engine.shooting import (
+        MAX_WINDOW,
+        MIN_WINDOW,
+        WINDOW_PERIODS,
         _blocks,
         _pad_windows,
         _schur,
@@ -102,12 +112,21 @@ def rank_trajectory(
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
     angles = tuple(bool(a) for a in (np.zeros(n, bool) if angles is None else angles))
     segs = _segments(traj)
-    wins = shooting_windows(segs, t, period)
+    # the longest windows that leave MIN_WINDOWS of them: a friction law shows in the decay *across* periods, which
+    # free initial states of short windows absorb (¾ period: the law's ΔIC was +0.08 where the energy trend had z = 17)
+    cap = MAX_WINDOW if max_window_rows is None else max(MAX_WINDOW, int(max_window_rows))
+    for periods in window_periods or (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
+        wins = shooting_windows(segs, t, period, periods=periods, max_window=cap)
+        if len(wins) >= min_windows:
+            break
     if len(wins) > max_windows:
         keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
         wins = [wins[i] for i in keep]
-    if len(wins) < 6:
-        return table
+    in_sample = len(wins) < min_windows
+    if in_sample:  # too short for held-out windows: whole trajectories, ranked by their in-sample fit (BIC)
+        wins = [sg for sg in segs if len(sg) >= 2 * MIN_WINDOW] if allow_in_sample else []
+        if not wins or sum(len(w) for w in wins) > IN_SAMPLE_MAX_ROWS:
+            return table
     spread = np.array([np.ptp(q_pos[:, j]) for j in range(n)])
     sig = np.maximum(np.asarray(sigma, float), 1e-3 * np.maximum(spread, 1e-12))
     tw, qw, mask, s0 = _pad_windows(wins, t, q_pos, (q_pos, qd))
@@ -164,10 +183,19 @@ def rank_trajectory(
 
         free = np.zeros(P_dir, bool)
         free[: len(idx)] = True
-        try:
-            s, th, r, jac, chi2 = lm_windows(resjac, s0, u0, free, iters=15, res=res)
-        except (np.linalg.LinAlgError, FloatingPointError, ValueError):
-            continue
+        # the conservative starts: this row's own, then (the zero law, whole trajectories) the other rows' — the
+        # zero law's pointwise f_c soaks up what it can of the friction and can run away over a long window
+        starts = [u0] + [
+            np.concatenate([alpha0[id(c)], u0[Kc:]]) for c in (cands[:2] if fam is None and in_sample else [])
+        ]
+        chi2 = np.nan
+        for u_start in starts:
+            try:
+                s, th, r, jac, chi2 = lm_windows(resjac, s0, u_start, free, iters=15, res=res)
+            except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+                continue
+            if np.isfinite(chi2):
+                break
         if not np.isfinite(chi2):
             continue
         if fam is not None and fam.nl_names:  # LM knows no bounds: out of them, fit again with θ clipped and fixed
@@ -188,8 +216,8 @@ def rank_trajectory(
         S, g, _XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free)
         c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
         Stot, gtot = S.sum(0), g.sum(0)
-        cv = 0.0
-        for grp in groups:
+        cv = chi2 if in_sample else 0.0
+        for grp in [] if in_sample else groups:
             Sg, gg = S[grp].sum(0), g[grp].sum(0)
             d = -_solve(_ridge(Stot - Sg), gtot - gg)
             cv += float(c_loc[grp].sum() + 2 * gg @ d + d @ Sg @ d)
@@ -224,7 +252,7 @@ def rank_trajectory(
         else:
             K = len(fam.coef_names)
             new = _law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, table.settings["names"], cv / n_res, "trajectory")
-            new.fn = new.predict(q_pos, qd, t)
+            new.on_rows(q_pos, qd, t)
         new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
         rows.append(new)
     _relative_to_zero(rows, table.settings["_y_rms"])
@@ -232,11 +260,16 @@ def rank_trajectory(
         rows,
         n_eff,
         tau,
-        f"{G} held-out groups of shooting windows ({W} windows)",
+        (
+            f"in-sample fits of {W} whole trajectories (too short for held-out windows; IC with the fit's own error)"
+            if in_sample
+            else f"{G} held-out groups of shooting windows ({W} windows)"
+        ),
         {
             **table.settings,
             "method": "trajectory",
             "windows": W,
+            "in_sample": in_sample,
             "substeps": nsub,
             "pointwise_candidates": [r.to_dict() for r in table.rows],
         },

@@ -133,16 +133,23 @@ def _sha256(path: str | Path) -> str:
     return h.hexdigest()
 
 
+def _tie_prefix(law: dict) -> str:
+    """ "tie (a or b): " when the record cannot tell the families apart (the formula shown is the first's)."""
+    if law.get("status") != "tie":
+        return ""
+    return "tie (" + " or ".join(r.get("law", "?") for r in [law.get("law") or {}, *law.get("ties", [])]) + "): "
+
+
 def _row(name: str, path: str, rep: dict, cached: bool) -> dict:
     law = (rep.get("law") or {}).get("law") or {}
-    formula = law.get("formula") or (rep.get("formula") or {}).get("formula") or {}
+    formula = law.get("formula") or {}  # a blind hint is never a law
     return {
         "name": name,
         "file": path,
         "status": rep["status"],
         "confidence": rep["confidence"],
         "effect": rep.get("effect"),
-        "law": "; ".join(f"{k} = {v}" for k, v in formula.items()),
+        "law": _tie_prefix(rep.get("law") or {}) + "; ".join(f"{k} = {v}" for k, v in formula.items()),
         "params": {k: [v, law.get("stderr", {}).get(k)] for k, v in (law.get("params") or {}).items()},
         "wall_time_s": rep.get("wall_time_s"),
         "cached": cached,

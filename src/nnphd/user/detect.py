@@ -137,7 +137,7 @@ def detect_data(
                 blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
         except MissingExtra as e:  # the fallback is optional: say why it is missing
             reasons.append(f"no blind explanation: {e}")
-    best = _law_formula(law) or _best_formula(blind)
+    best = _law_formula(law)
     report = {
         "file": str(path),
         "new_physics": new_physics,
@@ -161,6 +161,7 @@ def detect_data(
         "formula": best,
         "law": law,
         "blind": blind,
+        "hint": _best_formula(blind),
         "settings": {
             "seed": seed,
             "steps": steps,
@@ -231,14 +232,15 @@ TRIM_KEEP_MIN = 0.6
 
 
 def _best_formula(blind: dict) -> dict | None:
-    """The readable blind formula with the smaller residual (sparse wins ties: fewer, library terms) — the fallback
-    when no candidate law fits; marked as such."""
+    """The readable blind formula with the smaller residual (sparse wins ties: fewer, library terms) — a *hint* when
+    no candidate law fits, never reported as the law (a blind fit of the learned f_n is a curve: on a noisy record it
+    was a 13th-degree polynomial in q̇); marked as such."""
     ok = [(b["rel_rms"], i, name, b) for i, (name, b) in enumerate(blind.items()) if b.get("readable")]
     if not ok:
         return None
     _, _, name, b = min(ok)
     return {
-        "method": f"{name} (fallback: blind regression of the UAN output, not a candidate law)",
+        "method": f"hint only — {name} (blind regression of the UAN output; not a law, no family is claimed)",
         "formula": b["formula"],
         "rel_rms": b["rel_rms"],
     }
@@ -248,8 +250,13 @@ def _law_formula(law: dict) -> dict | None:
     w = law.get("law")
     if not w:
         return None
+    if law.get("status") == "tie":
+        titles = " or ".join([w["title"], *(r["title"] for r in law.get("ties", []))])
+        method = f"tie ({w['method']} fit): {titles} — the record cannot tell them apart; the first is shown"
+    else:
+        method = f"candidate law: {w['title']} ({w['method']} fit)"
     return {
-        "method": f"candidate law: {w['title']} ({w['method']} fit)",
+        "method": method,
         "formula": w["formula"],
         "heldout_ratio": w["heldout_ratio"],
         "params": w["params"],
@@ -307,14 +314,34 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
         progress=progress,
     )
     out = table.to_dict()
+    out["envelope"] = _envelope(table, data, traj, coords, info)
     if res["status"] != "detected" and out["law"] is not None:
         out["candidate_law"] = out["law"]
-        out["law"] = None
+        out["law"], out["status"], out["ties"] = None, "none", []
         out["reason"] = (
             f"the verdict is {res['status']!r}, so no law is claimed (the best candidate, "
             f"{out['candidate_law']['title']}, would beat zero: {table.reason})"
         )
     return out, table.law
+
+
+def _envelope(table, data, traj, coords, info) -> dict | None:
+    """One coordinate: the measured amplitude envelope and those of the law, its ties and the next best eligible
+    candidates (:mod:`nnphd.explain.envelope`); None otherwise."""
+    from nnphd.explain.envelope import envelope_report
+
+    if len(coords) != 1:
+        return None
+    lead = [r for r in table.rows if r.family is not None and r.significant]
+    return envelope_report(
+        lead,
+        data.q[:, 0],
+        data.qd[:, 0],
+        data.t,
+        traj,
+        info["per_coordinate"][coords[0]]["noise"],
+        table.settings.get("period", float("nan")),
+    )
 
 
 def find_law(
@@ -345,33 +372,125 @@ def find_law(
     say = Stages(progress, 2)
     say("candidate laws (pointwise joint fits)")
     err = None if row_err is None else row_err["qdd_err"]
-    table = rank_laws(
-        data.q,
-        data.qd,
-        data.qdd,
+    period = dominant_period(
+        np.concatenate([data.q, data.qd], axis=1),
         data.t,
-        traj,
+        _segments(traj),
+        position_noise=[info["per_coordinate"][c]["noise"] for c in coords],
+    )
+    # the positions are fitted up to the moment the body sticks; the pointwise rows also lose the q̈ estimator's
+    # half window before it (their q̈ is smeared across the jump of the force)
+    moving, traj_m, _, _, rest = _moving_rows(data, traj, coords, info, None, None, period, margin=False)
+    data_p, traj_p, err, fc, _ = _moving_rows(data, traj, coords, info, err, fc, period)
+    data, traj = moving, traj_m
+    table = rank_laws(
+        data_p.q,
+        data_p.qd,
+        data_p.qdd,
+        data_p.t,
+        traj_p,
         names=coords,
         angles=is_angle,
         qdd_err=err,
         fc=fc,
         user_laws=laws,
         seed=seed,
+        library=_library(data.t, traj, period, level),
     )
-    period = dominant_period(np.concatenate([data.q, data.qd], axis=1), data.t, _segments(traj))
-    if level != "pointwise" and np.isfinite(period):
+    if level != "pointwise":
         say("candidate laws (trajectory level: multiple shooting on the positions)")
         sigma = [info["per_coordinate"][c]["noise"] for c in coords]
+        rows = _thinned(data.t, traj, period)
         table = rank_trajectory(
             table,
-            data.q,
-            data.qd,
-            data.t,
-            traj,
+            data.q[rows],
+            data.qd[rows],
+            data.t[rows],
+            traj[rows],
             sigma=sigma,
-            period=period,
+            # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
+            period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in _segments(traj))),
             angles=is_angle,
             fc_fn=fc_fn if fc is not None else None,
             seed=seed,
+            **(LONG_WINDOWS if len(coords) == 1 or not np.isfinite(period) else {}),
+        )
+    table.settings["period"] = float(period)
+    if rest is not None:
+        table.settings["at_rest"] = rest
+        table.reason += (
+            f"; {rest['rows']} row(s) at rest ({rest['text']}) were left out of the law fits: a stuck phase "
+            "(q̇ = q̈ = 0 off the equilibrium, as dry friction holds a body) would bias them"
         )
     return table
+
+
+# one coordinate (no chaos to lose the windows' fits): shooting windows of up to three periods, so that the decay
+# across periods — where friction laws differ — is inside each window, not absorbed by its free initial state
+# (at least MIN_WINDOWS of them, else each trajectory whole, ranked by its in-sample fit: windows of a fraction of a
+# period cannot see a decay)
+LONG_WINDOWS = {"window_periods": (3.0, 1.5), "max_window_rows": 2000, "allow_in_sample": True}
+
+
+def _library(t, traj, period: float, level: str):
+    """The conservative library of the law fits: "minimal" (the uniform field) when nothing oscillates, "short"
+    (a pendulum about any rest angle, springs to degree 3) when the record is too short for held-out shooting
+    windows and is ranked in-sample, else the full one (:func:`nnphd.explain.conservative.conservative_basis`)."""
+    from nnphd.engine.shooting import shooting_windows
+    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.trajectory import MIN_WINDOWS
+
+    if not np.isfinite(period):
+        return "minimal"
+    if level == "pointwise":
+        return True
+    wins = shooting_windows(_segments(traj), t, period, periods=min(LONG_WINDOWS["window_periods"]))
+    return "short" if len(wins) < MIN_WINDOWS else True
+
+
+SHOOT_SAMPLES_PER_PERIOD = 200  # the trajectory-level fits keep at most this many rows per period (every k-th)
+
+
+def _thinned(t, traj, period: float) -> np.ndarray:
+    """The rows the trajectory-level fits use: every k-th row of each trajectory, k such that ≥ SHOOT_SAMPLES_PER_PERIOD
+    rows per period remain — a 1 kHz encoder (1260 rows per period) took 15 minutes to rank at full rate, and the
+    positions between the kept rows add little that the noise does not hide."""
+    from nnphd.explain.jointfit import _segments
+
+    segs = _segments(traj)
+    dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1] or [np.ones(1)])
+    dt = float(np.median(dts)) if dts.size else 1.0
+    k = int(period / (SHOOT_SAMPLES_PER_PERIOD * dt)) if np.isfinite(period) and dt > 0 else 1
+    if k <= 1:
+        return np.arange(len(t))
+    return np.concatenate([s[::k] for s in segs])
+
+
+def _moving_rows(data, traj, coords, info, err, fc, period, margin: bool = True):
+    """The data set without its stretches at rest (:mod:`nnphd.user.rest`) for the law fits: (data, traj, err, fc,
+    rest) with rest = {"rows", "stretches" [[t0, t1], …], "text"}, or the inputs and None when nothing rests (or
+    too little would be left to fit)."""
+    from nnphd.user.rest import rest_mask, without_rest
+
+    pc = info["per_coordinate"]
+    margin = max((max(pc[c]["qdd"].get("windows") or [0]) for c in coords), default=0) // 2 if margin else 0
+    rest = rest_mask(
+        data.q,
+        data.t,
+        traj,
+        [pc[c]["noise"] for c in coords],
+        [pc[c].get("quantization_step", 0.0) for c in coords],
+        period,
+        margin,
+    )
+    if not rest.any():
+        return data, traj, err, fc, None
+    d, tr, keep, extra = without_rest(data, traj, rest, {"err": err, "fc": fc})
+    if keep.sum() < max(MIN_ROWS, 0.2 * len(keep)):
+        return data, traj, err, fc, None
+    idx = np.flatnonzero(rest)
+    runs = np.split(idx, np.flatnonzero(np.diff(idx) != 1) + 1)
+    stretches = [[float(data.t[r[0]]), float(data.t[r[-1]])] for r in runs]
+    text = ", ".join(f"t = {a:.4g}–{b:.4g}" for a, b in stretches[:4]) + (" …" if len(stretches) > 4 else "")
+    info = {"rows": int((~keep).sum()), "stretches": stretches, "text": text}
+    return d, tr, extra["err"], extra["fc"], info

@@ -14,11 +14,13 @@ from nnphd.io.escape import mpl as _m
 from nnphd.io.html import bullets, details, figure, figures, page, section, table
 from nnphd.io.html import escape as _e
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, subplots, write_json
+from nnphd.user.checks import TIME_SCALES
 
 __all__ = [
     "fig_data",
     "fig_loss",
     "fig_energy",
+    "fig_envelope",
     "fig_forces",
     "plot_data",
     "plot_loss",
@@ -68,6 +70,11 @@ def fig_loss(table, naive_ratio=None):
     return fig
 
 
+def _unit(trend: dict) -> str:
+    """What one block of the energy trend is: a period, or (motion that does not oscillate) a block of the record."""
+    return "block" if trend.get("oscillating") is False else "period"
+
+
 def fig_energy(trend: dict):
     """Per-period mean of the learned energy above its minimum, with the fitted decay (log scale)."""
     if not trend.get("block_t"):
@@ -81,10 +88,11 @@ def fig_energy(trend: dict):
             a = np.mean(np.log(ee) + r * tt)
             ax.semilogy(tt, np.exp(a - r * tt), "-", color=line.get_color(), lw=1)
     ax.set_xlabel("t")
-    ax.set_ylabel("learned energy above its minimum (per-period mean)")
+    ax.set_ylabel(f"learned energy above its minimum (per-{_unit(trend)} mean)")
     if trend.get("valid") and r is not None and np.isfinite(r):
         ax.set_title(
-            f"energy {'decays' if r > 0 else 'grows'} {percent_per_period(trend['rate_per_period']):.2g}%/period, "
+            f"energy {'decays' if r > 0 else 'grows'} {percent_per_period(trend['rate_per_period']):.2g}%/"
+            f"{_unit(trend)}, "
             f"z = {trend['z']:.1f}",
             fontsize=10,
         )
@@ -100,6 +108,35 @@ def fig_energy(trend: dict):
         )
     if len(trend["block_t"]) > 1:
         ax.legend(fontsize=8)
+    return fig
+
+
+def fig_envelope(env: dict | None, coord: str = "q"):
+    """The amplitude envelope (half swings between turning points) with each leading candidate law's prediction,
+    log scale: viscous is a straight line, dry friction bends down, quadratic drag bends up."""
+    if not env or not env.get("measured", {}).get("t"):
+        return None
+    fig, ax = subplots(figsize=(6, 4))
+    m = env["measured"]
+    t, A, k = np.asarray(m["t"]), np.asarray(m["A"]), np.asarray(m["traj"])
+    ax.semilogy(t, A, "o", ms=3, color="0.35", label="measured (half swings)")
+    styles = ["-", "--", "-.", ":"]
+    for i, c in enumerate(env.get("candidates", [])):
+        pred = np.asarray(c["A"], float)
+        for j, kk in enumerate(np.unique(k)):
+            sel = (k == kk) & (pred > 0)
+            ax.semilogy(
+                t[sel],
+                pred[sel],
+                styles[i % 4],
+                lw=1.2,
+                color=f"C{i}",
+                label=f"{_m(c['law'])} (rms log error {c['rms_log_error']:.2g})" if j == 0 else None,
+            )
+    ax.set_xlabel("t")
+    ax.set_ylabel(f"amplitude of {_m(coord)}")
+    ax.set_title("amplitude envelope: straight = viscous, bends down = dry, bends up = quadratic", fontsize=9)
+    ax.legend(fontsize=7)
     return fig
 
 
@@ -150,6 +187,9 @@ def write_report(out, report: dict, data, traj, coords, fc, fn) -> None:
     if report["table"]:  # no model is trained on data that cannot decide
         figs["loss_vs_lambda.png"] = plot_loss(report["table"], float(np.median(naive)) if naive else None)
         figs["forces.png"] = plot_forces(data, traj, coords, fc, fn, report.get("lambda_forces"))
+    env = fig_envelope((report.get("law") or {}).get("envelope"), coords[0])
+    if env is not None:
+        figs["envelope.png"] = _png(env)
     for name, png in figs.items():
         atomic_write_bytes(outdir / name, png)
     write_json(outdir / "report.json", report)
@@ -170,10 +210,10 @@ def _evidence_rows(report: dict) -> list[list[str]]:
         rows.append(
             row(
                 "energy trend of the learned Lagrangian (whole record)",
-                f"{'decays' if tr['rate'] > 0 else 'grows'} {percent_per_period(tr['rate_per_period']):.3g}%/period, "
-                f"rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
+                f"{'decays' if tr['rate'] > 0 else 'grows'} {percent_per_period(tr['rate_per_period']):.3g}%/"
+                f"{_unit(tr)}, rate {tr['rate']:.4g} ± {tr['se']:.2g} per time unit",
                 f"z = {tr['z']:.1f}",
-                f"{tr['n_blocks']} whole periods of {tr['period']:.3g}",
+                f"{tr['n_blocks']} whole {_unit(tr)}s of {tr['period']:.3g}",
             )
         )
     else:
@@ -284,8 +324,17 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
             + f"<br><small>{_e(f['method'])}</small>"
         )
         if f
-        else ("nothing readable" if report["blind"] else "— (no law claimed)")
+        else (
+            "— (no law claimed; the blind formula found nothing readable)" if report["blind"] else "— (no law claimed)"
+        )
     )
+    h = report.get("hint")
+    if h:
+        formula += (
+            "<p><b>Hint, not a law:</b> "
+            + "; ".join(f"<code>{_e(k)} = {_e(v)}</code>" for k, v in h["formula"].items())
+            + f"<br><small>{_e(h['method'])}</small></p>"
+        )
     formula += _law_html(report.get("law") or {})
     q = report["quality"]
     angles = ", ".join(report.get("angles", [])) or "none"
@@ -302,7 +351,8 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
     n_traj = report["data"]["n_traj"]
     data = (
         f"<p>{n_traj} trajector{'y' if n_traj == 1 else 'ies'}, {report['data']['n_rows']} rows; angles (sin/cos "
-        f"inside the networks): <b>{_e(angles)}</b>; {q['samples_per_period']:.1f} samples per oscillation; "
+        f"inside the networks): <b>{_e(angles)}</b>; {q['samples_per_period']:.1f} samples per "
+        f"{_e(TIME_SCALES.get(q.get('time_scale', 'oscillation'), 'oscillation'))}; "
         f"data usable: {'yes' if q['usable'] else 'no'}, pointwise test possible: "
         f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
         + table(["coordinate", "noise σ", "σ / std", "q̇", "q̈"], noise, left=1)
@@ -345,8 +395,16 @@ def _law_html(law: dict) -> str:
         flag = (
             ""
             if c.get("significant", True)
-            else " (a term within 2 se of zero, or a parameter at the edge of its range: not eligible)"
+            else " (a term within 2 se of zero or carrying < 5% of the force, or a parameter at the edge of its "
+            "range: not eligible)"
         )
+        shares = c.get("shares") or {}
+        if len(shares) > 1:
+            params += (
+                "<br><small>share of the force: "
+                + ", ".join(f"{_e(k)} {100 * v:.0f}%" for k, v in shares.items())
+                + "</small>"
+            )
         rows.append(
             [
                 len(rows) + 1,
@@ -367,7 +425,7 @@ def _law_html(law: dict) -> str:
             ["#", "law", "formula", "coefficients", "held-out error (rel.)", "ΔIC", "k"],
             rows,
             left=4,
-            row_classes=["best"],
+            row_classes=["best"] * (1 + len(law.get("ties") or [])),
         )
     )
 

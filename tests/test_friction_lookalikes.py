@@ -1,0 +1,76 @@
+"""Issue 29 on constructed look-alikes of real friction records (tests/fixtures/friction.py): the law stage of
+``nnphd detect`` (:func:`nnphd.user.detect.find_law`, the conservative library as base — the LNN is the verdict's
+business) gets the family (or reports a tie that holds it) and the coefficients, and never a confident wrong
+family. Slow tier: tens of seconds per case."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from nnphd.user.detect import _best_formula, _law_formula, find_law
+from tests.fixtures import friction as F
+
+
+def _law_table(name, tmp_path):
+    from nnphd.user.detect import _dataset
+    from nnphd.user.recording import load_trajectories
+
+    rec = F.make(name, seed=0)
+    ud = load_trajectories(rec.write_csv(tmp_path / f"{name}.csv"), rec.angles)
+    data, info, _ = _dataset(ud, "auto")
+    rows = info.pop("_rows")
+    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
+    return rec, find_law(data, traj, list(ud.coords), [bool(a) for a in ud.is_angle], info, rows)
+
+
+def _force_error(rec, row) -> float:
+    tr = rec.truth
+    m = tr["moving"]
+    f = row.predict(tr["q_true"][m], tr["qd_true"][m], tr["t_true"][m])
+    g = tr["fn_true"][m]
+    return float(np.sqrt(np.mean((f - g) ** 2)) / np.sqrt(np.mean(g**2)))
+
+
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
+@pytest.mark.parametrize("name", ["linear-quadratic", "ends-at-rest", "heavy-damping", "throw-2d"])
+def test_the_true_family_is_claimed_or_tied_with_its_coefficients(name, tmp_path):
+    rec, tab = _law_table(name, tmp_path)
+    truth = rec.truth
+    assert tab.status in ("claimed", "tie"), tab.reason
+    shown = [tab.law, *tab.ties]
+    right = [r for r in shown if r.key == truth["law"]]
+    assert right, (truth["law"], [r.key for r in shown], tab.reason)
+    for p, v in truth["coefficients"].items():
+        assert right[0].params[p] == pytest.approx(v, rel=0.1), (p, right[0].params)
+    assert _force_error(rec, right[0]) < 0.1
+    if tab.status == "claimed":  # a claim: every other family clearly worse
+        assert all(r.ic > tab.law.ic + 6 or r.k != tab.law.k for r in tab.rows[1:] if r.significant)
+
+
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
+def test_a_stuck_tail_is_left_out_and_said(tmp_path):
+    rec, tab = _law_table("ends-at-rest", tmp_path)
+    rest = tab.settings["at_rest"]
+    t_stick = rec.truth["t_stick"][0]
+    assert rest["rows"] > 0 and "at rest" in tab.reason
+    # the stretch found starts within half a period of the moment the body stuck (its last half swing is a few σ)
+    half = np.pi / rec.truth["omega0"]
+    assert t_stick - half <= rest["stretches"][-1][0] <= t_stick + half
+
+
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
+def test_no_law_on_the_conservative_control(tmp_path):
+    _, tab = _law_table("pendulum-free", tmp_path)
+    assert tab.status == "none" and tab.law is None
+
+
+def test_a_blind_formula_is_a_hint_and_a_tie_names_both_families():
+    hint = _best_formula({"sparse": {"readable": True, "rel_rms": 0.1, "formula": {"x_ddot": "-0.1*x_dot"}}})
+    assert hint["method"].startswith("hint only") and "not a law" in hint["method"]
+    law = {
+        "status": "tie",
+        "law": {"title": "A", "method": "trajectory", "formula": {}, "heldout_ratio": 1, "params": {}, "stderr": {}},
+        "ties": [{"title": "B"}],
+    }
+    assert _law_formula(law)["method"].startswith("tie") and "A or B" in _law_formula(law)["method"]

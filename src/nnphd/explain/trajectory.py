@@ -89,6 +89,11 @@ def rank_trajectory(
     states re-fitted, linearised at the optimum); uncertainties = window bootstrap (or the model-based error, if
     larger); IC as in :func:`nnphd.explain.laws.rank_laws` with the position residuals. ``fc_fn(q, v)`` (JAX) must reproduce the ``fc``
     given to :func:`nnphd.explain.laws.rank_laws`; ``sigma`` (n,) the position noise.
+
+    Windows: the first length in ``window_periods`` (periods; default ¾, ⅜, 3/16) that gives ``min_windows``
+    windows, at most ``max_window_rows`` rows each. With fewer and ``allow_in_sample``, each trajectory is one window
+    and the IC uses the in-sample χ² (BIC; no held-out groups, no bootstrap) — a record of a few periods or a throw;
+    a zero law that runs away over a whole trajectory is started again from the candidates' conservative fits.
     """
     import jax.numpy as jnp
 
@@ -112,8 +117,7 @@ def rank_trajectory(
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
     angles = tuple(bool(a) for a in (np.zeros(n, bool) if angles is None else angles))
     segs = _segments(traj)
-    # the longest windows that leave MIN_WINDOWS of them: a friction law shows in the decay *across* periods, which
-    # free initial states of short windows absorb (¾ period: the law's ΔIC was +0.08 where the energy trend had z = 17)
+    # the first of the window lengths that leaves min_windows of them (else, allowed, whole trajectories in-sample)
     cap = MAX_WINDOW if max_window_rows is None else max(MAX_WINDOW, int(max_window_rows))
     for periods in window_periods or (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
         wins = shooting_windows(segs, t, period, periods=periods, max_window=cap)

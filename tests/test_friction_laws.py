@@ -66,8 +66,12 @@ def test_mixed_families_order_their_coefficients_like_their_basis():
     assert B[0, 0, 2] == pytest.approx(-1.0, abs=1e-3) and B[0, 1, 3] == pytest.approx(1.0, abs=1e-3)
 
 
+TERMS = {"none": (), "linear": ("q̇",), "quadratic": ("|q̇|q̇",), "coulomb": ("sign(q̇)",)}
+
+
 def _row(key, k, ic, sig=True):
-    r = LawFit(key, key, k, {"a": 1.0}, {"a": 0.1}, {"x_ddot": key}, {}, 1.0, 1.0, ic, 0.0, 0.1, (key,))
+    terms = tuple(t for part in key.split("+") for t in TERMS[part])
+    r = LawFit(key, key, k, {"a": 1.0}, {"a": 0.1}, {"x_ddot": key}, {}, 1.0, 1.0, ic, 0.0, 0.1, terms)
     r.significant = sig
     r.family = object() if key != "none" else None
     return r
@@ -101,6 +105,16 @@ def test_a_clearly_better_family_is_claimed_and_a_nested_one_is_no_tie():
     assert tab.status == "claimed" and tab.law.key == "linear"
     tab = _table([_row("none", 0, 0.0), _row("linear", 1, -IC_TIE / 2), _row("quadratic", 1, -IC_TIE / 2)])
     assert tab.status == "none" and tab.law is None and tab.ties == []  # within the margin of no law: none
+
+
+def test_a_simpler_family_that_is_no_special_case_of_the_best_is_a_rival_not_the_winner():
+    # the servo look-alike: viscous + dry best, "quadratic drag" (1 parameter) within the margin — it used to win
+    # by parsimony, 72 % off; now a tie of the two, and a simpler special case (viscous alone) still wins over its sum
+    rows = [_row("none", 0, 0.0), _row("linear+coulomb", 2, -10.0), _row("quadratic", 1, -5.2)]
+    tab = _table(rows)
+    assert tab.status == "tie" and tab.law.key == "linear+coulomb" and [r.key for r in tab.ties] == ["quadratic"]
+    tab = _table([*rows, _row("linear", 1, -6.0)])
+    assert tab.law.key == "linear" and [r.key for r in tab.ties] == ["quadratic"]
 
 
 def test_a_drive_in_step_with_the_motion_is_phase_locked_and_a_distinct_one_is_not():

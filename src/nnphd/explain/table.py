@@ -10,8 +10,9 @@ parameter at the edge of its range, a size at the rounding level of the data, (a
 less than :data:`MIN_TERM_SHARE` of the law's force, or a drive whose force over the record is a force of the state
 (R² ≥ :data:`DRIVE_STATE_R2` against 1, q, q̇, or a frequency within half a beat of the motion's over the record:
 phase-locked to the motion, e.g. a few periods of a free decay) is not eligible. The winner is the
-lowest IC; among the candidates within :data:`IC_TIE` of it the one with the fewest parameters (then the earlier,
-more specific family). Other families with as many parameters within :data:`IC_TIE` are a tie
+lowest IC; among the candidates within :data:`IC_TIE` of it that are special cases of it (:func:`_nested`: no law, a
+subset of its terms) the one with the fewest parameters. Other families within :data:`IC_TIE` that are not special
+cases of the winner, nor it of them, are a tie
 (:attr:`LawTable.ties`, :attr:`LawTable.status` "tie"): the record cannot tell them apart, no family is claimed
 and all are reported with their coefficients. When no candidate beats zero, there is no law and the table says so
 (:attr:`LawTable.reason`).
@@ -121,7 +122,7 @@ class LawTable:
     tau: float
     folds: str
     settings: dict
-    ties: list[LawFit] = field(default_factory=list)  # other families as good as the law (same k, within IC_TIE)
+    ties: list[LawFit] = field(default_factory=list)  # families as good as the law (within IC_TIE, not nested)
 
     @property
     def status(self) -> str:
@@ -293,7 +294,11 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
     eligible = [r for r in rows if r.significant]
     best = eligible[0]
     tied = [r for r in eligible if r.ic <= best.ic + IC_TIE]
-    win = min(tied, key=lambda r: (r.k, r.key == "sparse", r.ic, order[id(r)]))
+    # parsimony within the margin: the simplest candidate that is a special case of the best (no law, a term of a
+    # sum, linear or quadratic drag of the power law) — a simpler family that is *not* one is a rival, not a winner
+    # (a servo look-alike's viscous + dry law lost to "quadratic drag" this way, 72 % off)
+    nested = [r for r in tied if _nested(r, best)]
+    win = min(nested, key=lambda r: (r.k, r.key == "sparse", r.ic, order[id(r)]))
     rows.remove(win)
     rows.insert(0, win)
     ties: list[LawFit] = []
@@ -311,7 +316,11 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
             f"{win.title} lowers the held-out error by {100 * (1 - win.heldout_ratio):.2f}% with {win.k} "
             f"parameter(s) (ΔIC = {win.delta_ic:.1f} against no law)"
         )
-        ties = [r for r in tied if r is not win and r.k == win.k and r.key != win.key]
+        ties = [
+            r
+            for r in tied
+            if r is not win and r.key not in (win.key, "sparse") and not _nested(win, r) and not _nested(r, win)
+        ]
         if ties:
             reason = _tie_reason(win, ties)
             rows = [win, *ties, *(r for r in rows[1:] if r not in ties)]  # the tied families first
@@ -329,6 +338,18 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
     return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings, ties)
 
 
+NESTS = {"power": ("linear", "quadratic")}  # families a nonlinear family holds as special cases (m = 0, ½ in 1-D)
+
+
+def _nested(a: LawFit, b: LawFit) -> bool:
+    """Whether ``a`` is a special case of ``b``: the same, no law, its terms a subset of b's, or listed in NESTS."""
+    if a is b or a.key == "none" or a.key == b.key:
+        return True
+    if b.key == "none" or "sparse" in (a.key, b.key):
+        return False
+    return set(a.terms) <= set(b.terms) or a.key in NESTS.get(b.key, ())
+
+
 def _coefs(r: LawFit) -> str:
     return ", ".join(f"{p} = {v:.3g} ± {r.stderr.get(p, float('nan')):.2g}" for p, v in r.params.items())
 
@@ -338,7 +359,8 @@ def _tie_reason(win: LawFit, ties: list[LawFit]) -> str:
     gap = max(abs(r.ic - win.ic) for r in ties)
     names = " or ".join([win.title, *(r.title for r in ties)])
     return (
-        f"{names}: this record cannot tell them apart (ΔIC {gap:.1f} < {IC_TIE:g}, the same number of parameters); "
+        f"{names}: this record cannot tell them apart (ΔIC {gap:.1f} < {IC_TIE:g}; neither is a special case of the "
+        "other); "
         f"no family is claimed, all are shown — {win.key}: {_coefs(win)}; "
         + "; ".join(f"{r.key}: {_coefs(r)}" for r in ties)
         + f" (the first, {win.key}, is used for predictions)"

@@ -11,7 +11,7 @@ Predicted (one coordinate, energy balance over one cycle of the harmonic motion 
 so viscous −γq̇ gives A' = −γA/2 (exponential: a straight line on a log axis), dry −μ sign(q̇) gives A' = −2μ/(πω)
 (linear: the log curve bends down), quadratic −c|q̇|q̇ gives A' = −(4/3π) c ω A² (≈ 1/(1 + βt): the log curve bends
 up), mixed laws the sums. Integrated from the first measured amplitude (RK4 on the measured times); it stops at
-A = 0 (dry friction ends the motion in finite time).
+A = 0 (dry friction ends the motion in finite time); a law that cannot be integrated leaves NaN from there on.
 """
 
 from __future__ import annotations
@@ -49,8 +49,9 @@ def _rate(law, A: float, q0: float, omega: float, t: float) -> float:
     phi = (np.arange(N_PHASE) + 0.5) * (2 * np.pi / N_PHASE)
     q = q0 + A * np.cos(phi)
     v = -A * omega * np.sin(phi)
-    g = np.asarray(law(q[:, None], v[:, None], np.full(N_PHASE, t)), float)[:, 0]
-    return float(np.mean(g * v) / (omega**2 * A))
+    with np.errstate(all="ignore"):  # a candidate's law may overflow at a trial amplitude: that rate is NaN
+        g = np.asarray(law(q[:, None], v[:, None], np.full(N_PHASE, t)), float)[:, 0]
+        return float(np.mean(g * v) / (omega**2 * A))
 
 
 def predicted_envelope(law, t, A0: float, q0: float, omega: float) -> np.ndarray:
@@ -73,6 +74,9 @@ def predicted_envelope(law, t, A0: float, q0: float, omega: float) -> np.ndarray
             k3 = _rate(law, max(a + 0.5 * h * k2, 0.0), q0, omega, tt + 0.5 * h)
             k4 = _rate(law, max(a + h * k3, 0.0), q0, omega, tt + h)
             a = max(a + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), 0.0)
+            if not np.isfinite(a):
+                A[k:] = np.nan  # the law cannot be integrated from here: no envelope
+                return A
             tt += h
         A[k] = a
     return A
@@ -108,7 +112,7 @@ def envelope_report(rows, q, qd, t, traj, sigma: float, period: float, limit: in
         for kk in np.unique(k):
             m = k == kk
             pred[m] = predicted_envelope(lambda a, b, c, r=r: r.predict(a, b, c), tm[m], A[m][0], q0, omega)
-        ok = pred > 0
+        ok = np.isfinite(pred) & (pred > 0)
         err = float(np.sqrt(np.mean(np.log(pred[ok] / A[ok]) ** 2))) if ok.sum() >= 2 else float("nan")
         out["candidates"].append({"law": r.key, "title": r.title, "A": pred.tolist(), "rms_log_error": err})
     return out

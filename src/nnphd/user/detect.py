@@ -450,7 +450,7 @@ def _library(t, traj, period: float, level: str):
     return "short" if len(wins) < MIN_WINDOWS else True
 
 
-SHOOT_SAMPLES_PER_PERIOD = 200  # the trajectory-level fits keep at most this many rows per period (every k-th)
+SHOOT_SAMPLES_PER_PERIOD = 200  # the trajectory-level fits keep every k-th row: 200–400 rows per period remain
 
 
 def _thinned(t, traj, period: float) -> np.ndarray:

@@ -60,6 +60,27 @@ NONOSC_BLOCKS = 8  # motion that does not oscillate: blocks (and shooting window
 # periods and blocks
 
 
+CROSSING_HYSTERESIS = 0.1  # dominant_period: a crossing counts once the column has gone this share of its rms beyond
+# its mean on the other side — the noise of a body at rest (its velocity flickering about zero) or the slow turn of a
+# long swing crosses the mean again and again (a dry-friction record read 0.71 s for its 1.5 s period, a seismometer
+# 4.8 s for ~15 s)
+
+
+def _crossings(y: np.ndarray) -> np.ndarray:
+    """Indices i where y (mean 0) crosses zero between i and i + 1 — only the last crossing before y reaches
+    ±CROSSING_HYSTERESIS·rms(y) on the other side (a Schmitt trigger)."""
+    h = CROSSING_HYSTERESIS * float(np.sqrt(np.mean(y**2)))
+    state = np.where(y > h, 1, np.where(y < -h, -1, 0))
+    idx = np.flatnonzero(state)
+    if len(idx) < 2:
+        return np.zeros(0, int)
+    flips = idx[1:][state[idx[1:]] != state[idx[:-1]]]  # first sample beyond the threshold on the new side
+    zc = np.flatnonzero(np.sign(y[1:]) * np.sign(y[:-1]) <= 0)
+    zc = zc[(y[zc] != y[zc + 1])]
+    pos = np.searchsorted(zc, flips) - 1  # the last zero crossing before each flip
+    return zc[pos[pos >= 0]]
+
+
 def dominant_period(x, t, segs, position_noise=None) -> float:
     """Time of one oscillation of the column of x (N, k) that oscillates most: twice the mean time between
     consecutive crossings of its mean (crossing times interpolated linearly; from the first to the last crossing of
@@ -86,7 +107,7 @@ def dominant_period(x, t, segs, position_noise=None) -> float:
         cnt += len(s)
         for j in range(k):
             y = xs[:, j]
-            i = np.flatnonzero(np.sign(y[1:]) * np.sign(y[:-1]) < 0)
+            i = _crossings(y)
             if len(i) < 2:
                 continue
             tc = ts[i] - y[i] * (ts[i + 1] - ts[i]) / (y[i + 1] - y[i])

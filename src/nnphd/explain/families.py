@@ -58,6 +58,7 @@ class Family:
     fixed: Callable | None = None  # (xp, θ, q, v, t) -> (N, n): a parameter-free part of a user law
     per_term: bool = True  # each coefficient multiplies its own term (so each must be significant)
     spec: dict | None = None  # how to build it again (:func:`family_from_spec`): JSON-ready
+    dissipative: bool = False  # a sum of friction terms: each coefficient must be ≥ 0 (a negative one pumps energy in)
 
     @property
     def k(self) -> int:
@@ -182,6 +183,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
             _mixed_basis,
             _mixed_sym,
             terms=tuple(lbl for _, _, _, lbl in parts),
+            dissipative=True,
         )
 
     # power law with m free

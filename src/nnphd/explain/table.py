@@ -64,6 +64,10 @@ class LawFit:
     family: Family | None = field(default=None, repr=False)
     theta: np.ndarray | None = field(default=None, repr=False)
     beta: np.ndarray | None = field(default=None, repr=False)
+    cov: np.ndarray | None = field(default=None, repr=False)  # the coefficients' covariance (trajectory level)
+    envelope: dict | None = (
+        None  # its fit to the amplitude envelope: params, stderr, agree, distance2, delta_ic, windows
+    )
 
     def to_dict(self) -> dict:
         return {
@@ -84,6 +88,7 @@ class LawFit:
             "significant": self.significant,
             "shares": self.shares,
             "state_like": self.state_like,
+            **({"envelope": self.envelope} if self.envelope is not None else {}),
         }
 
     def on_rows(self, q, qd, t) -> None:
@@ -216,11 +221,21 @@ def _significance(rows: list[LawFit]) -> None:
         if r.family is not None and _at_bound(r.family, r.theta):
             r.significant = False
             continue
+        if r.family is not None and not dissipative_ok(r.family, r.beta):
+            r.significant = False
+            continue
         if r.family is not None and r.family.per_term:
             z = [abs(r.params[p]) / r.stderr[p] if r.stderr[p] > 0 else np.inf for p in r.family.coef_names]
             r.significant = bool(min(z) >= Z_TERM) if z else True
             if r.significant and len(r.family.terms) > 1 and r.shares:
                 r.significant = min(r.shares.values()) >= MIN_TERM_SHARE
+
+
+def dissipative_ok(fam: Family, beta) -> bool:
+    """A sum of friction terms (viscous, dry, quadratic) is a friction law only with every coefficient ≥ 0: one
+    negative term pumps energy in where the others take it out — a curve fitted to the record, not a mechanism
+    (self-excitation has its own families, Rayleigh and van der Pol)."""
+    return not fam.dissipative or bool(np.all(np.asarray(beta, float) >= 0))
 
 
 def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
@@ -287,8 +302,9 @@ def _relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
         r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / (y_rms or 1.0)
 
 
-def _select(rows: list[LawFit], n_eff, tau, folds, settings) -> LawTable:
-    _significance(rows)
+def _select(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = True) -> LawTable:
+    if judge:
+        _significance(rows)
     order = {id(r): i for i, r in enumerate(rows)}
     rows = sorted(rows, key=lambda r: r.ic)
     eligible = [r for r in rows if r.significant]

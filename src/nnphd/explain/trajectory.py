@@ -241,7 +241,15 @@ def rank_trajectory(
         se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
         R = r.reshape(W, -1)
         rho = float(np.sum(R[:, n:] * R[:, :-n]) / max(np.sum(R * R), 1e-300))
-        results.append((row, th, max(cv, 1e-300), np.maximum(se_b, se_m), rho, _overdispersion(se_b, se_m, th[Kc:])))
+        se = np.maximum(se_b, se_m)
+        corr = np.eye(len(law_idx))
+        if len(reps) > len(law_idx) + 1:  # the terms' trade-off from the bootstrap, the sizes from se
+            with np.errstate(all="ignore"):
+                c = np.corrcoef(np.asarray(reps)[:, law_idx].T)
+            corr = np.where(np.isfinite(c), c, corr) if c.ndim == 2 else corr
+        results.append(
+            (row, th, max(cv, 1e-300), se, rho, _overdispersion(se_b, se_m, th[Kc:]), corr * np.outer(se, se))
+        )
     if len(results) < 2 or results[0][0].key != "none":
         return table
     rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
@@ -249,7 +257,7 @@ def rank_trajectory(
     tau = (1 + rho) / (1 - rho) * c_hat
     n_eff = n_res / tau
     rows = []
-    for row, th, cv, se, _, _ in results:
+    for row, th, cv, se, _, _, cov in results:
         fam = row.family
         if fam is None:
             new = _zero_row(table.settings["names"], cv / n_res, N, "trajectory")
@@ -257,6 +265,7 @@ def rank_trajectory(
             K = len(fam.coef_names)
             new = _law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, table.settings["names"], cv / n_res, "trajectory")
             new.on_rows(q_pos, qd, t)
+            new.cov = cov[:K, :K]
         new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
         rows.append(new)
     _relative_to_zero(rows, table.settings["_y_rms"])

@@ -314,7 +314,7 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
         progress=progress,
     )
     out = table.to_dict()
-    out["envelope"] = _envelope(table, data, traj, coords, info)
+    out["envelope"] = _envelope(table, data, traj, coords, info, bool(ud.is_angle[0]))
     if res["status"] != "detected" and out["law"] is not None:
         out["candidate_law"] = out["law"]
         out["law"], out["status"], out["ties"] = None, "none", []
@@ -325,7 +325,7 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
     return out, table.law
 
 
-def _envelope(table, data, traj, coords, info) -> dict | None:
+def _envelope(table, data, traj, coords, info, angle: bool = False) -> dict | None:
     """One coordinate: the measured amplitude envelope and those of the law, its ties and the next best eligible
     candidates (:mod:`nnphd.explain.envelope`); None otherwise."""
     from nnphd.explain.envelope import envelope_report
@@ -341,6 +341,7 @@ def _envelope(table, data, traj, coords, info) -> dict | None:
         traj,
         info["per_coordinate"][coords[0]]["noise"],
         table.settings.get("period", float("nan")),
+        angle=angle,
     )
 
 
@@ -414,6 +415,18 @@ def find_law(
             fc_fn=fc_fn if fc is not None else None,
             seed=seed,
             **(SHORT_RECORDS if len(coords) == 1 or not np.isfinite(period) else {}),
+        )
+    if level != "pointwise" and len(coords) == 1:
+        from nnphd.explain.envelope import envelope_evidence
+
+        table = envelope_evidence(
+            table,
+            data.q[:, 0],
+            data.qd[:, 0],
+            data.t,
+            traj,
+            info["per_coordinate"][coords[0]]["noise"],
+            angle=bool(is_angle[0]),
         )
     table.settings["period"] = float(period)
     if rest is not None:

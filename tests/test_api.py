@@ -139,6 +139,7 @@ print("RESULT", json.dumps({
 """
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_readme_quickstart_runs_as_is_in_an_empty_folder(tmp_path):
     """The very block from the README, in a fresh interpreter in an empty folder: it makes its own data (several
     trajectories of different lengths), finds the damping and writes no file there. Then, in the same session: the

@@ -16,6 +16,7 @@ QUICK = [
 ]  # fmt: skip
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_batch_summary_failures_workers_and_resume(tmp_path, capsys):
     d = tmp_path / "recordings"
     d.mkdir()

@@ -27,7 +27,7 @@ def _detect(name, tmp_path, out=None, **kw):
 @pytest.mark.parametrize(
     "name",
     [
-        "pendulum-damped",
+        pytest.param("pendulum-damped", marks=pytest.mark.slow),
         pytest.param("cart", marks=pytest.mark.slow),
         pytest.param("carts-coupled", marks=pytest.mark.slow),
     ],

@@ -172,6 +172,7 @@ def reports(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 @pytest.mark.parametrize("name", ["drag", "no-drag", "fall"])
 def test_throws_and_falls_get_an_analysis(reports, name):
     rep = reports[name]
@@ -184,6 +185,7 @@ def test_throws_and_falls_get_an_analysis(reports, name):
     assert "samples per" not in " ".join(rep["reasons"])
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_no_confident_wrong_verdict_on_throws(reports):
     # a drag-free throw is never "detected"; a throw or fall with drag is never "none" (the LNN can absorb the drag
     # into a potential shaped along the path, so the record is honestly inconclusive unless the evidence agrees)

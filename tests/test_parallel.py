@@ -60,6 +60,7 @@ def test_argument_checks():
     assert runs_here(5, None, 1) and not runs_here(2, None, 2) and not runs_here(1, "tcp://x:1", 3)
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_two_workers_same_numbers_and_a_failing_unit(in_process):
     """A local cluster of 2 single-threaded worker processes gives every unit bit for bit the numbers of the run in
     this process (nnphd.configure() holds XLA to one thread here too); a unit that raises there is reported with its
@@ -82,6 +83,7 @@ def test_two_workers_same_numbers_and_a_failing_unit(in_process):
     assert sum(o.compile_time_s for o in outs.values()) > 0.5
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_killed_worker_every_result_still_comes(in_process):
     """A worker process SIGKILLed while the grid runs: its nanny starts a new one, the scheduler reruns the lost
     unit, and every result arrives identical to the 1-worker run."""

@@ -51,6 +51,7 @@ def lp(tmp_path_factory):
     return out, res, calls
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_p_verdicts_and_files(lp):
     out, res, calls = lp
     v = {(r["system"], r["p"]): r for r in res["verdicts"]}
@@ -91,6 +92,7 @@ def test_lambda_p_subrun_is_nnphd_sweep(lp):
     assert [r["m_c"] for r in res["curves"]["ho+ld"]["1"]] == [r["m_c"] for r in ref["table"]]
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_p_cached_rerun_and_cli(lp, capsys):
     out, res, _ = lp
     again = lambda_p_study(out=out, **LP)

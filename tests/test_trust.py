@@ -226,6 +226,7 @@ def test_underfitting_prone_conservative_system_is_not_new_physics(name):
     assert all(row["L_e"] >= 0 and row["L_b"] >= 0 for row in r["table"])
 
 
+@pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_weak_drag_on_a_pendulum_is_detected():
     d, r = _run("pendulum+drag")
     assert np.mean(np.abs(d.fn)) / np.mean(np.abs(d.qdd)) < 0.03  # drag ~2 % of the force

@@ -74,6 +74,7 @@ def test_stop_rule_rejects():
         StopRule(rel_tol=1.0)
 
 
+@pytest.mark.slow  # a training run of 10-20 s: slow tier (`python3 dev.py test --slow`, and CI)
 def test_chunk_trainer_objective_and_learning_rate():
     """``run`` returns L_e + λ L_b on all the data at its returned parameters; lr = 0 leaves them unchanged."""
     d = gaussian_dataset("ho+ld", 128, seed=0)

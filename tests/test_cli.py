@@ -20,6 +20,7 @@ def test_systems_lists_every_system(capsys):
     assert "gamma=0.02" in out and "GMn=0.005" in out
 
 
+@pytest.mark.slow  # a training run of 10-20 s: slow tier (`python3 dev.py test --slow`, and CI)
 def test_small_sweep_writes_results(tmp_path, capsys):
     out = tmp_path / "o"
     rc = main(["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", "0.2,5", "--seed", "3", "--out", str(out)])

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from nnphd.explain.envelope import (
@@ -127,3 +129,22 @@ def test_a_sum_of_friction_terms_with_a_negative_term_is_not_a_friction_law():
     fam = _fam("linear+coulomb")
     assert dissipative_ok(fam, [0.1, 0.2]) and not dissipative_ok(fam, [0.1, -0.01])
     assert dissipative_ok(_fam("rayleigh"), [0.1, -0.01])  # self-excitation has its own families
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    gamma=st.floats(0.0, 2.0),
+    mu=st.floats(0.0, 2.0),
+    c=st.floats(0.0, 2.0),
+    A0=st.floats(0.05, 1.5),
+)
+def test_a_dissipative_envelope_never_rises_and_never_jumps_below_its_floor(gamma, mu, c, A0):
+    """Any friction law that takes energy out (viscous + dry + quadratic rates, all ≤ 0) gives a non-increasing
+    envelope that stays within the tabulated amplitudes, and no law at all keeps the amplitude."""
+    grid = np.geomspace(0.01, 2.0, 300)
+    rate = -(0.5 * gamma * grid + mu + c * grid**2)
+    t = np.linspace(0, 20, 60)
+    A = _envelope_curve(rate, grid, A0, t)
+    assert A[0] == pytest.approx(A0)
+    assert np.all(np.diff(A) <= 1e-12) and np.all(A >= grid[0] - 1e-12)
+    assert np.allclose(_envelope_curve(np.zeros(len(grid)), grid, A0, t), A0)

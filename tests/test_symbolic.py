@@ -26,6 +26,7 @@ def _on_data(expr: str, **cols) -> np.ndarray:
 # machine and can then find another formula (it did in CI for the slow test below). 150 generations: 1–4 s each here.
 
 
+@pytest.mark.slow  # a symbolic regression of 10-20 s: slow tier (`python3 dev.py test --slow`, and CI)
 def test_friction_found_and_reproducible():
     fn = _noisy(np.stack([-0.02 * VX, -0.02 * VY], 1))
     inputs = {"theta1": X, "theta2": Y, "theta1_dot": VX, "theta2_dot": VY, "t": T}

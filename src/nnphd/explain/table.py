@@ -323,6 +323,8 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = True)
         reason = "no candidate beats zero: " + (
             f"the best, {nxt.title}, changes the held-out error by {100 * (nxt.heldout_ratio - 1):+.2f}% and its "
             f"{nxt.k} parameter(s) cost more (ΔIC = {nxt.delta_ic:+.1f})"
+            if nxt and nxt.delta_ic >= 0
+            else f"the best, {nxt.title} (ΔIC = {nxt.delta_ic:+.1f}), is not eligible — {INELIGIBLE}"
             if nxt
             else "no candidate could be fitted"
         )
@@ -345,14 +347,19 @@ def _select(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = True)
         skipped = [r for r in rows if not r.significant and r.ic < win.ic]
         if skipped:
             reason += (
-                f"; {len(skipped)} candidate(s) with a lower IC have a term within {Z_TERM:g} standard errors "
-                f"of zero, a term carrying < {100 * MIN_TERM_SHARE:g}% of the law's force, a parameter at the "
-                f"edge of its range or (a drive) a force phase-locked to the motion, and are not eligible "
-                f"({', '.join(r.key for r in skipped)})"
+                f"; {len(skipped)} candidate(s) with a lower IC are not eligible ({', '.join(r.key for r in skipped)}):"
+                f" {INELIGIBLE}"
             )
         law = win
     return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings, ties)
 
+
+INELIGIBLE = (
+    f"a term within {Z_TERM:g} standard errors of zero or carrying < {100 * MIN_TERM_SHARE:g}% of the law's force, "
+    "a parameter at the edge of its range, a sum of friction terms with a negative one, (a drive) a force "
+    "phase-locked to the motion, or (with the amplitude envelope) its windows' and envelope's coefficients "
+    "disagree or its windows reject it"
+)
 
 NESTS = {"power": ("linear", "quadratic")}  # families a nonlinear family holds as special cases (m = 0, ½ in 1-D)
 

@@ -60,16 +60,17 @@ NONOSC_BLOCKS = 8  # motion that does not oscillate: blocks (and shooting window
 # periods and blocks
 
 
-CROSSING_HYSTERESIS = 0.1  # dominant_period: a crossing counts once the column has gone this share of its rms beyond
-# its mean on the other side — the noise of a body at rest (its velocity flickering about zero) or the slow turn of a
-# long swing crosses the mean again and again (a dry-friction record read 0.71 s for its 1.5 s period, a seismometer
-# 4.8 s for ~15 s)
+CROSSING_HYSTERESIS = 0.1  # dominant_period: a crossing counts once the column has gone this far beyond its mean on the
+# other side, as a share of its swing's rms (the 95th percentile of |y| / √2: a sine's rms, not diluted by a stretch
+# at rest) — the noise of a body at rest (its velocity flickering about zero) or the slow turn of a long swing
+# crosses the mean again and again (a dry-friction record read 0.71 s for its 1.5 s period, a seismometer 4.8 s for
+# ~15 s)
 
 
 def _crossings(y: np.ndarray) -> np.ndarray:
     """Indices i where y (mean 0) crosses zero between i and i + 1 — only the last crossing before y reaches
-    ±CROSSING_HYSTERESIS·rms(y) on the other side (a Schmitt trigger)."""
-    h = CROSSING_HYSTERESIS * float(np.sqrt(np.mean(y**2)))
+    ±CROSSING_HYSTERESIS times its swing's rms on the other side (a Schmitt trigger)."""
+    h = CROSSING_HYSTERESIS * float(np.percentile(np.abs(y), 95)) / math.sqrt(2)  # = share × rms for a sine
     state = np.where(y > h, 1, np.where(y < -h, -1, 0))
     idx = np.flatnonzero(state)
     if len(idx) < 2:

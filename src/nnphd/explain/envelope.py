@@ -377,6 +377,20 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
         {**table.settings, "envelope_swings": n, "envelope_omega": orbit.omega, "envelope_pendulum": orbit.pendulum},
         judge=False,
     )
+    blocked = _blocked_by_disagreement(out)
+    if blocked is not None:
+        out.law, out.ties = None, []
+        zero = [r for r in out.rows if r.key == "none"]
+        out.rows = [*zero, blocked, *(r for r in out.rows if r is not blocked and r.key != "none")]
+        out.blocked = blocked
+        out.reason = (
+            f"no law is claimed: the amplitude envelope clearly prefers {blocked.title} (envelope ΔIC "
+            f"{blocked.envelope['delta_ic']:.1f} against no law, {IC_TIE:g} or more ahead of the best eligible "
+            f"candidate's) and its windows do not reject it, but its windows and envelope disagree on its "
+            f"coefficients (Mahalanobis distance² {blocked.envelope['distance2']:.1f}) — they are not pinned down, "
+            "and a family the envelope rejects is no answer"
+        )
+        return out
     if out.law is not None:
         w = out.law.envelope or {}
         out.reason += (
@@ -385,6 +399,36 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
             "from the windows, the coefficients pooled from both fits"
         )
     return out
+
+
+def _blocked_by_disagreement(table):
+    """The row that bars the table's law, or None: a candidate that fails eligibility only because its windows' and
+    envelope's coefficients disagree, whose envelope fit is ≥ IC_TIE better than the law's (or no law's) and whose
+    windows fit is no worse. The envelope is the evidence of how the loss depends on the amplitude: where it clearly
+    prefers a description the windows do not reject, claiming a family it rejects is a confident answer the evidence
+    does not give (a 157° encoder pendulum: viscous + dry friction, envelope ΔIC −65 against van der Pol's −31, its
+    two fits 3.4 se apart — and van der Pol was claimed, 69 % off). A candidate only the windows prefer bars nothing
+    (a seismometer's Rayleigh law, pumping energy in its windows, damping in its envelope: distance² 131)."""
+    from nnphd.explain.table import IC_TIE
+
+    ref = table.law if table.law is not None else next((r for r in table.rows if r.key == "none"), None)
+    if ref is None:
+        return None
+    if ref.family is None:
+        ref_env = ref_win = 0.0
+    elif ref.envelope and "delta_ic" in ref.envelope:
+        ref_env, ref_win = ref.envelope["delta_ic"], ref.envelope["windows"]["delta_ic"]
+    else:  # a law not fitted to the envelope (a drive): nothing to compare
+        return None
+
+    def bars(r) -> bool:
+        e = r.envelope or {}
+        if r.family is None or r.significant or not e.get("eligible_but_agreement") or "delta_ic" not in e:
+            return False
+        return e["delta_ic"] <= ref_env - IC_TIE and e["windows"]["delta_ic"] <= ref_win
+
+    bar = [r for r in table.rows if bars(r)]
+    return min(bar, key=lambda r: r.ic) if bar else None
 
 
 def _pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
@@ -420,12 +464,14 @@ def _pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
     ok = not fam.per_term or bool(np.all(np.abs(pooled) >= Z_TERM * se))
     if len(pooled) > 1 and fam.per_term:
         ok = ok and min(new.shares.values(), default=1.0) >= MIN_TERM_SHARE
-    new.significant = bool(ok and agree and dissipative_ok(fam, pooled) and _other_conditions(r))
+    but_agree = bool(ok and dissipative_ok(fam, pooled) and _other_conditions(r))
+    new.significant = but_agree and agree
     new.envelope = {
         "params": {p: float(x) for p, x in zip(fam.coef_names, b_env)},
         "stderr": {p: float(x) for p, x in zip(fam.coef_names, np.sqrt(np.maximum(np.diag(C_env), 0.0)))},
         "agree": agree,
         "distance2": d2,
+        "eligible_but_agreement": but_agree,  # every other condition holds: only the two fits' disagreement bars it
     }
     return new
 

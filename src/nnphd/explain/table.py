@@ -15,13 +15,14 @@ subset of its terms) the one with the fewest parameters. Other families within :
 cases of the winner, nor it of them, are a tie
 (:attr:`LawTable.ties`, :attr:`LawTable.status` "tie"): the record cannot tell them apart, no family is claimed
 and all are reported with their coefficients. When no candidate beats zero, there is no law and the table says so
-(:attr:`LawTable.reason`).
+(:attr:`LawTable.reason`). Tables ranked on one record beside different conservative bases (a seed's LNN, the
+seed-free conservative library) are combined by :func:`combine_bases`: a family is claimed only where they agree.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import sympy as sp
@@ -128,6 +129,8 @@ class LawTable:
     folds: str
     settings: dict
     ties: list[LawFit] = field(default_factory=list)  # families as good as the law (within IC_TIE, not nested)
+    # no law because the best candidate's two fits (windows, envelope) disagree: that candidate (see envelope.py)
+    blocked: LawFit | None = None
 
     @property
     def status(self) -> str:
@@ -140,6 +143,7 @@ class LawTable:
             "law": self.law.to_dict() if self.law else None,
             "status": self.status,
             "ties": [r.to_dict() for r in self.ties],
+            "blocked_by": self.blocked.key if self.blocked is not None else None,
             "reason": self.reason,
             "candidates": [r.to_dict() for r in self.rows],
             "n_eff": self.n_eff,
@@ -388,3 +392,64 @@ def _tie_reason(win: LawFit, ties: list[LawFit]) -> str:
         + "; ".join(f"{r.key}: {_coefs(r)}" for r in ties)
         + f" (the first, {win.key}, is used for predictions)"
     )
+
+
+def preferred(table: LawTable) -> list[LawFit]:
+    """The families a table points to: its law and its ties; without a law, the candidate that bars one (its two
+    fits disagree, :attr:`LawTable.blocked`); else none."""
+    if table.law is not None:
+        return [table.law, *table.ties]
+    return [table.blocked] if table.blocked is not None else []
+
+
+def combine_bases(tables: list[tuple[str, LawTable]]) -> LawTable:
+    """One law from tables ranked on the same record with different conservative bases (e.g. the seed-independent
+    conservative library and a seed's LNN): a family is claimed only when every base that points to a family
+    (:func:`preferred`) points to that one and one base claims it — the first such base's fit is kept; where they
+    point to different families, those families tie (the record cannot tell them apart without knowing the
+    conservative force better; the first eligible one is used for predictions); a base that finds no candidate at
+    all does not veto. ``tables[0]`` gives the rows when no base points anywhere. Each base's view is in
+    ``settings["bases"]``."""
+    views = [(name, t, preferred(t)) for name, t in tables]
+    summary = [
+        {
+            "base": name,
+            "status": t.status if t.blocked is None else "blocked",
+            "families": [r.key for r in p],
+            "law": t.law.to_dict() if t.law is not None else None,
+            "reason": t.reason,
+        }
+        for name, t, p in views
+    ]
+    keys: list[str] = []
+    for _, _, p in views:
+        keys += [r.key for r in p if r.key not in keys]
+    says = "; ".join(f"with {s['base']}: {', '.join(s['families']) or 'no family'} ({s['status']})" for s in summary)
+    if not keys:
+        t = tables[0][1]
+        return replace(t, settings={**t.settings, "bases": summary}, reason=t.reason + f" [{says}]")
+
+    def fits(key):  # the eligible fits of a family, in the order of the bases, then the barred ones
+        rs = [r for _, _, p in views for r in p if r.key == key]
+        return sorted(rs, key=lambda r: not r.significant)
+
+    shown = [fits(k)[0] for k in keys]
+    claims = [r for r in shown if r.significant]
+    home = next((t for _, t, p in views if any(r is shown[0] for r in p)), tables[0][1])
+    settings = {**home.settings, "bases": summary}
+    if not claims:  # every base that points anywhere points to a barred candidate
+        t = next(t for _, t, p in views if p)
+        return replace(t, settings=settings, reason=t.reason + f" [{says}]")
+    law = claims[0]
+    rows = [law, *(r for r in home.rows if r is not law)]
+    if len(keys) == 1:
+        return replace(home, rows=rows, law=law, ties=[], blocked=None, settings=settings,
+                       reason=home.reason + f" [the same family {says}]")  # fmt: skip
+    ties = [r for r in shown if r is not law]
+    reason = (
+        f"{' or '.join([law.title, *(r.title for r in ties)])}: the law depends on the conservative force it is "
+        f"fitted beside ({says}) — no family is claimed, all are shown — "
+        + "; ".join(f"{r.key}: {_coefs(r)}" for r in [law, *ties])
+        + f" (the first, {law.key}, is used for predictions)"
+    )
+    return replace(home, rows=rows, law=law, ties=ties, blocked=None, settings=settings, reason=reason)

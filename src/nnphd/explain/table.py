@@ -69,6 +69,10 @@ class LawFit:
     envelope: dict | None = (
         None  # its fit to the amplitude envelope: params, stderr, agree, distance2, delta_ic, windows
     )
+    # the conservative coefficients of its joint trajectory-level fit and their covariance (τ-widened)
+    conservative: np.ndarray | None = field(default=None, repr=False)
+    conservative_cov: np.ndarray | None = field(default=None, repr=False)
+    stuck: dict | None = None  # a stuck phase it cannot explain (:mod:`nnphd.explain.stuck`)
 
     def to_dict(self) -> dict:
         return {
@@ -90,6 +94,7 @@ class LawFit:
             "shares": self.shares,
             "state_like": self.state_like,
             **({"envelope": self.envelope} if self.envelope is not None else {}),
+            **({"stuck": self.stuck} if self.stuck is not None else {}),
         }
 
     def on_rows(self, q, qd, t) -> None:

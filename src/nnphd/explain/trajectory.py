@@ -237,7 +237,8 @@ def rank_trajectory(
         se_b = np.asarray(reps)[:, law_idx].std(axis=0) if reps else np.zeros(len(law_idx))
         s2 = chi2 / max(n_res - W * 2 * n - len(fi), 1)
         var = np.zeros(len(th))
-        var[fi] = np.diag(s2 * np.linalg.pinv(_ridge(Stot)))
+        cov_full = s2 * np.linalg.pinv(_ridge(Stot))  # over the free parameters; the Kc conservative ones first
+        var[fi] = np.diag(cov_full)
         se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
         R = r.reshape(W, -1)
         rho = float(np.sum(R[:, n:] * R[:, :-n]) / max(np.sum(R * R), 1e-300))
@@ -248,8 +249,9 @@ def rank_trajectory(
                 c = np.corrcoef(np.asarray(reps)[:, law_idx].T)
             corr = np.where(np.isfinite(c), c, corr) if c.ndim == 2 else corr
         results.append(
-            (row, th, max(cv, 1e-300), se, rho, _overdispersion(se_b, se_m, th[Kc:]), corr * np.outer(se, se))
-        )
+            (row, th, max(cv, 1e-300), se, rho, _overdispersion(se_b, se_m, th[Kc:]), corr * np.outer(se, se),
+             cov_full[:Kc, :Kc])
+        )  # fmt: skip
     if len(results) < 2 or results[0][0].key != "none":
         return table
     rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
@@ -257,7 +259,7 @@ def rank_trajectory(
     tau = (1 + rho) / (1 - rho) * c_hat
     n_eff = n_res / tau
     rows = []
-    for row, th, cv, se, _, _, cov in results:
+    for row, th, cv, se, _, _, cov, cov_c in results:
         fam = row.family
         if fam is None:
             new = _zero_row(table.settings["names"], cv / n_res, N, "trajectory")
@@ -267,6 +269,8 @@ def rank_trajectory(
             new.on_rows(q_pos, qd, t)
             new.cov = cov[:K, :K]
         new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
+        # the conservative part of the joint fit; its covariance widened by the residuals' correlation (τ)
+        new.conservative, new.conservative_cov = np.asarray(th[:Kc], float), cov_c * tau
         rows.append(new)
     _relative_to_zero(rows, table.settings["_y_rms"])
     return _select(

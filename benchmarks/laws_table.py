@@ -97,6 +97,7 @@ def main() -> None:
                 "truth": c.spec.description,
                 "status": rep["status"],
                 "law": law,
+                "law_status": (rep.get("law") or {}).get("status"),
                 "error": err,
                 "right": bool(ok),
                 "seconds": wall,

@@ -6,8 +6,10 @@ reference or lacking a term it needs).
     .venv/bin/python benchmarks/seed_agreement.py [--json out.json]
 
 Inputs: results/real_friction.json, real_friction_seed1.json, real_friction_seed2.json (benchmarks/real_friction.py
---seed 0/1/2) and results/friction_laws.json, friction_laws_seed1.json, friction_laws_seed2.json
-(benchmarks/friction_laws.py --seeds 0/1/2); a missing file is skipped.
+--seed 0/1/2), results/friction_laws.json, friction_laws_seed1.json, friction_laws_seed2.json
+(benchmarks/friction_laws.py --seeds 0/1/2) and results/laws_table.json, laws_table_seed1.json, laws_table_seed2.json
+(benchmarks/laws_table.py --seed 0/1/2); a missing file is skipped. The seconds per file of each seed are printed
+beside them (as measured by those runs).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import os
 HERE = os.path.join(os.path.dirname(os.path.abspath(__file__)), "results")
 REAL = {0: "real_friction.json", 1: "real_friction_seed1.json", 2: "real_friction_seed2.json"}
 LOOK = {0: "friction_laws.json", 1: "friction_laws_seed1.json", 2: "friction_laws_seed2.json"}
+TABLE = {0: "laws_table.json", 1: "laws_table_seed1.json", 2: "laws_table_seed2.json"}
 
 
 def _load(name: str) -> list[dict]:
@@ -26,19 +29,27 @@ def _load(name: str) -> list[dict]:
     return json.load(open(path)) if os.path.exists(path) else []
 
 
-def _real_view(r: dict) -> tuple[str, str, bool]:
+def _real_view(r: dict) -> tuple[str, str, bool, float]:
     fams = "/".join(x["law"] for x in r["laws"]) if r["law_status"] in ("claimed", "tie") else "—"
     wrong = r["law_status"] == "claimed" and not r["right"]
-    return r["status"], f"{r['law_status']}: {fams}", wrong
+    return r["status"], f"{r['law_status']}: {fams}", wrong, r.get("wall_s", float("nan"))
 
 
-def _look_view(r: dict) -> tuple[str, str, bool]:
+def _look_view(r: dict) -> tuple[str, str, bool, float]:
     if r["law_status"] in ("claimed", "tie"):
         fams = "/".join([r["winner"], *(t if isinstance(t, str) else t.get("law", "?") for t in r.get("ties") or [])])
     else:
         fams = "—"
     wrong = r["law_status"] == "claimed" and not r["family_right"]
-    return r["status"], f"{r['law_status']}: {fams}", wrong
+    return r["status"], f"{r['law_status']}: {fams}", wrong, r.get("wall_s", float("nan"))
+
+
+def _table_view(r: dict) -> tuple[str, str, bool, float]:
+    """A law-table case: its verdict, the claimed law's family (the table keeps the claimed law only) and whether it
+    is the truth's (``right`` also judges the error, so a claimed law that is not right counts as wrong)."""
+    law = f"{r.get('law_status') or 'claimed'}: {r['law']['law']}" if r.get("law") else "—"
+    wrong = bool(r.get("law")) and r.get("law_status") in (None, "claimed") and not r["right"]
+    return r["status"], law, wrong, r.get("seconds", float("nan"))
 
 
 def main() -> None:
@@ -46,7 +57,11 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     rows = []
-    for kind, files, key, view in (("real", REAL, "file", _real_view), ("look-alike", LOOK, "name", _look_view)):
+    for kind, files, key, view in (
+        ("real", REAL, "file", _real_view),
+        ("look-alike", LOOK, "name", _look_view),
+        ("law table", TABLE, "case", _table_view),
+    ):
         runs = {s: {r[key]: r for r in _load(f)} for s, f in files.items()}
         runs = {s: v for s, v in runs.items() if v}
         names = sorted(set().union(*(v.keys() for v in runs.values()))) if runs else []
@@ -64,15 +79,16 @@ def main() -> None:
                     "verdicts_agree": len({p[0] for p in per.values()}) == 1,
                     "laws_agree": len({p[1] for p in per.values()}) == 1,
                     "wrong_claim_seeds": [s for s in sorted(per) if per[s][2]],
+                    "seconds": [round(per[s][3], 1) for s in sorted(per)],
                 }
             )
-    print("| kind | file | seeds | verdicts | laws | same verdict | same law | seeds with a wrong claim |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| kind | file | seeds | verdicts | laws | same verdict | same law | seeds with a wrong claim | s per seed |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(
             f"| {r['kind']} | {r['file']} | {','.join(map(str, r['seeds']))} | {', '.join(r['verdicts'])} | "
             f"{'; '.join(r['laws'])} | {'yes' if r['verdicts_agree'] else 'no'} | {'yes' if r['laws_agree'] else 'no'} "
-            f"| {','.join(map(str, r['wrong_claim_seeds'])) or '—'} |"
+            f"| {','.join(map(str, r['wrong_claim_seeds'])) or '—'} | {', '.join(f'{x:.0f}' for x in r['seconds'])} |"
         )
     if rows:
         n = len(rows)

@@ -44,5 +44,7 @@ def test_away_from_the_optimum_it_refuses_to_rank():
     groups = np.array_split(np.arange(len(X)), 4)
     c, S, g = _blocks(X, y, theta + np.array([0.8, -0.6]))
     assert heldout_chi2(c, S, g, groups) is None
-    c, S, g = _blocks(X, y, theta + np.array([1e-9, 0.0]))  # a rounding step away: still an optimum
+    # a fit a little short of the optimum (a few LM iterations): its groups' held-out χ² stays near their in-sample
+    # χ² (here 1.02–1.08 of it) — still ranked
+    c, S, g = _blocks(X, y, theta + np.array([1e-3, 0.0]))
     assert heldout_chi2(c, S, g, groups) is not None

@@ -3,7 +3,7 @@ re-run): per file, the verdict and the law (family, or the tied families) of eac
 whether any seed claims a family that is wrong (look-alikes: the true family; real recordings: > 25 % from the
 reference or lacking a term it needs).
 
-    .venv/bin/python benchmarks/seed_agreement.py [--json out.json]
+    .venv/bin/python benchmarks/seed_agreement.py [--json out.json] [--seeds 0,1,2]
 
 Inputs: results/real_friction.json, real_friction_seed1.json, real_friction_seed2.json (benchmarks/real_friction.py
 --seed 0/1/2), results/friction_laws.json, friction_laws_seed1.json, friction_laws_seed2.json
@@ -29,15 +29,22 @@ def _load(name: str) -> list[dict]:
     return json.load(open(path)) if os.path.exists(path) else []
 
 
+def _families(status: str, keys: list[str]) -> str:
+    """The law as compared across seeds: a claimed family, or a tie as the set of its families (sorted: the order
+    within a tie only says which one predictions use)."""
+    return "/".join(sorted(keys) if status == "tie" else keys)
+
+
 def _real_view(r: dict) -> tuple[str, str, bool, float]:
-    fams = "/".join(x["law"] for x in r["laws"]) if r["law_status"] in ("claimed", "tie") else "—"
+    fams = _families(r["law_status"], [x["law"] for x in r["laws"]]) if r["law_status"] in ("claimed", "tie") else "—"
     wrong = r["law_status"] == "claimed" and not r["right"]
     return r["status"], f"{r['law_status']}: {fams}", wrong, r.get("wall_s", float("nan"))
 
 
 def _look_view(r: dict) -> tuple[str, str, bool, float]:
     if r["law_status"] in ("claimed", "tie"):
-        fams = "/".join([r["winner"], *(t if isinstance(t, str) else t.get("law", "?") for t in r.get("ties") or [])])
+        ties = [t if isinstance(t, str) else t.get("law", "?") for t in r.get("ties") or []]
+        fams = _families(r["law_status"], [r["winner"], *ties])
     else:
         fams = "—"
     wrong = r["law_status"] == "claimed" and not r["family_right"]
@@ -55,14 +62,16 @@ def _table_view(r: dict) -> tuple[str, str, bool, float]:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--json", default=None)
+    ap.add_argument("--seeds", default="0,1,2", help="the seeds to compare (files of other seeds are ignored)")
     a = ap.parse_args()
+    use = {int(x) for x in a.seeds.split(",")}
     rows = []
     for kind, files, key, view in (
         ("real", REAL, "file", _real_view),
         ("look-alike", LOOK, "name", _look_view),
         ("law table", TABLE, "case", _table_view),
     ):
-        runs = {s: {r[key]: r for r in _load(f)} for s, f in files.items()}
+        runs = {s: {r[key]: r for r in _load(f)} for s, f in files.items() if s in use}
         runs = {s: v for s, v in runs.items() if v}
         names = sorted(set().union(*(v.keys() for v in runs.values()))) if runs else []
         for n in names:

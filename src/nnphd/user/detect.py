@@ -283,6 +283,8 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
     - "inconclusive" with no seed saying "none", on an oscillating record of one coordinate, where *every*
       conservative base of the law table (the seed-free library and the seed's LNN) finds a law that beats no law by
       ΔIC ≤ LAW_DETECT_DIC and lowers its error by ≥ LAW_DETECT_EFFECT, is "detected" (:func:`_seed_free_evidence`).
+    - any verdict but "detected" where the table claims a drive on trajectories whose clock can be told is "detected",
+      the drive the law (:func:`_drive_evidence`; checked first).
     """
     status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
     cand = law.get("law") or law.get("candidate_law")

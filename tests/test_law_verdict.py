@@ -128,7 +128,9 @@ def test_a_driven_duffing_oscillator_is_detected_with_its_drive_as_the_law(tmp_p
 def test_a_real_servo_drop_too_short_for_the_energy_trend_is_detected_from_its_law_table():
     """servo_sts3250_drop.csv (one drop of three periods, then still): the energy trend needs four periods and the
     shooting probe beside the LNN is weak (z ≈ 1), while the positions need friction beside both conservative
-    bases — "detected" by the seed-free rule, with the viscous law the reference (c = 2.72) finds first."""
+    bases — "detected" by the seed-free rule. It stops for good where a viscous law predicts the swing going on
+    (:func:`nnphd.explain.stuck.stop_contradictions`): the law leads with viscous + dry friction, the reference's two
+    necessary terms (its whole-trajectory fit: c = 2.72, d = 1.17), and no law without a dry term is eligible."""
     from pathlib import Path
 
     from nnphd.user.detect import detect_file
@@ -140,7 +142,9 @@ def test_a_real_servo_drop_too_short_for_the_energy_trend_is_detected_from_its_l
     assert rep["status"] == "detected" and rep["confidence"] == LAW_DETECT_CONFIDENCE
     assert rep["reasons"][0].startswith("a fit of the positions with a non-conservative law beats")
     assert not rep["checks"]["energy_trend"]["valid"][0]  # three periods: too few for the energy trend
-    fams = [rep["law"]["law"]["law"], *(r["law"] for r in rep["law"]["ties"])]
-    assert "linear" in fams and "drive" not in fams
-    gamma = next(r for r in [rep["law"]["law"], *rep["law"]["ties"]] if r["law"] == "linear")["params"]["gamma"]
-    assert gamma == pytest.approx(2.72, rel=0.25)
+    law = rep["law"]["law"]
+    assert law["law"] == "linear+coulomb" and "drive" not in (r["law"] for r in rep["law"]["ties"])
+    assert law["params"]["gamma"] == pytest.approx(2.72, rel=0.25)
+    assert law["params"]["mu"] == pytest.approx(1.17, rel=0.25)
+    stopped = {r["law"] for r in rep["law"]["candidates"] if (r.get("stuck") or {}).get("kind") == "stop"}
+    assert {"linear", "rayleigh", "vanderpol"} <= stopped

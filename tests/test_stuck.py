@@ -118,3 +118,74 @@ def test_only_a_rest_that_ends_its_trajectory_is_evidence():
     (final,) = rest["final"]
     assert abs(final["q"][0] - q[-1, 0]) <= final["tolerance"][0] and abs(final["q"][0]) <= mu / w2 + 1e-9
     assert final["seconds"] > 1.0
+
+
+def _swing(gam, mu, *, q0=0.3, w2=A, dt=0.01, seconds=9.0, step=0.0):
+    """A pendulum θ̈ = −w2 sin θ − γ θ̇ − μ sign(θ̇) from rest at q0, sticking when |w2 sin θ| ≤ μ at a stop; positions
+    rounded to ``step`` (an encoder). Returns (data, traj, info, period)."""
+    from types import SimpleNamespace
+
+    q, v, qs = q0, 0.0, [q0]
+    for _ in range(int(seconds / dt)):
+        f = -w2 * math.sin(q) - gam * v - mu * np.sign(v) if abs(v) > 1e-9 or abs(w2 * math.sin(q)) > mu else 0.0
+        v_new = v + f * dt
+        v = 0.0 if v != 0 and np.sign(v_new) != np.sign(v) and abs(w2 * math.sin(q)) <= mu else v_new
+        q += v * dt
+        qs.append(q)
+    q = np.asarray(qs)[:, None]
+    if step:
+        q = step * np.round(q / step)
+    t = dt * np.arange(len(q))
+    data = SimpleNamespace(q=q, qd=np.gradient(q, dt, axis=0), qdd=np.zeros_like(q), t=t)
+    info = {"per_coordinate": {"th": {"noise": 1e-4, "quantization_step": step, "qdd": {"windows": [4]}}}}
+    return data, np.zeros(len(q), int), info, 2 * np.pi / math.sqrt(w2)
+
+
+def _final_rest(data, traj, info, period):
+    from nnphd.user.detect import _moving_rows
+
+    *_, rest = _moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
+    assert rest is not None and rest["final"]
+    return rest["final"]
+
+
+def _stop(table, data, traj, final, period):
+    from nnphd.explain.stuck import stop_contradictions
+
+    return stop_contradictions(table, final, data.q, data.qd, data.t, traj, period, angles=(True,))
+
+
+def test_a_swing_that_stops_for_good_contradicts_the_laws_that_cannot_stop_it():
+    """Viscous + dry friction (γ 0.3, μ 0.8) ends the swing within its dead band — here near the equilibrium, where the
+    offset rule above can say nothing. A viscous law (γ 2, what a viscous fit of the whole decay gives) predicts a
+    swing of ~0.6 of the last amplitude after the last turning point, where the record is still."""
+    from nnphd.explain.stuck import STOP_MIN
+
+    data, traj, info, period = _swing(0.3, 0.8)
+    final = _final_rest(data, traj, info, period)
+    assert abs(final[0]["q"][0]) < OFFSET_MIN * 0.02  # close to zero: the offset rule has little to go on
+    lin, dry = _row("linear", [2.0], -20.0), _row("linear+coulomb", [0.3, 0.8], -18.0)
+    table = _table([lin, dry])
+    out = _stop(table, data, traj, final, period)
+    assert set(out) == {"linear"}
+    c = out["linear"]
+    assert c["kind"] == "stop" and c["t_turn"] < c["t_rest"] <= c["t_turn"] + period
+    assert c["predicted_std"] - Z_STUCK * c["se"] >= STOP_MIN * c["measured_std"]
+    assert c["measured_std"] <= 2 * c["tolerance"]
+    barred = bar_stuck(table, out)
+    assert barred.law.key == "linear+coulomb" and "nothing in them stops a swing: linear" in barred.reason
+    # a viscous law whose coefficient is unknown to within its size: its predicted swing is no contradiction
+    vague = _row("linear", [2.0], -20.0)
+    vague.cov = np.array([[4.0]])
+    assert _stop(_table([vague, dry]), data, traj, final, period) == {}
+
+
+def test_a_viscous_swing_fading_below_the_encoder_steps_is_no_stop():
+    """The true viscous law of a swing that fades below the encoder's resolution (0.0015 rad) predicts what the record
+    shows: no contradiction, though the rest detector calls the tail a rest."""
+    data, traj, info, period = _swing(0.5, 0.0, seconds=26.0, step=0.0015)
+    final = _final_rest(data, traj, info, period)
+    true = _row("linear", [0.5], -20.0)
+    assert _stop(_table([true, _row("linear+coulomb", [0.5, 0.01], -18.0)]), data, traj, final, period) == {}
+    # nor a law 20× too weak: from the last turning point a few steps off, no swing it predicts could be told
+    assert _stop(_table([_row("linear", [0.025], -20.0)]), data, traj, final, period) == {}

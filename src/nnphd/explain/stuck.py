@@ -22,6 +22,16 @@ pushed from outside), only near a stable equilibrium of the fit (∂f_c/∂q < 0
 nothing), and only for oscillating records (``nnphd.user.detect.find_law``). A contradicted candidate is not
 eligible; the stuck stretch and the force each candidate leaves unbalanced are in its row (``stuck``). Candidates with a dry term are not judged by their μ against the force at rest: static friction
 may exceed the sliding friction the fit measures. One coordinate only (the rest positions are points on a line).
+
+A second rule (:func:`stop_contradictions`) needs no offset: *a swing that stops for good*. Under a law without a dry
+term an oscillation never ends (viscous friction lets it fade exponentially, quadratic drag as 1/t); dry friction
+stops it in finite time within its dead band. From the last turning point before a final rest, each such candidate
+is integrated on into the rest; it is contradicted when the swing it predicts there is :data:`STOP_MIN` times what was
+measured (and the rest tolerance), beyond :data:`Z_STUCK` times its spread over draws of its coefficients. Measured on
+the real servo drop (one drop, still from t = 2.2 s, 0.007 rad from its fitted equilibrium): from the last turning
+point (t = 1.9 s, −0.061 rad) the viscous law predicts a swing of std 0.012 ± 0.002 rad over the next 0.46 s, where
+the record moves 0.0014: viscous, quadratic, Rayleigh and van der Pol candidates are barred and viscous + dry friction
+(the reference's two necessary terms) leads.
 """
 
 from __future__ import annotations
@@ -30,10 +40,20 @@ from dataclasses import replace
 
 import numpy as np
 
-__all__ = ["OFFSET_MIN", "Z_STUCK", "bar_stuck", "holds_at_rest", "stuck_contradictions"]
+__all__ = [
+    "OFFSET_MIN",
+    "STOP_MIN",
+    "Z_STUCK",
+    "bar_stuck",
+    "holds_at_rest",
+    "stop_contradictions",
+    "stuck_contradictions",
+]
 
 Z_STUCK = 3.0
 OFFSET_MIN = 3.0
+STOP_MIN = 3.0  # the swing a law predicts into a final rest: at least this many rest tolerances (std) to contradict
+N_DRAWS = 256  # draws of a candidate's coefficients for the spread of its predicted swing
 
 
 def holds_at_rest(row) -> bool:
@@ -93,6 +113,148 @@ def stuck_contradictions(table, stretches, *, angles, fc_fn=None) -> dict:
     return out
 
 
+def _draws(mean, cov, rng, n: int) -> np.ndarray:
+    """(n, K) normal draws (the mean alone where the covariance is missing or not finite)."""
+    mean = np.asarray(mean, float)
+    if cov is None or not np.all(np.isfinite(cov)):
+        return np.repeat(mean[None], n, axis=0)
+    w, V = np.linalg.eigh(0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T))
+    return mean[None] + (rng.standard_normal((n, len(mean))) * np.sqrt(np.maximum(w, 0.0))) @ V.T
+
+
+def _integrate(rows, A, B, q0: float, t0: float, t1: float, period: float, fc_fn, angles, center, library):
+    """(grid (S,), x (S, len(rows)·N_DRAWS)): each candidate's joint fit, with its coefficient draws ``A``
+    (conservative) and ``B`` (law), integrated from rest at q0 (time t0) to t1 — all draws of all candidates as one
+    batch (one call of ``fc_fn`` per stage); RK4, 100 steps a period."""
+    from nnphd.explain.conservative import conservative_basis
+
+    def force(x, v, tt):
+        fc = None if fc_fn is None else np.asarray(fc_fn(x, v), float).reshape(x.shape)
+        C = np.asarray(conservative_basis(np, x, v, angles, fc, center, library), float)
+        out = []
+        for i, r in enumerate(rows):
+            sl = slice(i * N_DRAWS, (i + 1) * N_DRAWS)
+            th = np.asarray(r.theta, float)
+            f = np.einsum("dk,dk->d", C[sl, 0], A[i])[:, None]
+            f = f + np.einsum("dnk,dk->dn", r.family.basis(np, th, x[sl], v[sl], tt[sl]), B[i])
+            if r.family.fixed is not None:
+                f = f + r.family.fixed(np, th, x[sl], v[sl], tt[sl])
+            out.append(f)
+        return np.concatenate(out, axis=0)
+
+    M = len(rows) * N_DRAWS
+    x, v = np.full((M, 1), q0), np.zeros((M, 1))
+    steps = max(int(np.ceil((t1 - t0) / (period / 100))), 1)
+    h = (t1 - t0) / steps
+    xs = np.empty((steps + 1, M))
+    xs[0] = x[:, 0]
+    with np.errstate(all="ignore"):
+        for k in range(steps):
+            tt = np.full(M, t0 + k * h)
+            k1v, k1x = force(x, v, tt), v
+            k2v, k2x = force(x + h / 2 * k1x, v + h / 2 * k1v, tt + h / 2), v + h / 2 * k1v
+            k3v, k3x = force(x + h / 2 * k2x, v + h / 2 * k2v, tt + h / 2), v + h / 2 * k2v
+            k4v, k4x = force(x + h * k3x, v + h * k3v, tt + h), v + h * k3v
+            x = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
+            v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
+            xs[k + 1] = x[:, 0]
+    return t0 + h * np.arange(steps + 1), xs
+
+
+def stop_contradictions(table, stretches, q, qd, t, traj, period: float, *, angles, fc_fn=None, seed: int = 0) -> dict:
+    r"""{family key: {"kind": "stop", …}} for the candidates of a trajectory-level ``table`` (one coordinate) without
+    a dry term that a *finite-time stop* contradicts: the record swings, then rests for good, where the candidate
+    predicts the swing going on.
+
+    Viscous friction, quadratic drag and their kin only slow a swing down — under them an oscillation never ends
+    (its amplitude falls exponentially or as 1/t); dry friction stops it within a dead band. So from the last turning
+    point before a rest that ends its trajectory (q̇ = 0 there; the last one at least :data:`STOP_MIN` rest
+    tolerances from the rest), each candidate's joint fit (its conservative force and its law, the coefficients
+    drawn :data:`N_DRAWS` times from their covariances — τ-widened for the conservative part, the cross-covariance
+    neglected) is integrated over the first rest window (:data:`nnphd.user.rest.REST_WINDOW_PERIODS` of the period);
+    the candidate is contradicted when the standard deviation of its predicted motion there, less :data:`Z_STUCK`
+    times its spread over the draws, is still :data:`STOP_MIN` times the measured one (at least the rest tolerance:
+    a swing hidden below the noise or the encoder's steps is not missed motion). The true law predicts what was
+    measured; a law that cannot stop a swing predicts a swing where the record is still.
+
+    ``stretches``: dicts with "t0" (start), "traj" (its trajectory id), "seconds", "tolerance" (n,) (from
+    ``nnphd.user.detect._moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
+    ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible."""
+    from nnphd.user.rest import REST_WINDOW_PERIODS
+
+    settings = table.settings
+    if (
+        settings.get("method") != "trajectory"
+        or not stretches
+        or len(settings.get("names", [])) != 1
+        or not np.isfinite(period)
+    ):
+        return {}
+    rows = [
+        r
+        for r in table.rows
+        if r.family is not None
+        and r.conservative is not None
+        and r.conservative_cov is not None
+        and r.beta is not None
+        and not holds_at_rest(r)
+    ]
+    if not rows:
+        return {}
+    center, library = settings.get("_center"), settings.get("library", True)
+    q, qd, t, traj = (np.asarray(a, float).reshape(len(t), -1) for a in (q, qd, t, traj))
+    t, traj, q, qd = t[:, 0], traj[:, 0], q[:, 0], qd[:, 0]
+    rng = np.random.default_rng(seed)
+    A = [_draws(r.conservative, r.conservative_cov, rng, N_DRAWS) for r in rows]
+    B = [_draws(r.beta, r.cov, rng, N_DRAWS) for r in rows]
+    out = {}
+    for s in stretches:
+        tol = float(np.asarray(s["tolerance"], float).reshape(-1)[0])
+        seg = np.flatnonzero(traj == s["traj"])
+        before, rest = seg[t[seg] < s["t0"]], seg[t[seg] >= s["t0"]]
+        window = min(REST_WINDOW_PERIODS * period, float(s["seconds"]))
+        rest = rest[t[rest] <= s["t0"] + window]
+        if len(before) < 3 or len(rest) < 3:
+            continue
+        q_rest = float(np.mean(q[rest]))
+        turns = [
+            j
+            for j in before[1:]
+            if qd[j - 1] * qd[j] <= 0 and abs(q[j] - q_rest) >= STOP_MIN * tol and s["t0"] - t[j] <= period
+        ]
+        if not turns:
+            continue
+        j = turns[-1]
+        measured = max(float(np.std(q[rest])), tol)
+        ends = (float(q[j]), float(t[j]), float(t[rest[-1]]))
+        grid, xs = _integrate(rows, A, B, *ends, period, fc_fn, (bool(angles[0]),), center, library)
+        inside = grid >= s["t0"]
+        stds = np.std(xs[inside], axis=0)
+        for i, r in enumerate(rows):
+            if r.key in out:
+                continue
+            d = stds[i * N_DRAWS : (i + 1) * N_DRAWS]
+            if np.mean(np.isfinite(d)) < 0.9:  # the fit runs away from the turning point: nothing to judge
+                continue
+            d = d[np.isfinite(d)]
+            m, sd = float(np.mean(d)), float(np.std(d))
+            if m - Z_STUCK * sd >= STOP_MIN * measured:
+                out[r.key] = {
+                    "kind": "stop",
+                    "q": float(q_rest),
+                    "t_turn": float(t[j]),
+                    "q_turn": float(q[j]),
+                    "t_rest": float(s["t0"]),
+                    "predicted_std": m,
+                    "se": sd,
+                    "measured_std": measured,
+                    "tolerance": tol,
+                    "window": float(window),
+                    "seconds": float(s["seconds"]),
+                }
+    return out
+
+
 def bar_stuck(table, contradicted: dict):
     """``table`` with the ``contradicted`` families (:func:`stuck_contradictions`) not eligible, ranked again (a
     candidate the amplitude envelope preferred that is contradicted bars nothing); unchanged when none is."""
@@ -117,10 +279,21 @@ def bar_stuck(table, contradicted: dict):
             f"no law is claimed: the amplitude envelope clearly prefers {blocked.title}, whose windows do not reject "
             "it, but its two fits disagree on its coefficients"
         )
-    c = next(iter(contradicted.values()))
-    out.reason += (
-        f"; not eligible, as the record rests {c['seconds']:.2g} s at q = {c['q']:.4g}, {c['offset']:.2g} from the "
-        f"equilibrium of their fits (their conservative force there {c['force']:.3g} ± {c['se']:.2g}) and nothing in "
-        f"them acts at zero speed: {', '.join(sorted(contradicted))}"
-    )
+    offset = sorted(k for k, c in contradicted.items() if c.get("kind") != "stop")
+    stop = sorted(k for k, c in contradicted.items() if c.get("kind") == "stop")
+    if offset:
+        c = contradicted[offset[0]]
+        out.reason += (
+            f"; not eligible, as the record rests {c['seconds']:.2g} s at q = {c['q']:.4g}, {c['offset']:.2g} from "
+            f"the equilibrium of their fits (their conservative force there {c['force']:.3g} ± {c['se']:.2g}) and "
+            f"nothing in them acts at zero speed: {', '.join(offset)}"
+        )
+    if stop:
+        c = contradicted[stop[0]]
+        out.reason += (
+            f"; not eligible, as the record stops for good at t = {c['t_rest']:.4g} (its motion over the next "
+            f"{c['window']:.2g} s: std {c['measured_std']:.2g}) where, from its last turning point (t = "
+            f"{c['t_turn']:.4g}, q = {c['q_turn']:.4g}), they predict the swing going on (std "
+            f"{c['predicted_std']:.2g} ± {c['se']:.2g}, {stop[0]}) — nothing in them stops a swing: {', '.join(stop)}"
+        )
     return out

@@ -509,6 +509,7 @@ def find_law(
     # half window before it (their q̈ is smeared across the jump of the force)
     moving, traj_m, _, _, rest = _moving_rows(data, traj, coords, info, None, None, period, margin=False)
     data_p, traj_p, err, fc, _ = _moving_rows(data, traj, coords, info, err, fc, period)
+    whole = (data, traj)  # rests included: a final rest is evidence (nnphd.explain.stuck)
     data, traj = moving, traj_m
     table = rank_laws(
         data_p.q,
@@ -544,9 +545,22 @@ def find_law(
         )
     stuck = {}
     if level != "pointwise" and rest is not None and len(coords) == 1 and np.isfinite(period):
-        from nnphd.explain.stuck import stuck_contradictions
+        from nnphd.explain.stuck import stop_contradictions, stuck_contradictions
 
         stuck = stuck_contradictions(table, rest["final"], angles=is_angle, fc_fn=fc_fn if fc is not None else None)
+        stop = stop_contradictions(
+            table,
+            rest["final"],
+            whole[0].q,
+            whole[0].qd,
+            whole[0].t,
+            whole[1],
+            period,
+            angles=is_angle,
+            fc_fn=fc_fn if fc is not None else None,
+            seed=seed,
+        )
+        stuck = {**stop, **stuck}
     if level != "pointwise" and len(coords) == 1:
         from nnphd.explain.envelope import envelope_evidence
 
@@ -650,7 +664,13 @@ def _moving_rows(data, traj, coords, info, err, fc, period, margin: bool = True)
     # the rests that end their trajectory: where the body came to rest by itself (a rest before the release, or
     # one the body leaves again, was held or pushed from outside)
     where = [
-        {"q": np.mean(data.q[r], axis=0).tolist(), "seconds": float(data.t[r[-1]] - data.t[r[0]]), "tolerance": tol}
+        {
+            "q": np.mean(data.q[r], axis=0).tolist(),
+            "seconds": float(data.t[r[-1]] - data.t[r[0]]),
+            "tolerance": tol,
+            "t0": float(data.t[r[0]]),
+            "traj": int(traj[r[0]]),
+        }
         for r in runs
         if r[-1] == last[int(traj[r[-1]])]
     ]

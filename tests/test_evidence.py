@@ -81,6 +81,47 @@ def test_shooting_fit_measures_the_damping_of_a_noisy_pendulum(gamma):
     else:
         assert abs(r["z"]) < 3
     assert 0.5 < r["reduced_chi2"] < 2  # residuals at the noise level
+    assert r["window_periods"] == 0.75 and r["fallbacks"] == []  # no fallback on a fit that works
+
+
+def test_a_collapsed_shooting_fit_is_no_measurement():
+    from nnphd.engine.shooting import collapsed
+
+    # a real double pendulum's probe: d = 2e-21 ± 1.3e-12 — it never moved from its start
+    assert "no progress" in collapsed([2e-21, 0.0], 1.3e-12, [0.0, 0.0], 1.0)
+    # it moved, but a standard error of 1e-14 per time unit is no record's: a Jacobian blown up by chaos
+    assert "collapsed" in collapsed([0.05, 0.02], 1e-14, [0.0, 0.0], 1.0)
+    assert "collapsed" in collapsed([0.05], 5e-9, [0.0], 0.1)  # the bound is 1e-9 per period: 1e-8 for P = 0.1
+    # an honest fit: the pendulum's damping, and a conservative record's d ≈ 0 with a real error
+    assert collapsed([0.011], 0.001, [0.0], 5.7) is None
+    assert collapsed([3e-5], 2e-4, [0.0], 5.7) is None
+
+
+def test_a_fit_that_fails_on_long_windows_is_tried_on_shorter_ones(monkeypatch):
+    import nnphd.engine.shooting as sh
+
+    calls = []
+
+    def fake(*args):
+        periods = args[-1]
+        calls.append(periods)
+        if periods == sh.WINDOW_PERIODS:
+            return {"valid": False, "n_windows": 30, "reason": "the shooting fit collapsed (…)"}
+        return {"valid": True, "n_windows": 60, "d_mean": 0.1}
+
+    monkeypatch.setattr(sh, "_shooting_fit", fake)
+    r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    assert r["valid"] and r["window_periods"] == sh.WINDOW_PERIODS / 2 and calls == [0.75, 0.375]
+    assert r["fallbacks"] == ["windows of 0.75 period: the shooting fit collapsed (…)"]
+    # too few windows is no failure of the fit: not retried
+    calls.clear()
+    monkeypatch.setattr(sh, "_shooting_fit", lambda *a: calls.append(a[-1]) or {"valid": False, "n_windows": 2})
+    r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    assert not r["valid"] and calls == [0.75]
+    # every length fails: the last reason, and why the longer ones failed
+    monkeypatch.setattr(sh, "_shooting_fit", lambda *a: {"valid": False, "n_windows": 9, "reason": f"bad {a[-1]}"})
+    r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    assert not r["valid"] and r["reason"] == "bad 0.1875" and len(r["fallbacks"]) == 2
 
 
 def test_shooting_windows_are_three_quarters_of_a_period():

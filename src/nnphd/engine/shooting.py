@@ -296,17 +296,46 @@ def shooting_fit(
     max_windows: int = 400,
 ) -> dict:
     """See :func:`_shooting_fit`; a fit that cannot be carried out (the model's trajectories leave the finite
-    numbers, singular normal equations) is reported as ``valid: False`` with the reason, never raised."""
-    try:
-        with np.errstate(all="ignore"):
-            return _shooting_fit(
-                accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows
-            )
-    except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
-        return {"valid": False, "reason": f"the shooting fit failed ({e.__class__.__name__}: {e})"}
+    numbers, singular normal equations) or that collapses (:func:`collapsed`) is reported as ``valid: False`` with
+    the reason, never raised. Such a fit is tried again on windows half and a quarter as long (on chaotic motion a
+    window long against the Lyapunov time makes the fit ill-posed: nearby states part exponentially); the
+    result says which length was used (``window_periods``) and why the longer ones failed (``fallbacks``)."""
+    tried = []
+    for periods in (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
+        try:
+            with np.errstate(all="ignore"):
+                out = _shooting_fit(
+                    accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows, periods
+                )
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
+            out = {"valid": False, "reason": f"the shooting fit failed ({e.__class__.__name__}: {e})"}
+        out["window_periods"], out["fallbacks"] = periods, list(tried)
+        if out.get("valid") or out.get("n_windows", 3) < 3:
+            return out
+        tried.append(f"windows of {periods:g} period: {out.get('reason', 'not valid')}")
+    return out
 
 
-def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows):
+COLLAPSE_REL = 1e-9  # a damping known better than this share of 1/period, or moved less: a degenerate fit
+
+
+def collapsed(d, se_d_mean: float, d_start, period: float) -> str | None:
+    """Why a fitted damping is no measurement, or None: it did not move from its start (LM took no step that
+    lowered χ²) or its standard error is below :data:`COLLAPSE_REL` / period — no record of positions tells a damping
+    rate to 1e-9 of its inverse period; such an error comes from a Jacobian blown up by chaotic windows (a real
+    double pendulum gave d = 2e-21 ± 1.3e-12), not from the data."""
+    scale = COLLAPSE_REL / (period if np.isfinite(period) and period > 0 else 1.0)
+    if np.all(np.abs(np.asarray(d, float) - np.asarray(d_start, float)) <= scale):
+        return "the shooting fit made no progress (the damping did not move from its start): not converged"
+    if not se_d_mean > scale:
+        rel = se_d_mean * scale / COLLAPSE_REL
+        return f"the shooting fit collapsed (the damping's standard error {rel:.2g} of 1/period: a degenerate fit)"
+    return None
+
+
+def _shooting_fit(
+    accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows, periods=WINDOW_PERIODS
+):
     """Multiple-shooting fit of q̈ = (1 + c) f_c(q, q̇) − diag(d) q̇ to the positions (see the module docstring).
 
     ``accel(params, q, qd)`` is the conservative model (batched, JAX); q, qd (N, n) the positions and the estimated
@@ -321,7 +350,7 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
     qd = np.asarray(qd, float)
     t = np.asarray(t, float)
     n = q.shape[1]
-    wins = shooting_windows(segs, t, period)
+    wins = shooting_windows(segs, t, period, periods=periods)
     if len(wins) > max_windows:  # evenly spaced subset: bounded cost on very long records
         keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
         wins = [wins[i] for i in keep]
@@ -357,9 +386,6 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
     if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
         out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
         return out
-    if np.array_equal(th[1:], th_c[1:]):
-        out["reason"] = "the shooting fit made no progress (no step lowered χ²): not converged"
-        return out
     AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, 2 * n)
     S, g, _, _ = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free_all)
     Stot = S.sum(0)
@@ -392,6 +418,10 @@ def _shooting_fit(accel, params, q, qd, t, segs, sigma, period, kinetic_weights,
         Sb, gb = S[idx].sum(0), g[idx].sum(0)
         thb = th - _solve(Sb, gb)
         zb.append(float(a @ thb) / se_mean)
+    why = collapsed(th[1:], se_mean, th_c[1:], period)
+    if why is not None:
+        out["reason"] = why
+        return out
     out.update(
         valid=bool(np.isfinite(chi2) and np.all(np.isfinite(th))),
         c=float(th[0]),

@@ -161,7 +161,9 @@ def _integrate(rows, A, B, q0: float, t0: float, t1: float, period: float, fc_fn
     return t0 + h * np.arange(steps + 1), xs
 
 
-def stop_contradictions(table, stretches, q, qd, t, traj, period: float, *, angles, fc_fn=None, seed: int = 0) -> dict:
+def stop_contradictions(
+    table, stretches, q, qd, t, traj, period: float, *, angles, fc_fn=None, seed: int = 0, window_periods: float = 0.5
+) -> dict:
     r"""{family key: {"kind": "stop", …}} for the candidates of a trajectory-level ``table`` (one coordinate) without
     a dry term that a *finite-time stop* contradicts: the record swings, then rests for good, where the candidate
     predicts the swing going on.
@@ -171,7 +173,7 @@ def stop_contradictions(table, stretches, q, qd, t, traj, period: float, *, angl
     point before a rest that ends its trajectory (q̇ = 0 there; the last one at least :data:`STOP_MIN` rest
     tolerances from the rest), each candidate's joint fit (its conservative force and its law, the coefficients
     drawn :data:`N_DRAWS` times from their covariances — τ-widened for the conservative part, the cross-covariance
-    neglected) is integrated over the first rest window (:data:`nnphd.user.rest.REST_WINDOW_PERIODS` of the period);
+    neglected) is integrated over the first rest window (``window_periods`` of the period: the rest detector's);
     the candidate is contradicted when the standard deviation of its predicted motion there, less :data:`Z_STUCK`
     times its spread over the draws, is still :data:`STOP_MIN` times the measured one (at least the rest tolerance:
     a swing hidden below the noise or the encoder's steps is not missed motion). The true law predicts what was
@@ -180,8 +182,6 @@ def stop_contradictions(table, stretches, q, qd, t, traj, period: float, *, angl
     ``stretches``: dicts with "t0" (start), "traj" (its trajectory id), "seconds", "tolerance" (n,) (from
     ``nnphd.user.detect._moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
     ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible."""
-    from nnphd.user.rest import REST_WINDOW_PERIODS
-
     settings = table.settings
     if (
         settings.get("method") != "trajectory"
@@ -212,7 +212,7 @@ def stop_contradictions(table, stretches, q, qd, t, traj, period: float, *, angl
         tol = float(np.asarray(s["tolerance"], float).reshape(-1)[0])
         seg = np.flatnonzero(traj == s["traj"])
         before, rest = seg[t[seg] < s["t0"]], seg[t[seg] >= s["t0"]]
-        window = min(REST_WINDOW_PERIODS * period, float(s["seconds"]))
+        window = min(window_periods * period, float(s["seconds"]))
         rest = rest[t[rest] <= s["t0"] + window]
         if len(before) < 3 or len(rest) < 3:
             continue

@@ -546,6 +546,7 @@ def find_law(
     stuck = {}
     if level != "pointwise" and rest is not None and len(coords) == 1 and np.isfinite(period):
         from nnphd.explain.stuck import stop_contradictions, stuck_contradictions
+        from nnphd.user.rest import REST_WINDOW_PERIODS
 
         stuck = stuck_contradictions(table, rest["final"], angles=is_angle, fc_fn=fc_fn if fc is not None else None)
         stop = stop_contradictions(
@@ -559,6 +560,7 @@ def find_law(
             angles=is_angle,
             fc_fn=fc_fn if fc is not None else None,
             seed=seed,
+            window_periods=REST_WINDOW_PERIODS,
         )
         stuck = {**stop, **stuck}
     if level != "pointwise" and len(coords) == 1:

@@ -11,7 +11,7 @@ a ``detect`` batch.  Built on Dask distributed.
   OpenMP held to one thread each (:data:`WORKER_ENV`), so N units fill N cores without fighting over them. Default
   (``None``): one worker per core. Never more workers than units.
 * ``scheduler="tcp://host:8786"``: use an existing Dask cluster (``dask scheduler`` + ``dask worker``, or
-  dask-jobqueue's ``SLURMCluster``, see the README); the workers must have nnphd installed and see the same ``out``
+  dask-jobqueue's ``SLURMCluster``, see docs/scaling.md); the workers must have nnphd installed and see the same ``out``
   folder (a shared filesystem), since the units write their results and caches there.  A malformed address or one
   that does not answer within :data:`CONNECT_TIMEOUT_S` seconds raises :class:`SchedulerError` (one line).
 

@@ -674,7 +674,7 @@ def _api_ids(path: str, x, n: int | None = None) -> np.ndarray:
 
 def _check_scales(path: str, columns: dict[str, np.ndarray], coords: tuple[str, ...], rows: _Rows) -> None:
     """Units: nnphd works in any units whose numbers stay within the ranges it was checked on (MAX_ABS, T_SPAN,
-    Q_SPREAD, MIN_RESOLUTION; the same verdict and law at scales 1e±30 of q and 1e±15 of t, see the README).
+    Q_SPREAD, MIN_RESOLUTION; the same verdict and law at scales 1e±30 of q and 1e±15 of t, see docs/promises.md).
     Outside them, powers and squares of the data over- or underflow float64: refuse, naming the column and a fix."""
     fix = "express it in other units (multiply the column by a power of ten)"
     for name, v in columns.items():

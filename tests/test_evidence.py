@@ -192,6 +192,20 @@ def test_verdict_refuses_when_derivatives_are_too_noisy_and_the_record_is_silent
     assert _seed_status(*_checks(), strong, unusable, 1)[0] == "inconclusive"
 
 
+def test_a_none_that_one_statistic_contradicts_at_three_sigma_is_inconclusive():
+    """A real double pendulum's 12-s piece: energy trend z = 4.5, probe z = 0.8 — no detection (both ≥ 3 or one ≥ 6),
+    but no "none" either."""
+    good = {"usable": True, "pointwise_ok": True, "reason": ""}
+    base = {"significant": False, "valid": True, "bootstrap_fraction": 0.2, "rate_bound": 0.05, "effect": "decays"}
+    status, reason, _ = _seed_status(*_checks(), base | {"z_energy": 4.5, "z_shooting": 0.8}, good, 1)
+    assert status == "inconclusive" and "energy trend is at z = 4.5" in reason and "shooting" not in reason
+    status, reason, _ = _seed_status(*_checks(), base | {"z_energy": 0.5, "z_shooting": -3.2}, good, 1)
+    assert status == "inconclusive" and "shooting probe is at z = -3.2" in reason
+    # below Z_BOTH on both (or a statistic missing): "none" with its bound, as before
+    assert _seed_status(*_checks(), base | {"z_energy": 0.99 * Z_BOTH, "z_shooting": None}, good, 1)[0] == "none"
+    assert _seed_status(*_checks(), base | {"z_energy": None, "z_shooting": -2.9}, good, 1)[0] == "none"
+
+
 def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
     """The shooting Jacobian with f_c differentiated once per row (rowwise_jvp) equals JAX's own forward derivatives
     through a small LNN's Euler–Lagrange solve, for window states and parameters alike; the values are identical."""

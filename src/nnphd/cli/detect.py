@@ -62,7 +62,10 @@ def detect(
     ),
     width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
     max_rows: int = typer.Option(
-        MAX_ROWS, "--max-rows", min=MIN_ROWS, help="refuse files with more data rows than this (memory: see docs/promises.md)"
+        MAX_ROWS,
+        "--max-rows",
+        min=MIN_ROWS,
+        help="refuse files with more data rows than this (memory: see docs/promises.md)",
     ),
     trim: Trim = typer.Option(
         Trim.auto,

@@ -91,6 +91,7 @@ def main() -> None:
                     "energy_trend": {k: c["energy_trend"][k] for k in ("z", "rate", "valid")},
                     "shooting": {k: c["shooting"][k] for k in ("d_mean", "se_d_mean", "z", "valid")},
                     "shooting_reason": [p.get("shooting", {}).get("reason") for p in c.get("per_seed", [])],
+                    "shooting_windows": [p.get("shooting", {}).get("window_periods") for p in c.get("per_seed", [])],
                     "law_status": law.get("status"),
                     "law_reason": law.get("reason"),
                     "wall_s": wall,

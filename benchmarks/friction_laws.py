@@ -1,9 +1,11 @@
 """Issue 29's look-alikes of real friction (tests/fixtures/friction.py: viscous + dry, linear + quadratic drag, offset
 rest, a record ending at rest, a 1 kHz quantized encoder, a 20 Hz/1° sensor, a jittered nominal clock, heavy damping,
-a 2-D throw, a conservative control) written as CSV and run through ``nnphd detect`` at its default settings; prints
-per case the truth, the verdict, the winning family and its coefficients, the runner-up, their ΔIC and the law's error.
+a 2-D throw, a conservative control) written as CSV and run through ``nnphd detect`` at its default settings — the
+throw with the uniform field its user knows declared (DECLARED; ``--undeclared``: none); prints per case the truth,
+the verdict, the winning family and its coefficients, the runner-up, their ΔIC and the law's error.
 
     .venv/bin/python benchmarks/friction_laws.py [name,name,...] [--seeds 0,1] [--json out.json] [--sindy]
+                                                 [--undeclared]
 
 Columns: **truth** (family key and coefficients, nnphd's names and signs: g = −γ q̇ − μ sign(q̇) − c |q̇| q̇ per unit
 mass, in the file's units); **verdict** (``detect``'s status); **winner** (the claimed family and its coefficients
@@ -47,6 +49,10 @@ from tests.fixtures.friction import NAMES, make
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
 from nnphd.user.detect import detect_file
+
+# what the user of such a recording knows and declares: a throw is filmed in a uniform field (gravity), under which a
+# learned potential cannot hide a drag (nnphd.user.detect.FIELDS); ``--undeclared`` runs every case at the defaults
+DECLARED = {"throw-2d": {"field": "uniform"}}
 
 COULOMB_EPS = 0.02  # nnphd's smoothing of sign(q̇), relative to the rms speed (explain/families.py)
 
@@ -167,12 +173,13 @@ def _fmt_params(row, truth_coef=None):
     return ", ".join(out)
 
 
-def run_case(name, seed, sindy=False):
+def run_case(name, seed, sindy=False, declared=True):
     rec = make(name, seed=seed)
     tr = rec.truth
     path = rec.write_csv(os.path.join(tempfile.mkdtemp(), f"{name}.csv"))
+    settings = DECLARED.get(name, {}) if declared else {}
     t0 = time.perf_counter()
-    rep = detect_file(path, out=None, angles=rec.angles, seed=seed, sr_time=0)
+    rep = detect_file(path, out=None, angles=rec.angles, seed=seed, sr_time=0, **settings)
     wall = time.perf_counter() - t0
     lw = rep.get("law") or {}
     cands = lw.get("candidates") or []
@@ -224,6 +231,7 @@ def run_case(name, seed, sindy=False):
         "n_samples": rec.n_samples,
         "truth_law": tr["law"],
         "truth_coefficients": tr["coefficients"],
+        "declared": settings,
         "status": rep["status"],
         "confidence": rep.get("confidence"),
         "law_status": law_status,
@@ -330,6 +338,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--json", default=None, help="write the rows to this JSON file")
     ap.add_argument("--sindy", action="store_true", help="add the PySINDy peer's law and error")
+    ap.add_argument("--undeclared", action="store_true", help="no declared field (DECLARED): every case at defaults")
     a = ap.parse_args()
     names = [n for n in a.names.split(",") if n]
     bad = [n for n in names if n not in NAMES]
@@ -346,7 +355,7 @@ def main() -> None:
     for seed in [int(s) for s in a.seeds.split(",")]:
         for name in names:
             try:
-                r = run_case(name, seed, a.sindy)
+                r = run_case(name, seed, a.sindy, declared=not a.undeclared)
             except Exception as e:  # noqa: BLE001 — one broken case must not hide the others
                 r = {"name": name, "seed": seed, "error": f"{type(e).__name__}: {e}"}
                 print(f"| {name} | **failed**: {r['error']} |", flush=True)

@@ -148,7 +148,9 @@ class NNPhD:
     ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``laws``: your candidate
     laws (SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``); ``law_fit``: "auto" / "pointwise" / "trajectory";
     ``sr_time``: seconds of genetic symbolic regression for the fallback (0: none); ``trim``: drop the ends of
-    each trajectory ("auto"); ``workers``: train the seeds on that many local Dask worker processes (default 1:
+    each trajectory ("auto"); ``field``: the conservative force, "learned" (by the LNN, the default) or "uniform"
+    (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the verdict and the law then
+    rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted field); ``workers``: train the seeds on that many local Dask worker processes (default 1:
     here; the numbers are the same), ``scheduler``: on an existing Dask cluster; further keywords go to
     :func:`nnphd.user.assess.assess`.
 
@@ -166,11 +168,16 @@ class NNPhD:
         law_fit: str = "auto",
         sr_time: float = 0.0,
         trim: bool | str = "auto",
+        field: str = "learned",
         **assess_kw: Any,
     ):
+        from nnphd.user.detect import check_field
+
+        check_field(field, law_fit)
         self.seed, self.steps, self.n_seeds = int(seed), int(steps), int(n_seeds)
         self.laws = (laws,) if isinstance(laws, str) else tuple(laws)  # one str is one law, not its characters
         self.law_fit, self.sr_time, self.trim, self.assess_kw = law_fit, float(sr_time), trim, dict(assess_kw)
+        self.field = field
         self._model: dict | None = None
         self._fc_jit = None
 
@@ -194,6 +201,7 @@ class NNPhD:
                 trim=self.trim,
                 laws=self.laws,
                 law_level=self.law_fit,
+                field=self.field,
                 **self.assess_kw,
             )
         self.report_ = report
@@ -251,7 +259,16 @@ class NNPhD:
 
             from nnphd.user.assess import conservative_fn
 
-            self._fc_jit = jax.jit(conservative_fn(self._model["conservative"]))
+            fld = self._model.get("field")
+            if fld is not None:  # a declared uniform field: its fitted acceleration
+                import jax.numpy as jnp
+
+                from nnphd.user.detect import field_force
+
+                ang = self._model["angles"]
+                self._fc_jit = jax.jit(lambda q, qd: field_force(fld, q, ang, xp=jnp))
+            else:
+                self._fc_jit = jax.jit(conservative_fn(self._model["conservative"]))
         return self._fc_jit
 
     def _states(self, q, qd, t):
@@ -332,7 +349,15 @@ class NNPhD:
             figs["energy_trend"] = e
         if r["table"]:
             figs["loss_vs_lambda"] = rp.fig_loss(r["table"])
-            figs["forces"] = rp.fig_forces(m["data"], m["traj"], m["coords"], m["fc"], m["fn"], r.get("lambda_forces"))
+            figs["forces"] = rp.fig_forces(
+                m["data"],
+                m["traj"],
+                m["coords"],
+                m["fc"],
+                m["fn"],
+                r.get("lambda_forces"),
+                rp.declared_field(r) is not None,
+            )
         env = rp.fig_envelope((r.get("law") or {}).get("envelope"), m["coords"][0])
         if env is not None:
             figs["envelope"] = env
@@ -379,8 +404,11 @@ class NNPhD:
                 "law_fit": self.law_fit,
                 "sr_time": self.sr_time,
                 "trim": self.trim,
+                "field": self.field,
             },
         }
+        if self._model.get("field") is not None:
+            meta["field"] = self._model["field"]
         from nnphd.io.results import _json_default
 
         arrays = {f"lnn_{i}": np.asarray(x) for i, x in enumerate(leaves)}
@@ -427,6 +455,7 @@ def load(path) -> NNPhD:
         law_fit=st["law_fit"],
         sr_time=st["sr_time"],
         trim=st["trim"],
+        field=st.get("field", "learned"),
     )
     law = None
     if mf.family is not None:
@@ -453,6 +482,7 @@ def load(path) -> NNPhD:
         "conservative": {"lnn": lnn, "cfg": cfg, "scaling": sc},
         "coords": meta["names"],
         "angles": meta["angles"],
+        "field": meta.get("field"),
     }
     model.report_ = meta["report"]
     model._set_results(meta["report"], law)

@@ -90,6 +90,11 @@ class LawLevel(StrEnum):
     trajectory = "trajectory"
 
 
+class Field(StrEnum):
+    learned = "learned"
+    uniform = "uniform"
+
+
 class Trim(StrEnum):
     auto = "auto"
     yes = "yes"

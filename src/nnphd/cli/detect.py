@@ -9,6 +9,7 @@ import typer
 from nnphd.cli.common import (
     MAX_SEED,
     MAX_STEPS,
+    Field,
     InputError,
     LawLevel,
     Trim,
@@ -55,6 +56,13 @@ def detect(
         "--law-fit",
         help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
     ),
+    field: Field = typer.Option(
+        Field.learned,
+        "--field",
+        help="the conservative force: learned (by the Lagrangian network, any force) or uniform (declared: gravity "
+        "near the ground, or none — for a throw, a fall, a coast-down, which a learned potential can follow whatever "
+        "force acts); the verdict then rests on a fit of the positions beside the fitted field",
+    ),
     lambdas: str | None = typer.Option(
         None,
         "--lambdas",
@@ -84,6 +92,9 @@ def detect(
         if lambdas is not None:
             extra["lambdas"] = _parse_lambdas(lambdas)
         trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
+        from nnphd.user.detect import check_field
+
+        check_field(field.value, law_level.value)
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
@@ -108,6 +119,7 @@ def detect(
         sr_time=sr_time,
         laws=tuple(law or ()),
         law_level=law_level.value,
+        field=field.value,
         trim=trim_v,
         **extra,
     )

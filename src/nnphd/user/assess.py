@@ -96,6 +96,34 @@ DEFAULT_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
 # the entry point
 
 
+def _motion(data: Dataset, traj, is_angle: np.ndarray, position_noise=None):
+    """The scaled data and the period of the motion: (scaling, (q, q̇, t, q̈) scaled, segments, positions with angles
+    unwrapped per trajectory, position noise per coordinate (estimated when None), period in scaled time (inf: the
+    motion does not oscillate — a throw, a fall; swings within the noise do not count))."""
+    sc = fit_scaling(data, is_angle)
+    q, qd, tp, qdd = sc.apply(data)
+    segs = segments(traj, data.t)
+    q_pos = q.copy()  # positions for integration: angles unwrapped per trajectory
+    for s in segs:
+        q_pos[np.ix_(s, np.flatnonzero(is_angle))] = np.unwrap(q[np.ix_(s, np.flatnonzero(is_angle))], axis=0)
+    if position_noise is None:
+        from nnphd.user.sampling import noise_level
+
+        position_noise = [
+            float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs]))) for j in range(data.n)
+        ]
+    period = dominant_period(np.concatenate([q_pos, qd], axis=1), tp, segs, np.asarray(position_noise) / sc.s_q)
+    return sc, (q, qd, tp, qdd), segs, q_pos, position_noise, period
+
+
+def motion_period(data: Dataset, traj=None, angles: Sequence[bool] | None = None, position_noise=None) -> float:
+    """The dominant period of the motion in the data's time unit, as :func:`assess` finds it (inf: the motion
+    does not oscillate — a throw, a fall, a coast-down)."""
+    is_angle = np.zeros(data.n, bool) if angles is None else np.asarray(angles, bool)
+    sc, _, _, _, _, period = _motion(data, traj, is_angle, position_noise)
+    return float(period * sc.s_t)
+
+
 def assess(
     data: Dataset,
     traj: np.ndarray | None = None,
@@ -149,20 +177,7 @@ def assess(
     is_angle = np.zeros(n, bool) if angles is None else np.asarray(angles, bool)
     if is_angle.shape != (n,):
         raise ValueError(f"angles must have one flag per coordinate ({n}), got shape {is_angle.shape}")
-    sc = fit_scaling(data, is_angle)
-    q, qd, tp, qdd = sc.apply(data)
-    segs = segments(traj, data.t)
-    q_pos = q.copy()  # positions for integration: angles unwrapped per trajectory
-    for s in segs:
-        q_pos[np.ix_(s, np.flatnonzero(is_angle))] = np.unwrap(q[np.ix_(s, np.flatnonzero(is_angle))], axis=0)
-    if position_noise is None:
-        from nnphd.user.sampling import noise_level
-
-        position_noise = [
-            float(np.sqrt(np.mean([noise_level(data.t[s], data.q[s, j]) ** 2 for s in segs]))) for j in range(n)
-        ]
-    # the period of the motion (inf: it does not oscillate — a throw, a fall); swings within the noise do not count
-    period = dominant_period(np.concatenate([q_pos, qd], axis=1), tp, segs, np.asarray(position_noise) / sc.s_q)
+    sc, (q, qd, tp, qdd), segs, q_pos, position_noise, period = _motion(data, traj, is_angle, position_noise)
     dts = np.concatenate([np.diff(tp[s]) for s in segs])
     scale, scale_kind = motion_time_scale(period, tp, qd, qdd, segs, derivative_error)
     period_samples = scale / float(np.median(dts))

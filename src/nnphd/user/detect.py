@@ -39,6 +39,7 @@ def detect_file(
     from nnphd.user.recording import load_trajectories
 
     _check_law_level(settings.get("law_level", "auto"))
+    check_field(settings.get("field", "learned"), settings.get("law_level", "auto"))
     if progress is not None:
         progress(0, 1, "reading the file")
     ud = load_trajectories(path, angles, max_rows=max_rows)
@@ -48,6 +49,45 @@ def detect_file(
 def _check_law_level(law_level: str) -> None:
     if law_level not in ("auto", "pointwise", "trajectory"):
         raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
+
+
+# the conservative force the user declares: learned by the LNN (any conservative force, the default), or a uniform
+# field — gravity near the ground, or none — for motion that does not oscillate (a throw, a fall, a coast-down).
+# Along one arc every force of the state is a force of position, so a learned potential absorbs a drag and such a
+# record cannot tell a drag from a field that varies over it (measured on the 2-D throw look-alike, 3 mm noise: a
+# uniform field leaves χ²/N = 3.1, the uniform field + drag 0.94, a field varying linearly over the record 1.01 —
+# benchmarks/results/friction_laws.json); a physicist filming a throw knows the field is uniform, and says so.
+FIELDS = {
+    "learned": "learned by the Lagrangian network (any conservative force)",
+    "uniform": "declared uniform (gravity near the ground, or none): a constant acceleration, fitted",
+}
+
+
+def check_field(field: str, law_level: str = "auto") -> None:
+    if field not in FIELDS:
+        raise ValueError(f"field must be one of {', '.join(map(repr, FIELDS))}, got {field!r}")
+    if field == "uniform" and law_level == "pointwise":
+        raise ValueError(
+            "a declared uniform field is judged by a fit of the positions: law_level must be 'auto' or 'trajectory', "
+            "got 'pointwise'"
+        )
+
+
+def _check_declared_field(field: str, data, traj, ud, info) -> None:
+    """A declared uniform field cannot make motion oscillate (no force of position): refuse an oscillating record
+    before any training, with the period found as :func:`nnphd.user.assess.assess` finds it."""
+    if field != "uniform":
+        return
+    from nnphd.user.assess import motion_period
+
+    noise = [info["per_coordinate"][c]["noise"] for c in ud.coords]
+    period = motion_period(data, traj, [bool(a) for a in ud.is_angle], noise)
+    path = ud.path
+    if np.isfinite(period):
+        raise DataError(
+            f"{path}: the field was declared uniform, under which nothing oscillates, but this record oscillates "
+            f"(period {period:.4g} in its time unit); leave the field to be learned (field 'learned', the default)"
+        )
 
 
 def detect_data(
@@ -62,13 +102,16 @@ def detect_data(
     trim: bool | str = "auto",
     laws: Sequence[str] = (),
     law_level: str = "auto",
+    field: str = "learned",
     workers: int | None = 1,
     scheduler: str | None = None,
     **assess_kw,
 ) -> tuple[dict, dict]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
-    data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps."""
+    data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps. ``field``: the conservative
+    force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
+    :func:`_declared_field_verdict`; the record must not oscillate)."""
     from nnphd._extras import MissingExtra
     from nnphd.explain.families import parse_law
     from nnphd.explain.sparse import sparse_formula
@@ -87,6 +130,7 @@ def detect_data(
         say(f"training: {message}")
 
     _check_law_level(law_level)
+    check_field(field, law_level)
     t0 = time.perf_counter()
     path = ud.path
     for x in laws:  # fail on a bad --law before any work
@@ -101,6 +145,7 @@ def detect_data(
                 f"{path}: trimming the ends of trajectory {tr['id']} leaves {kept} of its "
                 f"{tr['n_samples']} rows; at least {MIN_ROWS} are needed: do not trim (--trim no)"
             )
+    _check_declared_field(field, data, traj, ud, info)
     say("λ-sweep and trust checks")
     pc = info["per_coordinate"]
     res = assess(
@@ -120,8 +165,14 @@ def detect_data(
     coords = list(ud.coords)
     fn = np.asarray(res["f_n"])
     fc = np.asarray(res["f_c"])
-    law, law_fit = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_level, seed, lambda d, t, m: say(m))
-    status, new_physics, confidence, reasons = _reconcile(res, law)
+    law, law_fit = _law_table(
+        res, data, traj, coords, ud, info, row_err, laws, law_level, seed, lambda d, t, m: say(m), field
+    )
+    status, new_physics, confidence, reasons = _reconcile(res, law, field)
+    fitted = (law.pop("_field", None) or {}).get("with_law" if law.get("law") else "alone")
+    if fitted is not None:  # the declared field is the conservative force; f_n the remainder of q̈ beside it
+        fc = field_force(fitted, data.q, ud.is_angle)
+        fn = np.asarray(data.qdd, float) - fc
     blind = {}
     if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
         names = coords + [f"{c}_dot" for c in coords]
@@ -161,6 +212,8 @@ def detect_data(
         "data": {k: v for k, v in info.items() if k != "per_coordinate"},
         "formula": best,
         "law": law,
+        "field": {"kind": field, "text": FIELDS[field]}
+        | ({k: fitted[k] for k in ("law", "g", "stderr")} if fitted else {}),
         "blind": blind,
         "hint": _best_formula(blind),
         "settings": {
@@ -169,6 +222,7 @@ def detect_data(
             "n_seeds": n_seeds,
             "sr_time_per_component_s": sr_time,
             "trim": trim,
+            "field": field,
             **assess_kw,
             **res.get("settings", {}),
         },
@@ -186,6 +240,7 @@ def detect_data(
         "angles": [bool(a) for a in ud.is_angle],
         "fc": fc,
         "fn": fn,
+        "field": fitted,
     }
     return report, model
 
@@ -271,7 +326,7 @@ LAW_CONFLICT_DIC = -10.0  # a candidate law this much better than none (held out
 LAW_EFFECT_MIN = 0.01
 
 
-def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
+def _reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, float, list[str]]:
     """The verdict after the law table (which ``law``, the table as a dict, is made to agree with: no law is claimed
     unless the final status is "detected").
 
@@ -285,8 +340,13 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
       ΔIC ≤ LAW_DETECT_DIC and lowers its error by ≥ LAW_DETECT_EFFECT, is "detected" (:func:`_seed_free_evidence`).
     - any verdict but "detected" where the table claims a drive on trajectories whose clock can be told is "detected",
       the drive the law (:func:`_drive_evidence`; checked first).
+    - a declared uniform field: the fit of the positions beside it decides (:func:`_declared_field_verdict`).
     """
     status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
+    if field == "uniform" and (res.get("quality") or {}).get("usable", True):
+        status, conf, why = _declared_field_verdict(law)
+        _withhold(law, status, None if status == "detected" else why)
+        return status, status != "none", conf, [why, *reasons]
     cand = law.get("law") or law.get("candidate_law")
     drive = _drive_evidence(res, law) if status != "detected" else None
     if drive is not None:
@@ -308,7 +368,27 @@ def _reconcile(res: dict, law: dict) -> tuple[str, bool, float, list[str]]:
     if free is not None:
         return "detected", True, LAW_DETECT_CONFIDENCE, [free, *reasons]
     _withhold(law, status)
-    return status, new, conf, reasons
+    hint = _uniform_field_hint(res, law) if status == "inconclusive" else None
+    return status, new, conf, reasons + ([hint] if hint else [])
+
+
+def _uniform_field_hint(res: dict, law: dict) -> str | None:
+    """What would decide a record that does not oscillate: the fit of its positions beside a uniform field (the
+    law table's seed-free base), if it finds a law that beats the field alone by ΔIC ≤ LAW_DETECT_DIC — said, not
+    used: the field must be declared (``--field uniform``), since along one arc a field that varies could explain
+    the same motion."""
+    if (res.get("quality") or {}).get("oscillating", True):
+        return None
+    lib = next((b for b in (law.get("settings") or {}).get("bases") or [] if b["base"] == LIBRARY_BASE), None)
+    w = (lib or {}).get("law")
+    if not w or w["delta_ic"] > LAW_DETECT_DIC:
+        return None
+    return (
+        f"what would decide: if the conservative force is a uniform field (gravity near the ground, or none), "
+        f"declare it (--field uniform; NNPhD(field='uniform')): beside a uniform field {w['title']} lowers the error "
+        f"of the fit of the positions by {100 * (1 - w['heldout_ratio']):.0f}% (ΔIC = {w['delta_ic']:.1f} against "
+        "no law)"
+    )
 
 
 RECONCILED_BASIS = (
@@ -385,7 +465,107 @@ def _seed_free_evidence(res: dict, law: dict) -> str | None:
     )
 
 
-def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, progress) -> tuple[dict, object]:
+# a declared uniform field: the fit of the positions beside it explains the record when its mean squared residual per
+# coordinate and row, in units of the estimated position noise, is at most this (≈ 1 when it fits to the noise; the
+# noise estimate of a short record can be ~40 % off in χ²). On the 2-D throw look-alike the uniform field alone leaves
+# ~3, with a drag ~0.9 (benchmarks/results/friction_laws.json).
+FIELD_FIT_MSE = 2.0
+
+
+def _declared_field_verdict(law: dict) -> tuple[str, float, str]:
+    """(status, confidence, reason) when the conservative force is declared uniform: the law table (the uniform
+    field as its only base, each trajectory one window, in-sample IC) decides, as a single line of evidence
+    (confidence LAW_DETECT_CONFIDENCE).
+
+    - "detected": the best law (claimed or leading a tie) beats the field alone by ΔIC ≤ LAW_DETECT_DIC, lowers the
+      error by ≥ LAW_EFFECT_MIN and fits to the noise (χ²/N ≤ FIELD_FIT_MSE);
+    - "none": the field alone fits to the noise and no law beats it by ΔIC ≤ LAW_DETECT_DIC;
+    - "inconclusive" otherwise: the field does not explain the record even with the best law (so the declaration
+      or the candidate laws are wrong), or a law helps but not decisively."""
+    rows = law.get("candidates") or []
+    zero = next((r for r in rows if r["law"] == "none"), None)
+    if zero is None or not rows or rows[0].get("method") != "trajectory":
+        return (
+            "inconclusive",
+            1.0,
+            (
+                "the field was declared uniform, but no fit of the positions beside it could be made "
+                f"({law.get('reason') or 'no law table'}); the verdict rests on that fit"
+            ),
+        )
+    w = law.get("law")
+    z_mse = zero["heldout_mse"]
+    base = f"the uniform field alone leaves χ²/N = {z_mse:.2f} (1: it fits to the noise)"
+    caveat = (
+        "; this rests on the declared uniform field: along an arc that does not return a field that varies over it "
+        "could also explain the record"
+    )
+    if w is not None:
+        cut = 1 - w["heldout_ratio"]
+        say = (
+            f"{w['title']} lowers the error of the fit of the positions by {100 * cut:.0f}% (ΔIC = "
+            f"{w['delta_ic']:.1f} against no law) to χ²/N = {w['heldout_mse']:.2f}"
+        )
+        if w["delta_ic"] <= LAW_DETECT_DIC and cut >= LAW_EFFECT_MIN and w["heldout_mse"] <= FIELD_FIT_MSE:
+            return (
+                "detected",
+                LAW_DETECT_CONFIDENCE,
+                (
+                    f"beside the declared uniform field the motion needs a non-conservative force: {say}, where {base}"
+                    + caveat
+                ),
+            )
+        if w["heldout_mse"] > FIELD_FIT_MSE:
+            return (
+                "inconclusive",
+                1.0,
+                (
+                    f"the declared uniform field does not explain the record even with the best law ({say}, above "
+                    f"{FIELD_FIT_MSE:g}): the field is not uniform, or a force acts that no candidate law has"
+                ),
+            )
+        if w["delta_ic"] <= LAW_DETECT_DIC / 2 or z_mse > FIELD_FIT_MSE:
+            return (
+                "inconclusive",
+                1.0,
+                f"beside the declared uniform field a law helps, but not decisively: {say}, where {base}",
+            )
+    best = min((r["delta_ic"] for r in rows if r["law"] != "none"), default=float("nan"))
+    if w is None and best <= LAW_DETECT_DIC:
+        return (
+            "inconclusive",
+            1.0,
+            (
+                f"beside the declared uniform field a candidate law beats the field alone (ΔIC = {best:.1f}) but none has "
+                f"every term significant, where {base}"
+            ),
+        )
+    if z_mse <= FIELD_FIT_MSE:
+        return (
+            "none",
+            LAW_DETECT_CONFIDENCE,
+            (
+                f"the declared uniform field alone explains the motion: {base}, and no candidate law beats it "
+                f"(best ΔIC = {best:.1f}, decisive at ≤ {LAW_DETECT_DIC:g}); this rests on the declared uniform field: "
+                "along an arc that does not return a field that varies over it could hide a drag"
+            ),
+        )
+    return (
+        "inconclusive",
+        1.0,
+        (
+            f"the declared uniform field does not explain the record ({base}, above {FIELD_FIT_MSE:g}) and no candidate "
+            "law does: the field is not uniform, or a force acts that no candidate law has"
+        ),
+    )
+
+
+LIBRARY_BASE = "the conservative library"  # the law table's seed-free conservative base
+
+
+def _law_table(
+    res, data, traj, coords, ud, info, row_err, laws, level, seed, progress, field="learned"
+) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base — and, for one coordinate, with the
     conservative library alone (no network, so no seed), the two combined by
     :func:`nnphd.explain.table.combine_bases`: a family is claimed only when both bases point to it. The law of a
@@ -395,8 +575,8 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
     potential and constant mass matrix miss what a double pendulum needs, and the LNN alone is the base — except for
     motion that does not oscillate (a throw, a fall), where the library is the uniform field alone, seed-free in any
     dimension (the LNN absorbs a throw's drag: along one arc any force of the state is a force of position). A law is
-    claimed only when the verdict is "detected" (:func:`_reconcile`). Returns (the table as a dict, the winning
-    LawFit or None)."""
+    claimed only when the verdict is "detected" (:func:`_reconcile`). A declared uniform field is the only base.
+    Returns (the table as a dict, the winning LawFit or None)."""
     from nnphd.user.assess import conservative_fn
 
     cons = res.get("_conservative")
@@ -407,7 +587,7 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
             "candidates": [],
         }, None
     fc = np.asarray(cons["fc"])
-    ok = bool(np.all(np.isfinite(fc)))
+    ok = bool(np.all(np.isfinite(fc))) and field == "learned"
     table = find_law(
         data,
         traj,
@@ -421,6 +601,7 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
         level=level,
         seed=seed,
         progress=progress,
+        field=field,
     )
     arcs = not res["quality"].get("oscillating", True)  # a throw, a fall: the library is the uniform field alone
     if ok and (len(coords) == 1 or arcs) and level != "pointwise":
@@ -429,10 +610,50 @@ def _law_table(res, data, traj, coords, ud, info, row_err, laws, level, seed, pr
         lib = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, laws=laws, level=level,
                        seed=seed, progress=progress)  # fmt: skip
         if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
-            table = combine_bases([("the conservative library", lib), (f"seed {seed}'s LNN", table)])
+            table = combine_bases([(LIBRARY_BASE, lib), (f"seed {seed}'s LNN", table)])
     out = table.to_dict()
     out["envelope"] = _envelope(table, data, traj, coords, info, bool(ud.is_angle[0]))
+    if field == "uniform":
+        zero = next((r for r in table.rows if r.key == "none"), None)
+        out["_field"] = {k: _fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
+                         (("alone", zero), ("with_law", table.law))}  # fmt: skip
     return out, table.law
+
+
+def field_force(fitted: dict, q, is_angle, xp=np):
+    """The fitted declared field's acceleration at positions ``q`` (N, n) (:func:`_fitted_field`)."""
+    from nnphd.explain.conservative import conservative_basis
+
+    center = fitted["center"]
+    center = None if center is None else tuple(xp.asarray(x) for x in center)
+    B = conservative_basis(xp, q, xp.zeros_like(q), [bool(a) for a in is_angle], None, center, "minimal")
+    return xp.einsum("nik,k->ni", B, xp.asarray(fitted["coefficients"]))
+
+
+def _fitted_field(table, row, coords, is_angle, q) -> dict | None:
+    """The declared uniform field as the joint trajectory-level fit of ``row`` (a LawFit: the zero law or the law)
+    found it: its conservative coefficients over the library's columns (:func:`nnphd.explain.conservative.
+    conservative_basis`, library "minimal"), their centring, and the field g with its standard error per coordinate
+    at the record's mean position (constant for coordinates that are not angles). None without a fit."""
+    from nnphd.explain.conservative import conservative_basis
+
+    if row is None or row.conservative is None:
+        return None
+    center = table.settings.get("_center")
+    alpha = np.asarray(row.conservative, float)
+    qm = np.asarray(q, float).mean(axis=0, keepdims=True)
+    B = conservative_basis(np, qm, np.zeros_like(qm), [bool(a) for a in is_angle], None, center, "minimal")[0]
+    if B.shape[1] != len(alpha):
+        return None
+    cov = np.asarray(row.conservative_cov, float) if row.conservative_cov is not None else np.zeros((len(alpha),) * 2)
+    g, se = B @ alpha, np.sqrt(np.maximum(np.einsum("nk,kl,nl->n", B, cov, B), 0.0))
+    return {
+        "law": row.key,
+        "g": {c: float(x) for c, x in zip(coords, g)},
+        "stderr": {c: float(x) for c, x in zip(coords, se)},
+        "coefficients": alpha.tolist(),
+        "center": [np.asarray(x, float).tolist() for x in center] if center is not None else None,
+    }
 
 
 def _withhold(law: dict, status: str, why: str | None = None) -> None:
@@ -485,12 +706,14 @@ def find_law(
     level="auto",
     seed=0,
     progress: Progress | None = None,
+    field: str = "learned",
 ):
     """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
     (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
     the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
     shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
-    (on the rows / as a JAX function); without it the conservative library alone. Returns a LawTable."""
+    (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
+    ``field`` is "uniform" (declared: nothing oscillates). Returns a LawTable."""
     from nnphd.engine.evidence import dominant_period
     from nnphd.explain.jointfit import _segments
     from nnphd.explain.laws import rank_laws
@@ -505,6 +728,8 @@ def find_law(
         _segments(traj),
         position_noise=[info["per_coordinate"][c]["noise"] for c in coords],
     )
+    if field == "uniform":  # no force of position: nothing oscillates, the library is the uniform field
+        period = float("inf")
     # the positions are fitted up to the moment the body sticks; the pointwise rows also lose the q̈ estimator's
     # half window before it (their q̈ is smeared across the jump of the force)
     moving, traj_m, _, _, rest = _moving_rows(data, traj, coords, info, None, None, period, margin=False)

@@ -241,6 +241,15 @@ SETTINGS = {  # NNPhD's arguments
     "law_fit": one_of("auto", "pointwise", "trajectory"),
     "sr_time": number(nonneg=True),
     "trim": either(boolean, string(max_len=100)),
+    "field": one_of("learned", "uniform"),  # (files saved before it was a setting have none: "learned")
+}
+
+FIELD = {  # a declared uniform field as fitted (nnphd.user.detect._fitted_field)
+    "law": string(max_len=100),
+    "g": dict_of(number()),
+    "stderr": dict_of(number(nonneg=True)),
+    "coefficients": list_of(number(), max_len=2 * MAX_COORDS),
+    "center": optional(list_of(list_of(number(), max_len=MAX_COORDS), max_len=2)),
 }
 
 META = obj(
@@ -254,8 +263,10 @@ META = obj(
         "law": optional(obj(LAW)),
         "report": obj(REPORT, required=("status", "new_physics", "confidence", "reasons"), others=True),
         "n_leaves": integer(1, 1000),
-        "settings": obj(SETTINGS),
-    }
+        "settings": obj(SETTINGS, required=tuple(k for k in SETTINGS if k != "field")),
+        "field": optional(obj(FIELD)),
+    },
+    required=("format", "version", "names", "angles", "cfg", "scaling", "law", "report", "n_leaves", "settings"),
 )
 
 
@@ -289,6 +300,7 @@ def read_model_file(path: str | os.PathLike) -> ModelFile:
         cfg = _check_cfg(meta["cfg"], n)
         leaves, treedef = _check_leaves(meta["n_leaves"], arrays, cfg)
         family, beta, theta = _check_law(meta["law"], meta["names"])
+        _check_field(meta.get("field"), meta["angles"])
     except _Bad as e:
         raise ValueError(one_line(f"{path}: not a valid nnphd model file: {e}")) from None
     return ModelFile(meta, cfg, leaves, treedef, family, beta, theta)
@@ -306,6 +318,19 @@ def _check_coords(meta: dict) -> int:
     if meta["cfg"]["n"] != n:
         raise _Bad(f"meta.cfg.n is {meta['cfg']['n']}, expected {n} (the number of coordinates)")
     return n
+
+
+def _check_field(fld: dict | None, angles: list) -> None:
+    """A declared field's sizes: one column per position feature of the uniform-field library (an angle has two:
+    sin, cos), a centring (mean, std) of one entry per coordinate with positive spreads."""
+    if fld is None:
+        return
+    want = sum(2 if a else 1 for a in angles)
+    if len(fld["coefficients"]) != want:
+        raise _Bad(f"meta.field.coefficients has {len(fld['coefficients'])} entries, expected {want}")
+    c = fld["center"]
+    if c is not None and (len(c) != 2 or any(len(x) != len(angles) for x in c) or min(c[1], default=1.0) <= 0):
+        raise _Bad(f"meta.field.center must be (mean, std) with {len(angles)} entries each, std > 0")
 
 
 def _check_cfg(cd: dict, n: int):

@@ -28,6 +28,7 @@ __all__ = [
     "plot_forces",
     "write_report",
     "render_html",
+    "declared_field",
 ]
 
 
@@ -140,7 +141,9 @@ def fig_envelope(env: dict | None, coord: str = "q"):
     return fig
 
 
-def fig_forces(data, traj, coords, fc, fn, lam=None):
+def fig_forces(data, traj, coords, fc, fn, lam=None, declared: bool = False):
+    """Estimated q̈ with f_c beside it, and f_n — the network's at λ = ``lam``, or (``declared``: the conservative
+    force a declared uniform field) the remainder q̈ − f_c."""
     n = len(coords)
     fig, axes = subplots(n, 2, figsize=(11, 2.4 * n), sharex=True, squeeze=False)
     for j, c in enumerate(coords):
@@ -151,8 +154,12 @@ def fig_forces(data, traj, coords, fc, fn, lam=None):
             axes[j, 1].plot(data.t[m], fn[m, j], lw=0.8)
         axes[j, 0].set_ylabel(_m(f"{c}_ddot"))
     lam = "" if lam is None else f" at λ = {lam:g}"
-    axes[0, 0].set_title("conservative part f_c (grey: estimated q̈)", fontsize=10)
-    axes[0, 1].set_title(f"non-conservative part f_n{lam} (pointwise fit: as noisy as q̈)", fontsize=10)
+    if declared:
+        axes[0, 0].set_title("declared uniform field f_c, fitted (grey: estimated q̈)", fontsize=10)
+        axes[0, 1].set_title("non-conservative remainder q̈ − f_c (as noisy as q̈)", fontsize=10)
+    else:
+        axes[0, 0].set_title("conservative part f_c (grey: estimated q̈)", fontsize=10)
+        axes[0, 1].set_title(f"non-conservative part f_n{lam} (pointwise fit: as noisy as q̈)", fontsize=10)
     axes[-1, 0].set_xlabel("t")
     axes[-1, 1].set_xlabel("t")
     return fig
@@ -171,8 +178,8 @@ def plot_energy(trend: dict) -> bytes | None:
     return None if fig is None else _png(fig)
 
 
-def plot_forces(data, traj, coords, fc, fn, lam=None) -> bytes:
-    return _png(fig_forces(data, traj, coords, fc, fn, lam))
+def plot_forces(data, traj, coords, fc, fn, lam=None, declared: bool = False) -> bytes:
+    return _png(fig_forces(data, traj, coords, fc, fn, lam, declared))
 
 
 # ---------------------------------------------------------------------------------------------------- output
@@ -186,7 +193,9 @@ def write_report(out, report: dict, data, traj, coords, fc, fn) -> None:
         figs["energy_trend.png"] = energy
     if report["table"]:  # no model is trained on data that cannot decide
         figs["loss_vs_lambda.png"] = plot_loss(report["table"], float(np.median(naive)) if naive else None)
-        figs["forces.png"] = plot_forces(data, traj, coords, fc, fn, report.get("lambda_forces"))
+        figs["forces.png"] = plot_forces(
+            data, traj, coords, fc, fn, report.get("lambda_forces"), declared_field(report) is not None
+        )
     env = fig_envelope((report.get("law") or {}).get("envelope"), coords[0])
     if env is not None:
         figs["envelope.png"] = _png(env)
@@ -294,6 +303,22 @@ def _evidence_rows(report: dict) -> list[list[str]]:
     return rows
 
 
+def declared_field(report: dict) -> dict | None:
+    """The report's declared field as fitted ({"kind", "text", "law", "g", "stderr"}), or None when the
+    conservative force was learned."""
+    f = report.get("field") or {}
+    return f if f.get("kind", "learned") != "learned" else None
+
+
+def _field_html(report: dict) -> str:
+    f = declared_field(report)
+    if f is None:
+        return "<p><b>Conservative force:</b> learned by the Lagrangian network</p>"
+    g = "; ".join(f"{_e(c)}: {_fmt(v)} ± {_fmt(f['stderr'].get(c))}" for c, v in (f.get("g") or {}).items())
+    beside = f" (fitted beside {_e(f['law'])})" if f.get("law") not in (None, "none") else ""
+    return f"<p><b>Conservative force:</b> {_e(f['text'])}; g = {g or '—'}{beside}</p>"
+
+
 def render_html(report: dict, figs: dict[str, bytes]) -> str:
     """The self-contained report.html: the verdict first, then the evidence, the data, the law, the figures (PNG bytes
     by file name: embedded and linked) and L_e(λ)."""
@@ -356,6 +381,7 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         f"data usable: {'yes' if q['usable'] else 'no'}, pointwise test possible: "
         f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
         + table(["coordinate", "noise σ", "σ / std", "q̇", "q̈"], noise, left=1)
+        + _field_html(report)
     )
     body = (
         f"<h1>nnphd detect: {_e(report['file'])}</h1>"

@@ -1,0 +1,237 @@
+"""A declared uniform field (``field="uniform"``, ``--field uniform``): the verdict and the law of motion that does
+not oscillate (a throw, a fall) rest on a fit of the positions beside a uniform field. The rules on hand-made law
+tables (fast); the fitted field against gravity, and the whole pipeline on throws and falls with known drag (slow)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from nnphd.io.errors import DataError
+from nnphd.user.detect import (
+    FIELD_FIT_MSE,
+    LAW_DETECT_CONFIDENCE,
+    LAW_DETECT_DIC,
+    _declared_field_verdict,
+    _reconcile,
+    check_field,
+)
+from tests.test_nonoscillating import G, _csv, _throw
+
+
+def _row(key, dic, ratio, mse, significant=True):
+    title = {"none": "no law", "quadratic": "quadratic drag −c |q̇| q̇"}.get(key, key)
+    return {"law": key, "title": title, "delta_ic": dic, "heldout_ratio": ratio, "heldout_mse": mse,
+            "significant": significant, "method": "trajectory"}  # fmt: skip
+
+
+def _table(zero_mse=3.1, win=(-190.0, 0.52, 0.84), claimed=True, significant=True):
+    """A law table of a throw with drag beside the uniform field (the numbers of the 2-D throw look-alike)."""
+    w = _row("quadratic", *win, significant=significant)
+    rows = [w, _row("none", 0.0, 1.0, zero_mse)]
+    return {"law": w if claimed else None, "status": "claimed" if claimed else "none", "ties": [], "reason": "",
+            "candidates": sorted(rows, key=lambda r: r["delta_ic"])}  # fmt: skip
+
+
+def test_a_decisive_law_that_fits_to_the_noise_beside_the_field_is_detected():
+    status, conf, why = _declared_field_verdict(_table())
+    assert (status, conf) == ("detected", LAW_DETECT_CONFIDENCE)
+    assert "quadratic drag" in why and "ΔIC = -190.0" in why and "χ²/N = 0.84" in why and "χ²/N = 3.10" in why
+    assert "rests on the declared uniform field" in why  # the verdict names what it assumes
+
+
+@pytest.mark.parametrize(
+    "table, status, words",
+    [
+        # the field alone fits to the noise and no law helps: none
+        (_table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False), "none", "alone explains the motion"),
+        # a law short of decisive: inconclusive, never a confident "none" or "detected"
+        (_table(zero_mse=1.1, win=(LAW_DETECT_DIC + 2, 0.9, 0.95)), "inconclusive", "not decisively"),
+        # the best law does not reach the noise: the declaration (or the candidate set) is wrong
+        (_table(zero_mse=40.0, win=(-300.0, 0.3, FIELD_FIT_MSE + 1)), "inconclusive", "does not explain the record"),
+        # neither does the field alone, and nothing beats it: the field is not uniform
+        (
+            _table(zero_mse=FIELD_FIT_MSE + 1, win=(3.0, 1.0, FIELD_FIT_MSE + 1), claimed=False),
+            "inconclusive",
+            "does not explain the record",
+        ),  # fmt: skip
+        # a strong row with a term that is not significant is no law to claim, and no "none" either
+        (_table(claimed=False, significant=False), "inconclusive", "every term significant"),
+    ],
+)
+def test_the_field_alone_explains_or_the_data_cannot_decide(table, status, words):
+    s, _, why = _declared_field_verdict(table)
+    assert s == status and words in why
+
+
+def test_without_a_fit_of_the_positions_there_is_no_verdict_on_a_declared_field():
+    t = _table()
+    for r in t["candidates"]:
+        r["method"] = "pointwise"
+    assert _declared_field_verdict(t)[0] == "inconclusive"
+    assert _declared_field_verdict({"candidates": [], "reason": "too short"})[0] == "inconclusive"
+
+
+def _report(status="inconclusive", oscillating=False, library_law=None):
+    lib = {"base": "the conservative library", "status": "tie", "law": library_law}
+    return {
+        "status": status,
+        "new_physics": False,
+        "confidence": 1.0,
+        "reasons": ["seed 0: the motion does not oscillate"],
+        "quality": {"usable": True, "oscillating": oscillating},
+        "checks": {"per_seed": [{"status": status}]},
+    }, lib
+
+
+def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_not_detect():
+    res, _ = _report()
+    law = _table()
+    status, new, conf, reasons = _reconcile(res, law, "uniform")
+    assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE) and law["law"]["law"] == "quadratic"
+    assert reasons[0].startswith("beside the declared uniform field") and reasons[1] == res["reasons"][0]
+    law = _table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False)
+    assert _reconcile(res, law, "uniform")[:2] == ("none", False)
+    law = _table(zero_mse=1.1, win=(LAW_DETECT_DIC + 2, 0.9, 0.95))
+    assert _reconcile(res, law, "uniform")[0] == "inconclusive"
+    assert law["law"] is None and law["candidate_law"]["law"] == "quadratic"  # no law claimed on "inconclusive"
+
+
+def test_an_undeclared_arc_says_what_would_decide_without_deciding():
+    strong = {"law": "quadratic", "title": "quadratic drag", "delta_ic": -191.3, "heldout_ratio": 0.52}
+    for lib_law, hint in ((strong, True), (dict(strong, delta_ic=LAW_DETECT_DIC + 1), False), (None, False)):
+        res, lib = _report(library_law=lib_law)
+        law = {"law": None, "status": "none", "ties": [], "reason": "", "settings": {"bases": [lib]}}
+        status, _, _, reasons = _reconcile(res, law)
+        assert status == "inconclusive"  # a hint is no evidence: the verdict is unchanged
+        assert ("--field uniform" in reasons[-1] and "48%" in reasons[-1]) == hint
+    res, lib = _report(oscillating=True, library_law=strong)  # an oscillation has its own evidence: no hint
+    law = {"law": None, "status": "none", "ties": [], "reason": "", "settings": {"bases": [lib]}}
+    assert "--field" not in " ".join(_reconcile(res, law)[3])
+
+
+def test_bad_field_settings_are_refused_with_what_is_expected():
+    check_field("learned")
+    check_field("uniform", "trajectory")
+    with pytest.raises(ValueError, match="field must be one of 'learned', 'uniform', got 'gravity'"):
+        check_field("gravity")
+    with pytest.raises(ValueError, match="law_level must be 'auto' or 'trajectory'"):
+        check_field("uniform", "pointwise")
+
+
+def _userdata(tmp_path, t, q, names):
+    from nnphd.user.recording import load_trajectories
+
+    return load_trajectories(_csv(tmp_path / "r.csv", t, q, names))
+
+
+def test_a_throw_does_not_oscillate_and_a_declared_field_refuses_one_that_does(tmp_path):
+    from nnphd.user.assess import motion_period
+    from nnphd.user.detect import _check_declared_field, _dataset
+
+    t, _, _, _, noisy = _throw()
+    ud = _userdata(tmp_path, t, noisy, ("x", "y"))
+    data, info, _ = _dataset(ud, "auto")
+    assert motion_period(data) == np.inf
+    _check_declared_field("uniform", data, None, ud, info)  # a throw: accepted
+    tt = np.arange(600) / 50.0  # a damped oscillation of period 2: refused before any training
+    q = (np.exp(-0.05 * tt) * np.cos(np.pi * tt))[:, None] + 1e-3 * np.random.default_rng(0).standard_normal((600, 1))
+    ud = _userdata(tmp_path, tt, q, ("x",))
+    data, info, _ = _dataset(ud, "auto")
+    assert motion_period(data) == pytest.approx(2.0, rel=0.05)
+    _check_declared_field("learned", data, None, ud, info)
+    with pytest.raises(
+        DataError, match=r"declared uniform, under which nothing oscillates.*\(period 2 in its time unit\)"
+    ):
+        _check_declared_field("uniform", data, None, ud, info)
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# the fits and the pipeline (slow: trajectory-level fits and training)
+
+
+@pytest.mark.slow  # two trajectory-level law tables, ~25 s
+def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
+    from nnphd.user.detect import _dataset, _fitted_field, find_law
+
+    for c in (0.0, 0.012):
+        t, _, _, _, noisy = _throw(c=c)
+        ud = _userdata(tmp_path, t, noisy, ("x", "y"))
+        data, info, _ = _dataset(ud, "auto")
+        row_err = info.pop("_rows", None)
+        tab = find_law(data, np.zeros(len(data.t), int), ["x", "y"], [False, False], info, row_err, field="uniform")
+        assert tab.settings["library"] == "minimal"
+        zero = next(r for r in tab.rows if r.key == "none")
+        law = tab.law if c else zero
+        f = _fitted_field(tab, law, ["x", "y"], [False, False], data.q)
+        for k, g in (("x", 0.0), ("y", -G)):  # gravity within 4 standard errors and 0.3 % of g
+            assert abs(f["g"][k] - g) <= max(4 * f["stderr"][k], 0.003 * G), (c, f)
+        if c:
+            assert law.key == "quadratic" and law.params["c"] == pytest.approx(c, rel=0.15)
+        else:
+            assert tab.law is None
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    """NNPhD with a declared uniform field on a throw with drag, one without, and a fall (300 steps, one seed)."""
+    import nnphd
+
+    out = {}
+    d = tmp_path_factory.mktemp("declared")
+    for name, c, v0, cols in (("drag", 0.012, 8.0, (0, 1)), ("no-drag", 0.0, 8.0, (0, 1)), ("fall", 0.05, 0.0, (1,))):
+        t, q, v, _, noisy = _throw(c=c, v0=v0)
+        names = ("x", "y")[cols[0] :]
+        data = nnphd.Trajectories.from_csv(_csv(d / f"{name}.csv", t, noisy[:, list(cols)], names))
+        m = nnphd.NNPhD(seed=0, steps=300, n_seeds=1, field="uniform").fit(data)
+        out[name] = (m, t, q[:, list(cols)], v[:, list(cols)])
+    return out
+
+
+@pytest.mark.slow  # three fits of ~15 s
+def test_declared_field_verdicts_and_laws_on_throws_and_falls(fitted):
+    m, *_ = fitted["drag"]
+    assert m.status_ == "detected" and m.report_["field"]["kind"] == "uniform"
+    assert m.report_["law"]["status"] in ("claimed", "tie")
+    fams = [m.law_.key] + [r["law"] for r in m.report_["law"]["ties"]]
+    assert "quadratic" in fams  # the truth is claimed or in the tie (linear drag ties it on some noise draws)
+    assert fitted["no-drag"][0].status_ == "none" and fitted["no-drag"][0].law_ is None
+    fall = fitted["fall"][0]
+    assert fall.status_ == "detected" and fall.law_.params["c"] == pytest.approx(0.05, rel=0.05)
+    assert fall.report_["field"]["g"]["y"] == pytest.approx(-G, rel=0.01)
+
+
+@pytest.mark.slow
+def test_the_model_of_a_declared_field_predicts_with_it_and_survives_save_and_load(fitted, tmp_path):
+    import nnphd
+
+    m, t, q, v = fitted["fall"]
+    fc, fn = m.forces(q, v)
+    assert np.allclose(fc, m.report_["field"]["g"]["y"])  # the fitted field, not the LNN (which absorbed the drag)
+    qs, _ = m.simulate(q[0], v[0], t)
+    assert np.max(np.abs(qs - q)) < 0.02  # 1.2 s of a fall with drag, to 2 cm (the noise is 2 mm)
+    path = m.save(tmp_path / "fall.npz")
+    back = nnphd.load(path)
+    assert back.field == "uniform" and np.allclose(back.forces(q, v)[0], fc) and np.allclose(back.forces(q, v)[1], fn)
+    meta = json.loads(str(np.load(path)["meta"]))
+    assert meta["field"]["law"] == "quadratic" and meta["settings"]["field"] == "uniform"
+    html = (m.report(tmp_path / "rep") / "report.html").read_text()
+    assert "<b>Conservative force:</b> declared uniform" in html and "fitted beside quadratic" in html
+    assert "declared uniform field f_c" in str(m.figures()["forces"].axes[0].get_title())
+
+
+def test_the_cli_refuses_a_declared_uniform_field_on_an_oscillation_in_one_line(tmp_path, capsys):
+    from nnphd.cli import main
+
+    tt = np.arange(600) / 50.0
+    q = (np.exp(-0.05 * tt) * np.cos(np.pi * tt))[:, None]
+    path = _csv(tmp_path / "osc.csv", tt, q, ("x",))
+    assert main(["detect", str(path), "--field", "uniform", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "nothing oscillates" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "o").exists()  # nothing half-written
+    assert main(["detect", str(path), "--field", "gravity", "--out", str(tmp_path / "o")]) == 2
+    assert main(["detect", str(path), "--field", "uniform", "--law-fit", "pointwise"]) == 2
+    assert "law_level must be 'auto' or 'trajectory'" in capsys.readouterr().err

@@ -43,6 +43,18 @@ def test_batch_summary_failures_workers_and_resume(tmp_path, capsys):
     assert 'href="friction/report.html"' in html and "broken" in html
     for n in ("friction", "magnetic"):
         assert (out / n / "report.html").stat().st_size > 1000
+        # where the time went: every stage of the run, each seed's and each λ's
+        tm = json.loads((out / n / "report.json").read_text())["timings"]
+        names = [s["stage"] for s in tm["stages"]]
+        assert names[:3] == ["reading the file", "derivatives", "training and trust checks"]
+        assert "law table: pointwise fits" in names and names[-1] == "figures"
+        assert sum(s["s"] for s in tm["stages"]) <= tm["total_s"] + 1e-6
+        (seed,) = tm["per_seed"]
+        assert 0 < seed["compile_s"] < seed["wall_s"]  # (the file ran on a worker, its seed in that process)
+        assert list(seed["per_lambda_s"]) == ["0.2", "0.5", "2", "5"]
+        assert seed["lambda_sweep_s"] >= sum(seed["per_lambda_s"].values()) - 1e-6
+        assert "Where the time went" in (out / n / "report.html").read_text()
+    assert all(float(r["training_s"]) > 0 and float(r["compile_s"]) >= 0 for r in rows[1:])
     assert not (out / "broken").exists() or not any((out / "broken").iterdir())
 
     # a rerun with the same settings loads the finished files and retries the broken one

@@ -46,6 +46,7 @@ from typing import Any
 
 from nnphd import ONE_THREAD_FLAGS, XLA_FLAG
 from nnphd.io.progress import Progress
+from nnphd.io.timing import COMPILE_EVENTS  # JAX's duration events of a compilation
 
 __all__ = [
     "CONNECT_TIMEOUT_S",
@@ -159,16 +160,6 @@ class Outcome:
             "compile_time_s": self.compile_time_s,
             "where": self.where,
         }
-
-
-# JAX's own duration events of a compilation (jax.monitoring): trace to a jaxpr, lower to MLIR, compile with XLA
-COMPILE_EVENTS = frozenset(
-    {
-        "/jax/core/compile/jaxpr_trace_duration",
-        "/jax/core/compile/jaxpr_to_mlir_module_duration",
-        "/jax/core/compile/backend_compile_duration",
-    }
-)
 
 
 class CompileClock:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import typer
@@ -126,7 +127,9 @@ def detect(
     if paths is not None:
         return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
     try:
+        t_read = time.perf_counter()
         ud = load_trajectories(file, ang, max_rows=max_rows)  # validate the file before anything is created
+        t_read = time.perf_counter() - t_read
         from nnphd.explain.families import parse_law
 
         for x in law or []:
@@ -138,7 +141,9 @@ def detect(
     from nnphd.user.detect import detect_data
 
     with _progress("detect: starting") as status:
-        rep, _ = detect_data(ud, out=out, progress=status, workers=workers, scheduler=scheduler, **settings)
+        rep, _ = detect_data(
+            ud, out=out, progress=status, workers=workers, scheduler=scheduler, read_s=t_read, **settings
+        )
     # every text from the report may quote the file's column names or path: Rich markup escaped (_r)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(

@@ -227,10 +227,14 @@ def assess(
     if bad:
         raise UnitsFailed(f"the training of {bad[0].key} failed: {bad[0].error}")
     seeds = [outs[u.key].value for u in units]
+    for u, s in zip(units, seeds):  # measured where the seed ran (a worker process too): wall and JAX compilation
+        s["timings"] = {"wall_s": outs[u.key].wall_time_s, "compile_s": outs[u.key].compile_time_s,
+                        "where": outs[u.key].where, **s.get("timings", {})}  # fmt: skip
     res = _combine(seeds, sc, data, time.perf_counter() - t_start)
     res["quality"] = quality
     res["angles"] = [bool(a) for a in is_angle]
     res["clock"] = {"testable": ctx["clock"][0], "why": ctx["clock"][1]}
+    res["timings_per_seed"] = [{"seed": s["seed"], **s["timings"]} for s in seeds]
     return res
 
 
@@ -348,7 +352,7 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
             {
                 k: (public(v) if isinstance(v, dict) else v)
                 for k, v in s.items()
-                if k not in ("forces", "table", "_conservative")
+                if k not in ("forces", "table", "_conservative", "timings")  # (timings: not numbers of the data)
             }
             for s in seeds
         ],

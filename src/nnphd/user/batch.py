@@ -38,7 +38,21 @@ __all__ = ["SUFFIXES", "expand_paths", "scan_paths", "detect_batch", "detect_one
 
 SUFFIXES = (".csv", ".npz")
 MARKER = "batch.json"
-COLUMNS = ("name", "file", "status", "confidence", "effect", "law", "params", "wall_time_s", "cached", "error")
+COLUMNS = (
+    "name",
+    "file",
+    "status",
+    "confidence",
+    "effect",
+    "law",
+    "params",
+    "wall_time_s",
+    "training_s",
+    "law_table_s",
+    "compile_s",
+    "cached",
+    "error",
+)
 
 
 def expand_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> list[Path]:
@@ -152,8 +166,22 @@ def _row(name: str, path: str, rep: dict, cached: bool) -> dict:
         "law": _tie_prefix(rep.get("law") or {}) + "; ".join(f"{k} = {v}" for k, v in formula.items()),
         "params": {k: [v, law.get("stderr", {}).get(k)] for k, v in (law.get("params") or {}).items()},
         "wall_time_s": rep.get("wall_time_s"),
+        **_stage_seconds(rep.get("timings")),
         "cached": cached,
         "error": None,
+    }
+
+
+def _stage_seconds(tm: dict | None) -> dict:
+    """Where a file's time went, for the summary: training with the trust checks, the law table, JAX compilation
+    (of the whole run; None for a report without timings)."""
+    if not tm:
+        return {"training_s": None, "law_table_s": None, "compile_s": None}
+    by = {s["stage"]: s["s"] for s in tm["stages"]}
+    return {
+        "training_s": by.get("training and trust checks"),
+        "law_table_s": sum(v for k, v in by.items() if k.startswith("law table")),
+        "compile_s": tm["compile_s"],
     }
 
 
@@ -264,6 +292,9 @@ def _write_summary(outdir: Path, summary: dict) -> None:
                 f"<code>{escape(r['law'])}</code>" if r.get("law") else "",
                 escape(_cell(r["params"])),
                 escape(_cell(r["wall_time_s"])),
+                escape(_cell(r.get("training_s"))),
+                escape(_cell(r.get("law_table_s"))),
+                escape(_cell(r.get("compile_s"))),
                 "yes" if r["cached"] else "",
                 escape(r["error"] or ""),
             ]
@@ -289,6 +320,9 @@ def _write_summary(outdir: Path, summary: dict) -> None:
                 "law",
                 "parameters ± stderr",
                 "time (s)",
+                "training (s)",
+                "law table (s)",
+                "compiling (s)",
                 "cached",
                 "error",
             ],  # fmt: skip

@@ -12,12 +12,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 
 from nnphd.io.errors import DataError
 from nnphd.io.progress import Progress, Stages
+from nnphd.io.timing import StageTimer
 from nnphd.user.limits import MIN_ROWS
 from nnphd.user.report import write_report
 
@@ -42,8 +44,9 @@ def detect_file(
     check_field(settings.get("field", "learned"), settings.get("law_level", "auto"))
     if progress is not None:
         progress(0, 1, "reading the file")
+    t0 = time.perf_counter()
     ud = load_trajectories(path, angles, max_rows=max_rows)
-    return detect_data(ud, out, progress=progress, **settings)[0]
+    return detect_data(ud, out, progress=progress, read_s=time.perf_counter() - t0, **settings)[0]
 
 
 def _check_law_level(law_level: str) -> None:
@@ -105,19 +108,17 @@ def detect_data(
     field: str = "learned",
     workers: int | None = 1,
     scheduler: str | None = None,
+    read_s: float | None = None,
     **assess_kw,
 ) -> tuple[dict, dict]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
     model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps. ``field``: the conservative
     force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
-    :func:`_declared_field_verdict`; the record must not oscillate)."""
-    from nnphd._extras import MissingExtra
+    :func:`_declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
+    (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`)."""
     from nnphd.explain.families import parse_law
-    from nnphd.explain.sparse import sparse_formula
-    from nnphd.explain.symbolic import genetic_formula
     from nnphd.user.assess import assess
-    from nnphd.user.recording import suggest_angles
 
     done = [0, 1]  # the training rounds of the checks: the bar shows them; the other stages are messages
 
@@ -131,106 +132,93 @@ def detect_data(
 
     _check_law_level(law_level)
     check_field(field, law_level)
-    t0 = time.perf_counter()
-    path = ud.path
     for x in laws:  # fail on a bad --law before any work
         parse_law(x, ud.coords)
-    data, info, trim = _dataset(ud, trim)
-    row_err = info.pop("_rows", None)
-    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
-    for tr in info["trajectories"]:
-        kept = tr["kept"][1] - tr["kept"][0]
-        if kept < MIN_ROWS:  # only an explicit trim=True gets here: "auto" does not trim so far
-            raise DataError(
-                f"{path}: trimming the ends of trajectory {tr['id']} leaves {kept} of its "
-                f"{tr['n_samples']} rows; at least {MIN_ROWS} are needed: do not trim (--trim no)"
+    timer = StageTimer()
+    if read_s is not None:
+        timer.add("reading the file", read_s)
+    with timer:
+        with timer.stage("derivatives"):
+            data, info, trim, row_err, traj = _prepared(ud, trim)
+            _check_declared_field(field, data, traj, ud, info)
+        say("λ-sweep and trust checks")
+        pc = info["per_coordinate"]
+        with timer.stage("training and trust checks"):
+            res = assess(
+                data,
+                traj,
+                seed=seed,
+                steps=steps,
+                n_seeds=n_seeds,
+                progress=training,
+                angles=[bool(a) for a in ud.is_angle],
+                position_noise=[pc[c]["noise"] for c in ud.coords],
+                derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
+                workers=workers,
+                scheduler=scheduler,
+                **assess_kw,
             )
-    _check_declared_field(field, data, traj, ud, info)
-    say("λ-sweep and trust checks")
-    pc = info["per_coordinate"]
-    res = assess(
-        data,
-        traj,
-        seed=seed,
-        steps=steps,
-        n_seeds=n_seeds,
-        progress=training,
-        angles=[bool(a) for a in ud.is_angle],
-        position_noise=[pc[c]["noise"] for c in ud.coords],
-        derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
-        workers=workers,
-        scheduler=scheduler,
-        **assess_kw,
-    )
-    coords = list(ud.coords)
-    fn = np.asarray(res["f_n"])
-    fc = np.asarray(res["f_c"])
-    law, law_fit = _law_table(
-        res, data, traj, coords, ud, info, row_err, laws, law_level, seed, lambda d, t, m: say(m), field
-    )
-    status, new_physics, confidence, reasons = _reconcile(res, law, field)
-    fitted = (law.pop("_field", None) or {}).get("with_law" if law.get("law") else "alone")
-    if fitted is not None:  # the declared field is the conservative force; f_n the remainder of q̈ beside it
-        fc = field_force(fitted, data.q, ud.is_angle)
-        fn = np.asarray(data.qdd, float) - fc
-    blind = {}
-    if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
-        names = coords + [f"{c}_dot" for c in coords]
-        inputs = {n: col for n, col in zip(names, np.concatenate([data.q, data.qd], axis=1).T)}
-        inputs["t"] = data.t
-        comps = [f"{c}_ddot" for c in coords]
-        try:
-            say("blind explanation (sparse regression)")
-            blind["sparse"] = sparse_formula(
-                inputs, fn, comps, velocities=[f"{c}_dot" for c in coords], time="t"
-            ).to_dict()
-            if sr_time > 0:
-                say("blind explanation (genetic symbolic regression)")
-                blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
-        except MissingExtra as e:  # the fallback is optional: say why it is missing
-            reasons.append(f"no blind explanation: {e}")
-    best = _law_formula(law)
-    report = {
-        "file": str(path),
-        "new_physics": new_physics,
-        "status": status,
-        "statistic": res["statistic"],
-        "effect": res["effect"],
-        "evidence": res["evidence"],
-        "confidence": confidence,
-        "confidence_basis": res["confidence_basis"] if status == res["status"] else RECONCILED_BASIS,
-        "reasons": reasons,
-        "quality": res["quality"],
-        "angles": [c for c, a in zip(coords, res["angles"]) if a],
-        "angle_suggestions": [list(x) for x in suggest_angles(ud)],
-        "warnings": _warnings(info, coords),
-        "clock": res["clock"],
-        "checks": res["checks"],
-        "table": res["table"],
-        "lambda_forces": res["lambda_forces"],
-        "noise": {c: info["per_coordinate"][c] for c in coords},
-        "data": {k: v for k, v in info.items() if k != "per_coordinate"},
-        "formula": best,
-        "law": law,
-        "field": {"kind": field, "text": FIELDS[field]}
-        | ({k: fitted[k] for k in ("law", "g", "stderr")} if fitted else {}),
-        "blind": blind,
-        "hint": _best_formula(blind),
-        "settings": {
-            "seed": seed,
-            "steps": steps,
-            "n_seeds": n_seeds,
-            "sr_time_per_component_s": sr_time,
-            "trim": trim,
-            "field": field,
-            **assess_kw,
-            **res.get("settings", {}),
-        },
-        "units": "forces in the file's units (coordinate units / time unit²)",
-        "wall_time_s": time.perf_counter() - t0,
-    }
-    if out is not None:
-        write_report(out, report, data, traj, coords, fc, fn)
+        coords = list(ud.coords)
+        fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
+        law, law_fit = _law_table(
+            res, data, traj, coords, ud, info, row_err, laws, law_level, seed, lambda d, t, m: say(m), field, timer
+        )
+        status, new_physics, confidence, reasons = _reconcile(res, law, field)
+        fitted = (law.pop("_field", None) or {}).get("with_law" if law.get("law") else "alone")
+        if fitted is not None:  # the declared field is the conservative force; f_n the remainder of q̈ beside it
+            fc = field_force(fitted, data.q, ud.is_angle)
+            fn = np.asarray(data.qdd, float) - fc
+        blind = {}
+        if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
+            with timer.stage("blind formula"):
+                blind = _blind(data, coords, fn, sr_time, seed, say, reasons)
+        report = {
+            "file": str(ud.path),
+            "new_physics": new_physics,
+            "status": status,
+            "statistic": res["statistic"],
+            "effect": res["effect"],
+            "evidence": res["evidence"],
+            "confidence": confidence,
+            "confidence_basis": res["confidence_basis"] if status == res["status"] else RECONCILED_BASIS,
+            "reasons": reasons,
+            "quality": res["quality"],
+            "angles": [c for c, a in zip(coords, res["angles"]) if a],
+            "angle_suggestions": [list(x) for x in _suggest_angles(ud)],
+            "warnings": _warnings(info, coords),
+            "clock": res["clock"],
+            "checks": res["checks"],
+            "table": res["table"],
+            "lambda_forces": res["lambda_forces"],
+            "noise": {c: info["per_coordinate"][c] for c in coords},
+            "data": {k: v for k, v in info.items() if k != "per_coordinate"},
+            "formula": _law_formula(law),
+            "law": law,
+            "field": {"kind": field, "text": FIELDS[field]}
+            | ({k: fitted[k] for k in ("law", "g", "stderr")} if fitted else {}),
+            "blind": blind,
+            "hint": _best_formula(blind),
+            "settings": {
+                "seed": seed,
+                "steps": steps,
+                "n_seeds": n_seeds,
+                "sr_time_per_component_s": sr_time,
+                "trim": trim,
+                "field": field,
+                **assess_kw,
+                **res.get("settings", {}),
+            },
+            "units": "forces in the file's units (coordinate units / time unit²)",
+        }
+
+        def stamp() -> None:  # the times so far: every stage but the writing of report.json/html itself
+            report["timings"] = timer.to_dict() | {"per_seed": res.get("timings_per_seed", [])}
+            report["wall_time_s"] = report["timings"]["total_s"]
+
+        if out is not None:
+            write_report(out, report, data, traj, coords, fc, fn, timer=timer, before_writing=stamp)
+        else:
+            stamp()
     model = {
         "conservative": res.get("_conservative"),
         "law": law_fit if law.get("law") else None,
@@ -243,6 +231,51 @@ def detect_data(
         "field": fitted,
     }
     return report, model
+
+
+def _suggest_angles(ud):
+    from nnphd.user.recording import suggest_angles
+
+    return suggest_angles(ud)
+
+
+def _prepared(ud, trim):
+    """(data set, info, trim used, per-row errors, trajectory id per row) of validated data; a trim that leaves too
+    few rows of a trajectory is refused."""
+    data, info, trim = _dataset(ud, trim)
+    row_err = info.pop("_rows", None)
+    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
+    for tr in info["trajectories"]:
+        kept = tr["kept"][1] - tr["kept"][0]
+        if kept < MIN_ROWS:  # only an explicit trim=True gets here: "auto" does not trim so far
+            raise DataError(
+                f"{ud.path}: trimming the ends of trajectory {tr['id']} leaves {kept} of its "
+                f"{tr['n_samples']} rows; at least {MIN_ROWS} are needed: do not trim (--trim no)"
+            )
+    return data, info, trim, row_err, traj
+
+
+def _blind(data, coords, fn, sr_time, seed, say, reasons) -> dict:
+    """The blind explanation of f_n when no candidate family fits: a sparse regression, then (``sr_time`` > 0)
+    genetic symbolic regression — hints, never the law; a missing optional extra is said in ``reasons``."""
+    from nnphd._extras import MissingExtra
+    from nnphd.explain.sparse import sparse_formula
+    from nnphd.explain.symbolic import genetic_formula
+
+    blind = {}
+    names = coords + [f"{c}_dot" for c in coords]
+    inputs = {n: col for n, col in zip(names, np.concatenate([data.q, data.qd], axis=1).T)}
+    inputs["t"] = data.t
+    comps = [f"{c}_ddot" for c in coords]
+    try:
+        say("blind explanation (sparse regression)")
+        blind["sparse"] = sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in coords], time="t").to_dict()
+        if sr_time > 0:
+            say("blind explanation (genetic symbolic regression)")
+            blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
+    except MissingExtra as e:  # the fallback is optional: say why it is missing
+        reasons.append(f"no blind explanation: {e}")
+    return blind
 
 
 WARN_QDD_ERR = 0.2  # a coordinate whose estimated relative q̈ error exceeds this gets a warning
@@ -564,7 +597,7 @@ LIBRARY_BASE = "the conservative library"  # the law table's seed-free conservat
 
 
 def _law_table(
-    res, data, traj, coords, ud, info, row_err, laws, level, seed, progress, field="learned"
+    res, data, traj, coords, ud, info, row_err, laws, level, seed, progress, field="learned", timer=None
 ) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base — and, for one coordinate, with the
     conservative library alone (no network, so no seed), the two combined by
@@ -602,13 +635,14 @@ def _law_table(
         seed=seed,
         progress=progress,
         field=field,
+        timer=timer,
     )
     arcs = not res["quality"].get("oscillating", True)  # a throw, a fall: the library is the uniform field alone
     if ok and (len(coords) == 1 or arcs) and level != "pointwise":
         from nnphd.explain.table import combine_bases
 
         lib = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, laws=laws, level=level,
-                       seed=seed, progress=progress)  # fmt: skip
+                       seed=seed, progress=progress, timer=timer)  # fmt: skip
         if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
             table = combine_bases([(LIBRARY_BASE, lib), (f"seed {seed}'s LNN", table)])
     out = table.to_dict()
@@ -707,20 +741,43 @@ def find_law(
     seed=0,
     progress: Progress | None = None,
     field: str = "learned",
+    timer: StageTimer | None = None,
 ):
     """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
     (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
     the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
     shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
     (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
-    ``field`` is "uniform" (declared: nothing oscillates). Returns a LawTable."""
+    ``field`` is "uniform" (declared: nothing oscillates). ``timer``: the stages are timed on it (law table:
+    pointwise fits, trajectory-level fits, rests, stops and envelope). Returns a LawTable."""
+    timed = timer.stage if timer is not None else _untimed
+    say = Stages(progress, 2)
+    say("candidate laws (pointwise joint fits)")
+    with timed("law table: pointwise fits"):
+        table, data, traj, rest, whole, period = _pointwise_table(
+            data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field
+        )
+    if level != "pointwise":
+        say("candidate laws (trajectory level: multiple shooting on the positions)")
+        with timed("law table: trajectory-level fits"):
+            table = _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed)
+    with timed("law table: rests, stops and envelope"):
+        return _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level,
+                                  seed)  # fmt: skip
+
+
+@contextmanager
+def _untimed(_name: str):
+    yield
+
+
+def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field):
+    """find_law's pointwise stage: (the table, the moving rows' data and trajectory ids, the rest found, the whole
+    data and ids, the period)."""
     from nnphd.engine.evidence import dominant_period
     from nnphd.explain.jointfit import _segments
     from nnphd.explain.laws import rank_laws
-    from nnphd.explain.trajectory import rank_trajectory
 
-    say = Stages(progress, 2)
-    say("candidate laws (pointwise joint fits)")
     err = None if row_err is None else row_err["qdd_err"]
     period = dominant_period(
         np.concatenate([data.q, data.qd], axis=1),
@@ -750,30 +807,42 @@ def find_law(
         seed=seed,
         library=_library(data.t, traj, period, level),
     )
-    if level != "pointwise":
-        say("candidate laws (trajectory level: multiple shooting on the positions)")
-        sigma = [info["per_coordinate"][c]["noise"] for c in coords]
-        rows = _thinned(data.t, traj, period)
-        table = rank_trajectory(
-            table,
-            data.q[rows],
-            data.qd[rows],
-            data.t[rows],
-            traj[rows],
-            sigma=sigma,
-            # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
-            period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in _segments(traj))),
-            angles=is_angle,
-            fc_fn=fc_fn if fc is not None else None,
-            seed=seed,
-            **(SHORT_RECORDS if len(coords) == 1 or not np.isfinite(period) else {}),
-        )
+    return table, data, traj, rest, whole, period
+
+
+def _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed):
+    """find_law's trajectory-level stage: the table re-ranked by multiple shooting on the positions."""
+    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.trajectory import rank_trajectory
+
+    sigma = [info["per_coordinate"][c]["noise"] for c in coords]
+    rows = _thinned(data.t, traj, period)
+    return rank_trajectory(
+        table,
+        data.q[rows],
+        data.qd[rows],
+        data.t[rows],
+        traj[rows],
+        sigma=sigma,
+        # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
+        period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in _segments(traj))),
+        angles=is_angle,
+        fc_fn=fc_fn if fc is not None else None,
+        seed=seed,
+        **(SHORT_RECORDS if len(coords) == 1 or not np.isfinite(period) else {}),
+    )
+
+
+def _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level, seed):
+    """find_law's last stage: what a rest, a stop and the amplitude envelope say about the candidates (one
+    coordinate), and the rest left out said in the table's reason."""
+    fc_fn = fc_fn if fc is not None else None
     stuck = {}
     if level != "pointwise" and rest is not None and len(coords) == 1 and np.isfinite(period):
         from nnphd.explain.stuck import stop_contradictions, stuck_contradictions
         from nnphd.user.rest import REST_WINDOW_PERIODS
 
-        stuck = stuck_contradictions(table, rest["final"], angles=is_angle, fc_fn=fc_fn if fc is not None else None)
+        stuck = stuck_contradictions(table, rest["final"], angles=is_angle, fc_fn=fc_fn)
         stop = stop_contradictions(
             table,
             rest["final"],
@@ -783,7 +852,7 @@ def find_law(
             whole[1],
             period,
             angles=is_angle,
-            fc_fn=fc_fn if fc is not None else None,
+            fc_fn=fc_fn,
             seed=seed,
             window_periods=REST_WINDOW_PERIODS,
         )

@@ -183,9 +183,24 @@ def plot_forces(data, traj, coords, fc, fn, lam=None, declared: bool = False) ->
 
 
 # ---------------------------------------------------------------------------------------------------- output
-def write_report(out, report: dict, data, traj, coords, fc, fn) -> None:
-    """report.json, the figures and a self-contained report.html (each atomic)."""
+def write_report(out, report: dict, data, traj, coords, fc, fn, timer=None, before_writing=None) -> None:
+    """report.json, the figures and a self-contained report.html (each atomic). ``timer``: the figures are timed on
+    it (:class:`nnphd.io.timing.StageTimer`); ``before_writing()`` is called after them, before any file is written
+    (to put the timings into the report)."""
+    from contextlib import nullcontext
+
     outdir = ensure_writable_dir(out)
+    with timer.stage("figures") if timer is not None else nullcontext():
+        figs = _figures(report, data, traj, coords, fc, fn)
+    if before_writing is not None:
+        before_writing()
+    for name, png in figs.items():
+        atomic_write_bytes(outdir / name, png)
+    write_json(outdir / "report.json", report)
+    atomic_write_bytes(outdir / "report.html", render_html(report, figs).encode())
+
+
+def _figures(report: dict, data, traj, coords, fc, fn) -> dict[str, bytes]:
     naive = [x for x in report["checks"]["naive"]["ratio"] if x is not None]
     figs = {"data.png": plot_data(data, traj, coords)}
     energy = plot_energy(report["evidence"]["energy_trend"])
@@ -199,10 +214,7 @@ def write_report(out, report: dict, data, traj, coords, fc, fn) -> None:
     env = fig_envelope((report.get("law") or {}).get("envelope"), coords[0])
     if env is not None:
         figs["envelope.png"] = _png(env)
-    for name, png in figs.items():
-        atomic_write_bytes(outdir / name, png)
-    write_json(outdir / "report.json", report)
-    atomic_write_bytes(outdir / "report.html", render_html(report, figs).encode())
+    return figs
 
 
 def _evidence_rows(report: dict) -> list[list[str]]:
@@ -397,6 +409,7 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         + section("Data", data)
         + section("Law of the non-conservative part", f"<p>{formula}</p>")
         + section("Figures", figures(figure(png, name) for name, png in figs.items()))
+        + _timings_html(report.get("timings"))
         + section("L_e(λ)", table(["λ", "L_e held out", "L_e training", "L_b"], lam_rows, left=0))
         + details(
             "all checks and settings",
@@ -405,6 +418,31 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         )
     )
     return page(f"nnphd detect: {report['file']}", body)
+
+
+def _timings_html(tm: dict | None) -> str:
+    """Where the time went: wall and JAX-compile seconds per stage, and per seed."""
+    if not tm:
+        return ""
+    rows = [[_e(s["stage"]), f"{s['s']:.1f}", f"{s['compile_s']:.1f}"] for s in tm["stages"]]
+    rows.append(["(between stages)", f"{tm['other_s']:.1f}", ""])
+    rows.append(["<b>total</b>", f"<b>{tm['total_s']:.1f}</b>", f"<b>{tm['compile_s']:.1f}</b>"])
+    seeds = [
+        f"seed {_e(p['seed'])}: {p.get('wall_s', 0.0):.1f} s ({p.get('compile_s', 0.0):.1f} s compiling, "
+        f"{_e(p.get('where', ''))}); λ-sweep {p.get('lambda_sweep_s', 0.0):.1f} s ("
+        + ", ".join(f"λ = {_e(k)}: {v:.1f}" for k, v in (p.get("per_lambda_s") or {}).items())
+        + f"), conservative rounds {p.get('conservative_rounds_s', 0.0):.1f}, free model "
+        f"{p.get('free_model_s', 0.0):.1f}, clock test {p.get('clock_test_s', 0.0):.1f}, energy trend "
+        f"{p.get('energy_trend_s', 0.0):.1f}, shooting probe {p.get('shooting_probe_s', 0.0):.1f}, checks "
+        f"{p.get('checks_s', 0.0):.1f}"
+        for p in tm.get("per_seed") or []
+    ]
+    return section(
+        "Where the time went",
+        table(["stage", "seconds", "of which compiling"], rows, left=1)
+        + bullets(seeds)
+        + f"<p><small>{_e(tm.get('note', ''))}; the writing of this report is not included</small></p>",
+    )
 
 
 def _law_html(law: dict) -> str:

@@ -5,6 +5,7 @@ evidence, then the checks of :mod:`nnphd.user.checks` on them."""
 from __future__ import annotations
 
 import functools
+import time
 
 import jax
 import jax.numpy as jnp
@@ -126,13 +127,22 @@ def _seg_mean(x, segs):
     return np.asarray([float(np.mean(x[s])) for s in segs])
 
 
-def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick):
+def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick, per_lambda=None):
     """The warm-started λ-sweep; then the optimisation check: the training error below λ = 1 (where the UAN is free)
     must not exceed the one above it. Where it does (beyond 10 %), the λ < 1 points are retrained in decreasing
     order, warm-started from the largest-λ solution (the UAN then only has to add to a fitted LNN), and the better
-    objective is kept."""
+    objective is kept. ``per_lambda``: a dict given the wall seconds of each λ's training (compilation included)."""
     lams = sorted(lambdas)
-    pts = lambda_sweep(train, params, A_tr, lams, k_sweep, "warm", progress=lambda *_: tick())
+    last = [time.perf_counter()]
+
+    def point(lam, p):  # each λ's training, finished (JAX dispatches asynchronously) and timed
+        if per_lambda is not None:
+            jax.block_until_ready(p)
+            now = time.perf_counter()
+            per_lambda[float(lam)] = per_lambda.get(float(lam), 0.0) + now - last[0]
+            last[0] = now
+
+    pts = lambda_sweep(train, params, A_tr, lams, k_sweep, "warm", progress=lambda *_: tick(), on_point=point)
 
     def evaluate(p):
         fc, fn, power, kin = by_rows(_nnphd_eval, p, *arrays[:3], cfg=cfg)
@@ -157,6 +167,7 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
                 pts[lam], evals[lam] = p, ev
             return pts[lam]
 
+        last[0] = time.perf_counter()
         lambda_sweep(
             train,
             pts[lams[-1]],
@@ -166,6 +177,7 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
             "warm",
             descending=True,
             accept=keep_better,
+            on_point=point,
         )
         check["L_e_train_below_after"] = med_train(below)
     table = []
@@ -209,12 +221,20 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
     fnorm_tr = _l1(back(qdd[tr]))
     key = jax.random.PRNGKey(seed)
     k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
+    per_lambda: dict[float, float] = {}
+    clock = [time.perf_counter()]
+    times: dict[str, float] = {}
+
+    def done(stage: str) -> None:  # the wall seconds since the last stage ended (its results are numbers by now)
+        now = time.perf_counter()
+        times[stage] = now - clock[0]
+        clock[0] = now
 
     # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
     params = {"lnn": init_lnn(k_lnn, cfg), "uan": init_free(k_uan, cfg, n_time=feats.shape[1], widths=(width, width))}
     train = _trainer("nnphd", cfg, tcfg)
     pts, evals, table, opt_check = _sweep(
-        params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick
+        params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick, per_lambda
     )
     lams = sorted(lambdas)
     lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
@@ -227,6 +247,7 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
         naive = {"new_physics": nv.new_physics, "ratio": nv.ratio, "reason": nv.reason}
     except ValueError as e:  # no λ on one side of 1
         naive = {"new_physics": None, "ratio": None, "reason": str(e)}
+    done("lambda_sweep_s")
 
     # (b) the LNN alone, continued from the largest λ; the conservative model is the round with the lowest
     # *training* error (a round that diverges is not used; the held-out data play no part in the choice)
@@ -249,6 +270,7 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
     orient = -1.0 if np.median(kin_signed) < 0 else 1.0
     lnn_best = best[2]
     cons_tr, cons_te = hist_tr[best[0]], hist[best[0]]
+    done("conservative_rounds_s")
 
     # (c) the free model of (q, q̇)
     fp = {"mlp": init_free(k_free, cfg, n_time=0, widths=(width, width))}
@@ -258,6 +280,7 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
         tick()
     r_free = back(by_rows(_free_eval, fp, *arrays[:2], cfg=cfg) - qdd)
     free_tr, free_te = _l1(r_free[tr]), _l1(r_free[te])
+    done("free_model_s")
 
     # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
     # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
@@ -281,6 +304,7 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
     w = np.asarray([len(x) for x in (segs_s if len(segs) > 1 else [te_s])], float)
     e_state, e_timed = (float(np.average(errs[k], weights=w)) for k in ("state", "timed"))
     improved = float(np.mean(np.asarray(errs["timed"]) < np.asarray(errs["state"])))
+    done("clock_test_s")
 
     # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
     # the multiple-shooting fit of the positions with a damping probe (nnphd.engine.evidence)
@@ -290,10 +314,12 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
     block = evidence_block(ctx["period"], tp, segs)
     trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, block, seed=seed, kinetic=kin_l)
     trend["orientation"] = orient
+    done("energy_trend_s")
     if np.all(np.isfinite(power_l)):
         shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], block, seed=seed)
     else:
         shoot = {"valid": False, "reason": "the conservative model diverged"}
+    done("shooting_probe_s")
     trend = _trend_units(trend, sc)
     shoot = _shoot_units(shoot, sc)
     trend["oscillating"] = shoot["oscillating"] = oscillating
@@ -337,8 +363,11 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
             "lower the learning rates or standardise the data differently",
             1.0,
         )
+    done("checks_s")
+    times["per_lambda_s"] = {f"{lam:g}": sec for lam, sec in sorted(per_lambda.items())}
     return {
         "seed": seed,
+        "timings": times,
         "status": status,
         "reason": reason,
         "agreement": boot_agree,

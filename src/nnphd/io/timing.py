@@ -1,0 +1,101 @@
+"""Where the time of one run goes: wall seconds per named stage, and within each the seconds JAX spent compiling.
+
+``with StageTimer() as timer:`` registers a :mod:`jax.monitoring` listener for the run only (removed on exit: no
+global state outlives it); ``with timer.stage("the law table"):`` adds the wall time of the block to that stage
+(a stage entered again accumulates) and every compilation event inside it to the stage's compile seconds —
+tracing, lowering to MLIR and the XLA compilation, or the retrieval from the persistent compilation cache when it
+hits. Stages do not nest: a stage entered inside another is counted for the inner one only, and the outer one's
+wall time excludes it. Compilations in other processes (Dask workers) are not seen; ``to_dict`` says so.
+"""
+
+from __future__ import annotations
+
+import time
+from contextlib import contextmanager
+
+# JAX's own duration events of a compilation (jax.monitoring; jax._src.dispatch and jax._src.compiler): trace to a
+# jaxpr, lower to MLIR, compile with XLA — or, on a hit of the persistent compilation cache, retrieve it
+COMPILE_EVENTS = frozenset(
+    {
+        "/jax/core/compile/jaxpr_trace_duration",
+        "/jax/core/compile/jaxpr_to_mlir_module_duration",
+        "/jax/core/compile/backend_compile_duration",
+        "/jax/compilation_cache/cache_retrieval_time_sec",
+    }
+)
+
+
+class StageTimer:
+    """Wall and compile seconds per stage of one run (see the module docstring)."""
+
+    def __init__(self) -> None:
+        self.wall: dict[str, float] = {}
+        self.compile: dict[str, float] = {}
+        self._stack: list[tuple[str, float]] = []
+        self._t0 = time.perf_counter()
+        self._end: float | None = None
+        self._listening = False
+
+    # the listener: jax calls it with (event, seconds, **metadata)
+    def _on_event(self, event: str, duration: float, **_kw) -> None:
+        if event in COMPILE_EVENTS:
+            name = self._stack[-1][0] if self._stack else "other"
+            self.compile[name] = self.compile.get(name, 0.0) + float(duration)
+
+    def __enter__(self) -> StageTimer:
+        import jax.monitoring
+
+        jax.monitoring.register_event_duration_secs_listener(self._on_event)
+        self._listening = True
+        self._t0 = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import jax.monitoring
+
+        self._end = time.perf_counter()
+        if self._listening:
+            jax.monitoring.unregister_event_duration_listener(self._on_event)
+            self._listening = False
+
+    @contextmanager
+    def stage(self, name: str):
+        now = time.perf_counter()
+        if self._stack:  # the outer stage pauses: its time so far is its own
+            outer, since = self._stack[-1]
+            self.wall[outer] = self.wall.get(outer, 0.0) + now - since
+        self._stack.append((name, now))
+        try:
+            yield
+        finally:
+            end = time.perf_counter()
+            _, since = self._stack.pop()
+            self.wall[name] = self.wall.get(name, 0.0) + end - since
+            if self._stack:  # the outer stage resumes
+                self._stack[-1] = (self._stack[-1][0], end)
+
+    def add(self, name: str, seconds: float) -> None:
+        """Wall seconds measured elsewhere (e.g. reading the file before the run began)."""
+        self.wall[name] = self.wall.get(name, 0.0) + float(seconds)
+
+    def to_dict(self, extra_total: float = 0.0) -> dict:
+        """{"total_s", "compile_s", "stages": [{"stage", "s", "compile_s"}] in the order they first ran, "other_s"
+        (the run's time in no stage), "note"}; ``extra_total``: seconds before the timer started (added stages)."""
+        end = self._end if self._end is not None else time.perf_counter()
+        total = end - self._t0 + extra_total
+        names = list(dict.fromkeys([*self.wall, *self.compile]))
+        stages = [
+            {"stage": n, "s": self.wall.get(n, 0.0), "compile_s": self.compile.get(n, 0.0)}
+            for n in names
+            if n != "other"
+        ]
+        return {
+            "total_s": total,
+            "compile_s": sum(self.compile.values()),
+            "stages": stages,
+            "other_s": max(total - sum(s["s"] for s in stages), 0.0),
+            "note": (
+                "wall seconds on this machine; compile_s: JAX tracing, lowering and XLA compilation (or retrieval "
+                "from the persistent compilation cache) in this process — work on other worker processes is not seen"
+            ),
+        }

@@ -1,0 +1,51 @@
+"""Where a run's time goes (:class:`nnphd.io.timing.StageTimer`): wall seconds per stage, JAX compilation within
+each, nothing left registered afterwards. The stages of a whole ``nnphd detect`` run are checked in
+tests/test_batch.py (slow)."""
+
+from __future__ import annotations
+
+import time
+
+import jax
+import jax.numpy as jnp
+
+from nnphd.io.timing import StageTimer
+
+
+def test_stages_add_up_and_compilation_is_charged_to_the_stage_that_compiles():
+    @jax.jit
+    def f(x):
+        return jnp.sin(x) * 3.0 + x**2
+
+    x, y = jnp.arange(7.0), jnp.arange(7.0) + 1  # (eager operations compile tiny programs too: made before)
+    with StageTimer() as timer:
+        with timer.stage("first call"):
+            f(x).block_until_ready()
+        with timer.stage("second call"):  # the same shape: compiled already
+            f(y).block_until_ready()
+        with timer.stage("outer"):
+            time.sleep(0.02)
+            with timer.stage("inner"):  # does not count for the outer stage
+                time.sleep(0.05)
+        with timer.stage("first call"):  # a stage entered again accumulates
+            pass
+    before = dict(timer.compile)
+    jax.jit(lambda x: jnp.cos(x) - 1.0)(jnp.ones(3)).block_until_ready()  # compiled after the run: not seen
+    assert timer.compile == before  # the listener is gone with the run
+    d = timer.to_dict(extra_total=0.5)
+    assert [s["stage"] for s in d["stages"]] == ["first call", "second call", "outer", "inner"]
+    by = {s["stage"]: s for s in d["stages"]}
+    assert by["first call"]["compile_s"] > 0 and by["second call"]["compile_s"] == 0.0
+    assert by["inner"]["s"] >= 0.05 and 0.02 <= by["outer"]["s"] < by["inner"]["s"]
+    assert d["compile_s"] == sum(s["compile_s"] for s in d["stages"])
+    assert d["total_s"] + 1e-9 >= 0.5 + sum(s["s"] for s in d["stages"]) and d["other_s"] >= 0.5 - 1e-9
+
+
+def test_time_measured_elsewhere_is_a_stage_of_its_own():
+    timer = StageTimer()
+    timer.add("reading the file", 1.25)
+    with timer:
+        pass
+    d = timer.to_dict(extra_total=1.25)
+    assert d["stages"] == [{"stage": "reading the file", "s": 1.25, "compile_s": 0.0}]
+    assert d["total_s"] >= 1.25 and d["other_s"] >= 0.0

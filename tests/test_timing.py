@@ -49,3 +49,19 @@ def test_time_measured_elsewhere_is_a_stage_of_its_own():
     d = timer.to_dict(extra_total=1.25)
     assert d["stages"] == [{"stage": "reading the file", "s": 1.25, "compile_s": 0.0}]
     assert d["total_s"] >= 1.25 and d["other_s"] >= 0.0
+
+
+def test_compilation_on_worker_processes_is_added_to_the_training_stage():
+    from nnphd.user.detect import _with_workers
+
+    tm = {"total_s": 10.0, "compile_s": 1.0, "other_s": 0.0, "note": "wall seconds",
+          "stages": [{"stage": "derivatives", "s": 1.0, "compile_s": 0.0},
+                     {"stage": "training and trust checks", "s": 8.0, "compile_s": 1.0}]}  # fmt: skip
+    seeds = [{"seed": 0, "compile_s": 3.0, "where": "tcp://127.0.0.1:1"}, {"seed": 1, "compile_s": 2.5, "where": "x"}]
+    out = _with_workers(tm, seeds)
+    assert out["compile_s"] == 6.5 and out["stages"][1]["compile_s"] == 6.5 and out["stages"][0]["compile_s"] == 0
+    assert out["per_seed"] == seeds and "worker processes" in out["note"]
+    here = [{"seed": 0, "compile_s": 3.0, "where": "in-process"}]  # seen by this process's listener already
+    tm2 = {**tm, "compile_s": 1.0, "stages": [dict(s) for s in tm["stages"]]}
+    tm2["stages"][1]["compile_s"] = 1.0
+    assert _with_workers(tm2, here)["compile_s"] == 1.0

@@ -212,7 +212,7 @@ def detect_data(
         }
 
         def stamp() -> None:  # the times so far: every stage but the writing of report.json/html itself
-            report["timings"] = timer.to_dict() | {"per_seed": res.get("timings_per_seed", [])}
+            report["timings"] = _with_workers(timer.to_dict(), res.get("timings_per_seed", []))
             report["wall_time_s"] = report["timings"]["total_s"]
 
         if out is not None:
@@ -231,6 +231,19 @@ def detect_data(
         "field": fitted,
     }
     return report, model
+
+
+def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
+    """The run's timings with each seed's (``per_seed``); compilation on worker processes, which this process's
+    listener does not see, is added to the training stage (compile seconds are then summed over processes, and
+    workers run side by side: they can exceed the stage's wall time)."""
+    elsewhere = sum(p.get("compile_s", 0.0) for p in per_seed if p.get("where", "in-process") != "in-process")
+    for st in tm["stages"]:
+        if st["stage"] == "training and trust checks":
+            st["compile_s"] += elsewhere
+    tm["compile_s"] += elsewhere
+    tm["note"] += "; the seeds' compilation on worker processes is added to the training stage, summed over them"
+    return tm | {"per_seed": per_seed}
 
 
 def _suggest_angles(ud):

@@ -261,6 +261,33 @@ def largest_first(units: Sequence[Unit]) -> list[Unit]:
     return sorted(units, key=lambda u: -u.cost)
 
 
+def list_schedule(durations: Sequence[float], workers: int, overhead_s: float = 0.0) -> dict:
+    """The makespan of independent units on ``workers`` identical workers, as :func:`run_units` hands them out:
+    largest first, each to the worker that frees first (a list schedule; Graham's bound: makespan ≤ total/W + the
+    longest unit). ``overhead_s``: a worker's cost per unit (dispatch, transfer, result). Returns {"makespan_s",
+    "total_s" (the work, overhead included), "efficiency" (total / (workers × makespan)), "loads_s" (per worker)}
+    — how a cluster's time is simulated from unit times measured on one machine."""
+    import heapq
+
+    if int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be an integer ≥ 1, got {workers!r}")
+    if any(not (d >= 0) for d in durations) or not overhead_s >= 0:
+        raise ValueError("unit durations and the overhead must be non-negative numbers")
+    loads = [(0.0, i) for i in range(int(workers))]
+    for d in sorted(durations, reverse=True):
+        t, i = heapq.heappop(loads)
+        heapq.heappush(loads, (t + float(d) + overhead_s, i))
+    per = [t for t, _ in sorted(loads, key=lambda x: x[1])]
+    makespan = max(per)
+    total = sum(per)
+    return {
+        "makespan_s": makespan,
+        "total_s": total,
+        "efficiency": total / (workers * makespan) if makespan > 0 else 1.0,
+        "loads_s": per,
+    }
+
+
 def _run_here(units, progress, on_outcome) -> dict[str, Outcome]:
     out: dict[str, Outcome] = {}
     for i, u in enumerate(units):

@@ -32,13 +32,14 @@ def test_stages_add_up_and_compilation_is_charged_to_the_stage_that_compiles():
     before = dict(timer.compile)
     jax.jit(lambda x: jnp.cos(x) - 1.0)(jnp.ones(3)).block_until_ready()  # compiled after the run: not seen
     assert timer.compile == before  # the listener is gone with the run
-    d = timer.to_dict(extra_total=0.5)
-    assert [s["stage"] for s in d["stages"]] == ["first call", "second call", "outer", "inner"]
+    timer.add("measured elsewhere", 0.5)
+    d = timer.to_dict()
+    assert [s["stage"] for s in d["stages"]] == ["first call", "second call", "outer", "inner", "measured elsewhere"]
     by = {s["stage"]: s for s in d["stages"]}
     assert by["first call"]["compile_s"] > 0 and by["second call"]["compile_s"] == 0.0
     assert by["inner"]["s"] >= 0.05 and 0.02 <= by["outer"]["s"] < by["inner"]["s"]
     assert d["compile_s"] == sum(s["compile_s"] for s in d["stages"])
-    assert d["total_s"] + 1e-9 >= 0.5 + sum(s["s"] for s in d["stages"]) and d["other_s"] >= 0.5 - 1e-9
+    assert d["total_s"] + 1e-9 >= sum(s["s"] for s in d["stages"]) and d["other_s"] >= 0.0
 
 
 def test_time_measured_elsewhere_is_a_stage_of_its_own():
@@ -46,7 +47,7 @@ def test_time_measured_elsewhere_is_a_stage_of_its_own():
     timer.add("reading the file", 1.25)
     with timer:
         pass
-    d = timer.to_dict(extra_total=1.25)
+    d = timer.to_dict()
     assert d["stages"] == [{"stage": "reading the file", "s": 1.25, "compile_s": 0.0}]
     assert d["total_s"] >= 1.25 and d["other_s"] >= 0.0
 

@@ -35,6 +35,7 @@ class StageTimer:
         self._t0 = time.perf_counter()
         self._end: float | None = None
         self._listening = False
+        self._before = 0.0  # seconds measured elsewhere (add), part of the run
 
     # the listener: jax calls it with (event, seconds, **metadata)
     def _on_event(self, event: str, duration: float, **_kw) -> None:
@@ -75,14 +76,16 @@ class StageTimer:
                 self._stack[-1] = (self._stack[-1][0], end)
 
     def add(self, name: str, seconds: float) -> None:
-        """Wall seconds measured elsewhere (e.g. reading the file before the run began)."""
+        """Wall seconds of a stage measured elsewhere (e.g. reading the file before the run began): they count in
+        the total too."""
         self.wall[name] = self.wall.get(name, 0.0) + float(seconds)
+        self._before += float(seconds)
 
-    def to_dict(self, extra_total: float = 0.0) -> dict:
+    def to_dict(self) -> dict:
         """{"total_s", "compile_s", "stages": [{"stage", "s", "compile_s"}] in the order they first ran, "other_s"
-        (the run's time in no stage), "note"}; ``extra_total``: seconds before the timer started (added stages)."""
+        (the run's time in no stage), "note"}."""
         end = self._end if self._end is not None else time.perf_counter()
-        total = end - self._t0 + extra_total
+        total = end - self._t0 + self._before
         names = list(dict.fromkeys([*self.wall, *self.compile]))
         stages = [
             {"stage": n, "s": self.wall.get(n, 0.0), "compile_s": self.compile.get(n, 0.0)}

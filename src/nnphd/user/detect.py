@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from contextlib import contextmanager
+from contextlib import nullcontext
 from pathlib import Path
 
 import numpy as np
@@ -119,6 +119,7 @@ def detect_data(
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`)."""
     from nnphd.explain.families import parse_law
     from nnphd.user.assess import assess
+    from nnphd.user.recording import suggest_angles
 
     done = [0, 1]  # the training rounds of the checks: the bar shows them; the other stages are messages
 
@@ -184,7 +185,7 @@ def detect_data(
             "reasons": reasons,
             "quality": res["quality"],
             "angles": [c for c, a in zip(coords, res["angles"]) if a],
-            "angle_suggestions": [list(x) for x in _suggest_angles(ud)],
+            "angle_suggestions": [list(x) for x in suggest_angles(ud)],
             "warnings": _warnings(info, coords),
             "clock": res["clock"],
             "checks": res["checks"],
@@ -244,12 +245,6 @@ def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
     tm["compile_s"] += elsewhere
     tm["note"] += "; the seeds' compilation on worker processes is added to the training stage, summed over them"
     return tm | {"per_seed": per_seed}
-
-
-def _suggest_angles(ud):
-    from nnphd.user.recording import suggest_angles
-
-    return suggest_angles(ud)
 
 
 def _prepared(ud, trim):
@@ -763,7 +758,7 @@ def find_law(
     (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
     ``field`` is "uniform" (declared: nothing oscillates). ``timer``: the stages are timed on it (law table:
     pointwise fits, trajectory-level fits, rests, stops and envelope). Returns a LawTable."""
-    timed = timer.stage if timer is not None else _untimed
+    timed = timer.stage if timer is not None else (lambda _name: nullcontext())
     say = Stages(progress, 2)
     say("candidate laws (pointwise joint fits)")
     with timed("law table: pointwise fits"):
@@ -777,11 +772,6 @@ def find_law(
     with timed("law table: rests, stops and envelope"):
         return _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level,
                                   seed)  # fmt: skip
-
-
-@contextmanager
-def _untimed(_name: str):
-    yield
 
 
 def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field):

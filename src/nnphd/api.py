@@ -150,9 +150,9 @@ class NNPhD:
     ``sr_time``: seconds of genetic symbolic regression for the fallback (0: none); ``trim``: drop the ends of
     each trajectory ("auto"); ``field``: the conservative force, "learned" (by the LNN, the default) or "uniform"
     (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the verdict and the law then
-    rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted field); ``workers``: train the seeds on that many local Dask worker processes (default 1:
-    here; the numbers are the same), ``scheduler``: on an existing Dask cluster; further keywords go to
-    :func:`nnphd.user.assess.assess`.
+    rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted field); ``workers``: train
+    the seeds on that many local Dask worker processes (default 1: here; the numbers are the same),
+    ``scheduler``: on an existing Dask cluster; further keywords go to :func:`nnphd.user.assess.assess`.
 
     After ``fit``: ``verdict_`` (:class:`Verdict`), ``status_``, ``confidence_``, ``new_physics_``, ``law_``
     (:class:`Law` or None), ``report_`` (the JSON-ready report dict), ``names_``, ``angles_``.

@@ -15,14 +15,13 @@ from contextlib import contextmanager
 
 # JAX's own duration events of a compilation (jax.monitoring; jax._src.dispatch and jax._src.compiler): trace to a
 # jaxpr, lower to MLIR, compile with XLA — or, on a hit of the persistent compilation cache, retrieve it
-COMPILE_EVENTS = frozenset(
-    {
-        "/jax/core/compile/jaxpr_trace_duration",
-        "/jax/core/compile/jaxpr_to_mlir_module_duration",
-        "/jax/core/compile/backend_compile_duration",
-        "/jax/compilation_cache/cache_retrieval_time_sec",
-    }
-)
+COMPILE_PARTS = {
+    "/jax/core/compile/jaxpr_trace_duration": "trace",
+    "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
+    "/jax/core/compile/backend_compile_duration": "xla",
+    "/jax/compilation_cache/cache_retrieval_time_sec": "cache",
+}
+COMPILE_EVENTS = frozenset(COMPILE_PARTS)
 
 
 class StageTimer:
@@ -31,6 +30,7 @@ class StageTimer:
     def __init__(self) -> None:
         self.wall: dict[str, float] = {}
         self.compile: dict[str, float] = {}
+        self.parts: dict[str, float] = {}  # compile seconds by kind (COMPILE_PARTS), over the whole run
         self._stack: list[tuple[str, float]] = []
         self._t0 = time.perf_counter()
         self._end: float | None = None
@@ -42,6 +42,8 @@ class StageTimer:
         if event in COMPILE_EVENTS:
             name = self._stack[-1][0] if self._stack else "other"
             self.compile[name] = self.compile.get(name, 0.0) + float(duration)
+            part = COMPILE_PARTS[event]
+            self.parts[part] = self.parts.get(part, 0.0) + float(duration)
 
     def __enter__(self) -> StageTimer:
         import jax.monitoring
@@ -82,8 +84,9 @@ class StageTimer:
         self._before += float(seconds)
 
     def to_dict(self) -> dict:
-        """{"total_s", "compile_s", "stages": [{"stage", "s", "compile_s"}] in the order they first ran, "other_s"
-        (the run's time in no stage), "note"}."""
+        """{"total_s", "compile_s", "compile_parts_s" (trace: to a jaxpr, lower: to MLIR — both also on a hit of
+        the persistent cache —, xla: the XLA compilation, cache: retrieval from the persistent cache), "stages":
+        [{"stage", "s", "compile_s"}] in the order they first ran, "other_s" (the run's time in no stage), "note"}."""
         end = self._end if self._end is not None else time.perf_counter()
         total = end - self._t0 + self._before
         names = list(dict.fromkeys([*self.wall, *self.compile]))
@@ -95,6 +98,7 @@ class StageTimer:
         return {
             "total_s": total,
             "compile_s": sum(self.compile.values()),
+            "compile_parts_s": {k: self.parts.get(k, 0.0) for k in ("trace", "lower", "xla", "cache")},
             "stages": stages,
             "other_s": max(total - sum(s["s"] for s in stages), 0.0),
             "note": (

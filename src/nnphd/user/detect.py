@@ -178,7 +178,7 @@ def detect_data(
             "new_physics": new_physics,
             "status": status,
             "statistic": res["statistic"],
-            "effect": res["effect"],
+            "effect": law.pop("_effect", None) or res["effect"],
             "evidence": res["evidence"],
             "confidence": confidence,
             "confidence_basis": res["confidence_basis"] if status == res["status"] else RECONCILED_BASIS,
@@ -386,6 +386,7 @@ def _reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool,
     status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
     if field == "uniform" and (res.get("quality") or {}).get("usable", True):
         status, conf, why = _declared_field_verdict(law)
+        law["_effect"] = _declared_field_effect(law)
         _withhold(law, status, None if status == "detected" else why)
         return status, status != "none", conf, [why, *reasons]
     cand = law.get("law") or law.get("candidate_law")
@@ -511,6 +512,21 @@ def _seed_free_evidence(res: dict, law: dict) -> str | None:
 # noise estimate of a short record can be ~40 % off in χ²). On the 2-D throw look-alike the uniform field alone leaves
 # ~3, with a drag ~0.9 (benchmarks/results/friction_laws.json).
 FIELD_FIT_MSE = 2.0
+
+
+def _declared_field_effect(law: dict) -> str | None:
+    """The effect size beside a declared uniform field: how much the best law lowers the error of the fit of the
+    positions, from what to what (the network's record-level evidence says nothing here: it can absorb a drag)."""
+    rows = law.get("candidates") or []
+    zero = next((r for r in rows if r["law"] == "none"), None)
+    best = law.get("law") or next((r for r in rows if r["law"] != "none" and r.get("significant", True)), None)
+    if zero is None or best is None:
+        return None
+    return (
+        f"beside the declared uniform field, {best['title']} lowers the error of the fit of the positions by "
+        f"{100 * (1 - best['heldout_ratio']):.0f}% (χ²/N {zero['heldout_mse']:.2f} → {best['heldout_mse']:.2f}, "
+        f"ΔIC = {best['delta_ic']:.1f})"
+    )
 
 
 def _declared_field_verdict(law: dict) -> tuple[str, float, str]:

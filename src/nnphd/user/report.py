@@ -326,7 +326,7 @@ def _field_html(report: dict) -> str:
     f = declared_field(report)
     if f is None:
         return "<p><b>Conservative force:</b> learned by the Lagrangian network</p>"
-    g = "; ".join(f"{_e(c)}: {_fmt(v)} ± {_fmt(f['stderr'].get(c))}" for c, v in (f.get("g") or {}).items())
+    g = "; ".join(f"{_e(c)}: {_e(_fmt(v))} ± {_e(_fmt(f['stderr'].get(c)))}" for c, v in (f.get("g") or {}).items())
     beside = f" (fitted beside {_e(f['law'])})" if f.get("law") not in (None, "none") else ""
     return f"<p><b>Conservative force:</b> {_e(f['text'])}; g = {g or '—'}{beside}</p>"
 

@@ -4,6 +4,7 @@ compilation cache (cold), then again with the cache the first run filled (warm) 
 report.json (``timings``: wall and JAX-compile seconds per stage, :mod:`nnphd.io.timing`).
 
     .venv/bin/python benchmarks/stage_times.py [--cases name,...] [--real name,...] [--seed 0] [--json out.json]
+                                               [--workers N]
 
 Cases: the look-alikes of tests/fixtures/friction.py (default: viscous-dry, heavy-damping, jitter-clock,
 linear-quadratic) and the real recordings of benchmarks/results/friction_reference.json (default:
@@ -63,7 +64,7 @@ def _real(name: str) -> tuple[str, list[str]]:
     return path, [ref["coordinate"]] if ref["model"] == "pendulum" else []
 
 
-def _run(path: str, angles: list[str], seed: int, cache: str, out: str) -> tuple[dict, float]:
+def _run(path: str, angles: list[str], seed: int, cache: str, out: str, workers: str = "") -> tuple[dict, float]:
     cmd = [
         sys.executable,
         "-c",
@@ -79,6 +80,8 @@ def _run(path: str, angles: list[str], seed: int, cache: str, out: str) -> tuple
     ]
     if angles:
         cmd += ["--angles", ",".join(angles)]
+    if workers:
+        cmd += ["--workers", workers]
     env = dict(os.environ, NNPHD_COMPILE_CACHE=cache, PYTHONPATH=os.path.join(ROOT, "src"))
     t0 = time.perf_counter()
     r = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -95,6 +98,7 @@ def main() -> None:
     ap.add_argument("--real", default="servo_sts3250_drop,seismometer_blow")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", default=None)
+    ap.add_argument("--workers", default="", help="nnphd detect's --workers (default: its own, one per core)")
     a = ap.parse_args()
     work = tempfile.mkdtemp(prefix="nnphd-stages-")
     files = []
@@ -116,7 +120,7 @@ def main() -> None:
         cache = os.path.join(work, f"cache-{name}")  # empty: cold; the second run finds what the first compiled
         runs = {}
         for kind in ("cold", "warm"):
-            rep, wall = _run(path, angles, a.seed, cache, os.path.join(work, f"out-{name}-{kind}"))
+            rep, wall = _run(path, angles, a.seed, cache, os.path.join(work, f"out-{name}-{kind}"), a.workers)
             tm = rep["timings"]
             by = {s["stage"]: s for s in tm["stages"]}
             cells = " | ".join(f"{by[s]['s']:.1f} ({by[s]['compile_s']:.1f})" if s in by else "—" for s in STAGES)
@@ -132,7 +136,8 @@ def main() -> None:
                 "per_seed": tm["per_seed"],
             }
         same = runs["cold"]["status"] == runs["warm"]["status"] and runs["cold"]["law"] == runs["warm"]["law"]
-        out.append({"file": name, "rows": rows, "angles": angles, "seed": a.seed, "same_verdict": same, **runs})
+        out.append({"file": name, "rows": rows, "angles": angles, "seed": a.seed, "workers": a.workers or "default",
+                    "same_verdict": same, **runs})  # fmt: skip
         if a.json:
             with open(a.json + ".tmp", "w") as f:
                 json.dump(out, f, indent=1)

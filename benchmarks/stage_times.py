@@ -132,6 +132,7 @@ def main() -> None:
                 "total_s": tm["total_s"],
                 "process_s": wall,
                 "compile_s": tm["compile_s"],
+                "compile_parts_s": tm.get("compile_parts_s"),  # of this process (the seeds' workers: in per_seed)
                 "stages": tm["stages"],
                 "per_seed": tm["per_seed"],
             }

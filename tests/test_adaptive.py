@@ -10,7 +10,7 @@ from nnphd.engine import adaptive
 from nnphd.engine.adaptive import StopRule, fast_sweep, first_lambdas, make_chunk_trainer, train_converged, undecided
 from nnphd.engine.data import gaussian_dataset
 from nnphd.engine.models import ModelConfig, init_nnphd
-from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, _as_arrays, loss_terms, sweep
+from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, as_arrays, loss_terms, sweep
 from nnphd.engine.verdict import verdict
 from nnphd.paper.sweep import run_sweep
 
@@ -79,7 +79,7 @@ def test_chunk_trainer_objective_and_learning_rate():
     """``run`` returns L_e + λ L_b on all the data at its returned parameters; lr = 0 leaves them unchanged."""
     d = gaussian_dataset("ho+ld", 128, seed=0)
     tcfg = TrainConfig(steps=40)
-    arrays = _as_arrays(d, jnp.float64)
+    arrays = as_arrays(d, jnp.float64)
     run, init, _, _ = make_chunk_trainer(SMALL, tcfg, 10)
     p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
     lam = jnp.asarray(0.5)
@@ -100,7 +100,7 @@ def test_chunk_trainer_objective_and_learning_rate():
 def test_train_converged_counts_its_steps():
     d = gaussian_dataset("ho+ld", 128, seed=0)
     tcfg = TrainConfig(steps=400)  # ≤ 100 steps per learning rate
-    arrays = _as_arrays(d, jnp.float64)
+    arrays = as_arrays(d, jnp.float64)
     p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
     tr = make_chunk_trainer(SMALL, tcfg, 20)
     # every chunk must improve the objective by 99%: each learning rate stops after its first chunk

@@ -18,7 +18,7 @@ def _windows(seed=0, W=12, P=2, m=6):
     return X, y, theta
 
 
-def _blocks(X, y, theta):
+def normal_blocks(X, y, theta):
     r = X @ theta - y
     return np.sum(r * r, axis=1), np.einsum("wmp,wmq->wpq", X, X), np.einsum("wmp,wm->wp", X, r)
 
@@ -26,7 +26,7 @@ def _blocks(X, y, theta):
 def test_at_the_optimum_it_is_the_exact_leave_one_group_out_error_of_a_linear_fit():
     X, y, theta = _windows()
     groups = np.array_split(np.arange(len(X)), 4)
-    c, S, g = _blocks(X, y, theta)
+    c, S, g = normal_blocks(X, y, theta)
     exact = 0.0
     for grp in groups:
         keep = np.setdiff1d(np.arange(len(X)), grp)
@@ -42,9 +42,9 @@ def test_away_from_the_optimum_it_refuses_to_rank():
     # below zero: a drive with free ω on a 2-D drag record had held-out χ² < 0 and was claimed with ΔIC −39418)
     X, y, theta = _windows()
     groups = np.array_split(np.arange(len(X)), 4)
-    c, S, g = _blocks(X, y, theta + np.array([0.8, -0.6]))
+    c, S, g = normal_blocks(X, y, theta + np.array([0.8, -0.6]))
     assert heldout_chi2(c, S, g, groups) is None
     # a fit a little short of the optimum (a few LM iterations): its groups' held-out χ² stays near their in-sample
     # χ² (here 1.02–1.08 of it) — still ranked
-    c, S, g = _blocks(X, y, theta + np.array([1e-3, 0.0]))
+    c, S, g = normal_blocks(X, y, theta + np.array([1e-3, 0.0]))
     assert heldout_chi2(c, S, g, groups) is not None

@@ -9,6 +9,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "nnphd"
 # lower number = lower layer; a module may import its own layer and the layers below
 LAYERS = {
     "_extras": 0,
+    "_config": 0,
     "parallel": 0,
     "io": 0,
     "engine": 1,
@@ -41,7 +42,7 @@ def _imports(path: Path, mods: dict[str, Path]) -> set[str]:
                 found.add(sub if sub in mods else node.module)
         elif isinstance(node, ast.Import):
             found |= {a.name for a in node.names if a.name.startswith("nnphd")}
-    return found - {"nnphd"}
+    return found  # "nnphd" itself (``from nnphd import configure``): the front door, the top layer
 
 
 def _layer(mod: str) -> int:
@@ -52,6 +53,21 @@ def _layer(mod: str) -> int:
 def test_no_import_from_a_higher_layer():
     mods = _modules()
     bad = [(m, i) for m, p in mods.items() for i in _imports(p, mods) if _layer(i) > _layer(m)]
+    assert bad == []
+
+
+def test_no_private_name_is_imported_from_another_subpackage():
+    """A helper another part of the package needs is public, in a module named for what it does: no module imports
+    a ``_name`` from another subpackage (within one subpackage private helpers are still shared)."""
+    mods = _modules()
+    bad = []
+    for m, p in mods.items():
+        here = m.split(".")[1] if "." in m else ""
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("nnphd."):
+                there = node.module.split(".")[1]
+                bad += [(m, node.module, a.name) for a in node.names
+                        if a.name.startswith("_") and not a.name.startswith("__") and there != here]  # fmt: skip
     assert bad == []
 
 

@@ -190,14 +190,14 @@ def test_verdict_exact_fit_below_one():
 def test_lambda_sweep_modes():
     """The one λ-sweep: "scratch" equals "vmap" (every λ from the same start and key), "warm" chains, ``accept``
     chooses what the chain keeps, ``resume`` skips finished λ."""
-    from nnphd.engine.train import _as_arrays, lambda_sweep
+    from nnphd.engine.train import as_arrays, lambda_sweep
 
     sysm = get_system("ho+ld")
     tr = gaussian_dataset(sysm, 64, 0)
     tcfg = TrainConfig(steps=40)
     train = make_trainer(SMALL, tcfg)
     p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
-    arrays, key, lams = _as_arrays(tr, jnp.float64), jax.random.PRNGKey(1), (0.1, 2.0, 0.5)
+    arrays, key, lams = as_arrays(tr, jnp.float64), jax.random.PRNGKey(1), (0.1, 2.0, 0.5)
     scratch = lambda_sweep(train, p0, arrays, lams, key, "scratch")
     vm = lambda_sweep(train, p0, arrays, lams, key, "vmap")
     assert list(scratch) == [0.1, 0.5, 2.0]

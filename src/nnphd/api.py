@@ -409,10 +409,10 @@ class NNPhD:
         }
         if self._model.get("field") is not None:
             meta["field"] = self._model["field"]
-        from nnphd.io.results import _json_default
+        from nnphd.io.results import json_default
 
         arrays = {f"lnn_{i}": np.asarray(x) for i, x in enumerate(leaves)}
-        arrays["meta"] = np.array(json.dumps(meta, default=_json_default))
+        arrays["meta"] = np.array(json.dumps(meta, default=json_default))
         path.parent.mkdir(parents=True, exist_ok=True)
         import io
 

@@ -44,7 +44,7 @@ from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
-from nnphd import ONE_THREAD_FLAGS, XLA_FLAG
+from nnphd._config import ONE_THREAD_FLAGS, XLA_FLAG
 from nnphd.io.progress import Progress
 from nnphd.io.timing import COMPILE_EVENTS  # JAX's duration events of a compilation
 
@@ -217,7 +217,7 @@ def _one_line(e: BaseException) -> str:
 def _call(fn: Callable[..., Any], kwargs: dict) -> tuple[Any, float, float, str]:
     """Run one unit in a worker: nnphd's process-wide settings (float64; the XLA flags came with the worker's
     environment), then ``fn(**kwargs)``; returns (value, seconds, seconds of compilation, worker pid)."""
-    from nnphd import configure
+    from nnphd._config import configure
 
     configure()
     t0 = time.perf_counter()

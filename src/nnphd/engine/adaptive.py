@@ -42,7 +42,7 @@ from nnphd.engine.train import (
     SWEEP_MODES,
     SweepPoint,
     TrainConfig,
-    _as_arrays,
+    as_arrays,
     loss_terms,
     sweep,
     sweep_point,
@@ -241,7 +241,7 @@ def fast_sweep(
         return pts, FastInfo({lam: tcfg.steps for lam in pool}, first, ["resumed the paper protocol"], True)
     dtype = jnp.dtype(cfg.dtype)
     k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
-    arrays = _as_arrays(train_data, dtype)
+    arrays = as_arrays(train_data, dtype)
     trainer = make_chunk_trainer(cfg, tcfg, rule.chunk)
     eval_data = test_data if test_data is not None else train_data
     params, points, steps = init_nnphd(k_init, cfg), [], {}

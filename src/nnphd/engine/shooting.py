@@ -112,7 +112,7 @@ def _solve(A, b):
         return np.stack([np.linalg.lstsq(a, bb, rcond=None)[0] for a, bb in zip(A, b)])
 
 
-def _blocks(r, jac, P_loc):
+def normal_blocks(r, jac, P_loc):
     """Per-window normal-equation blocks from residuals (W, L, n) and forward derivatives (P, W, L, n)."""
     W = r.shape[0]
     R = r.reshape(W, -1)
@@ -126,7 +126,7 @@ def _blocks(r, jac, P_loc):
     return AtA, AtB, BtB, Atr, Btr, np.sum(R * R, axis=1)
 
 
-def _schur(AtA, AtB, BtB, Atr, Btr, mu, free):
+def schur_complement(AtA, AtB, BtB, Atr, Btr, mu, free):
     """Per-window Schur complements (W, G, G), (W, G) over the free global parameters, and the local solves."""
     _W, P, _ = AtA.shape
     diag = np.einsum("wii->wi", AtA)
@@ -169,10 +169,10 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None):
     if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
         return s, theta, r, jac, float("nan")
     for _ in range(iters):
-        AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, P_loc)
+        AtA, AtB, BtB, Atr, Btr, _ = normal_blocks(r, jac, P_loc)
         improved = False
         for _try in range(8):
-            S, g, XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, mu, free)
+            S, g, XB, Xr = schur_complement(AtA, AtB, BtB, Atr, Btr, mu, free)
             Stot = S.sum(0)
             dth_free = -_solve(Stot + mu * np.diag(np.diag(Stot)), g.sum(0)) if free.any() else np.zeros(0)
             ds = -Xr - np.einsum("wik,k->wi", XB, dth_free)
@@ -264,7 +264,7 @@ def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, ns
     return r, jac
 
 
-def _pad_windows(wins, t, q, x0):
+def pad_windows(wins, t, q, x0):
     W = len(wins)
     L = max(len(w) for w in wins)
     n = q.shape[1]
@@ -361,7 +361,7 @@ def _shooting_fit(
     sig = np.asarray(sigma, float)
     spread = np.array([np.ptp(q[:, j]) for j in range(n)])
     sig = np.maximum(sig, 1e-3 * np.maximum(spread, 1e-12))
-    tw, qw, mask, s0 = _pad_windows(wins, t, q, (q, qd))
+    tw, qw, mask, s0 = pad_windows(wins, t, q, (q, qd))
     tw = tw - tw[:, :1]  # each window on its own clock (the model is autonomous)
     dtmax = float(np.max(np.diff(tw, axis=1)))
     vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
@@ -386,8 +386,8 @@ def _shooting_fit(
     if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
         out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
         return out
-    AtA, AtB, BtB, Atr, Btr, _ = _blocks(r, jac, 2 * n)
-    S, g, _, _ = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free_all)
+    AtA, AtB, BtB, Atr, Btr, _ = normal_blocks(r, jac, 2 * n)
+    S, g, _, _ = schur_complement(AtA, AtB, BtB, Atr, Btr, 0.0, free_all)
     Stot = S.sum(0)
     n_res = int(mask.sum()) * n
     n_par = len(wins) * 2 * n + 1 + n

@@ -100,7 +100,7 @@ class TrainConfig:
         return optax.piecewise_constant_schedule(self.lrs[0], bounds)
 
 
-def _as_arrays(data, dtype):
+def as_arrays(data, dtype):
     return tuple(jnp.asarray(a, dtype) for a in (data.q, data.qd, data.t, data.qdd))
 
 
@@ -158,7 +158,7 @@ class Evaluation:
 
 def evaluate(params: Params, data, cfg: ModelConfig, p) -> Evaluation:
     """L_e, L_b and the learned forces on a whole dataset."""
-    le, lb, fc, fn = evaluate_arrays(params, *_as_arrays(data, jnp.dtype(cfg.dtype)), cfg, p)
+    le, lb, fc, fn = evaluate_arrays(params, *as_arrays(data, jnp.dtype(cfg.dtype)), cfg, p)
     return Evaluation(float(le), float(lb), np.asarray(fc), np.asarray(fn))
 
 
@@ -314,7 +314,7 @@ def sweep(
     lambda_sweep(
         make_trainer(cfg, tcfg),
         init_nnphd(k_init, cfg),
-        _as_arrays(train_data, dtype),
+        as_arrays(train_data, dtype),
         lams,
         k_train,
         mode,

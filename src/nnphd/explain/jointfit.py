@@ -154,7 +154,8 @@ def _ridge(G):
     return G + 1e-12 * max(float(np.trace(G)) / max(G.shape[0], 1), 1e-300) * np.eye(G.shape[0])
 
 
-def _segments(traj) -> list[np.ndarray]:
+def trajectory_segments(traj) -> list[np.ndarray]:
+    """The row indices of each trajectory: one array per run of equal ids in ``traj`` (the rows in file order)."""
     traj = np.asarray(traj)
     cuts = np.flatnonzero(np.diff(traj) != 0) + 1
     return np.split(np.arange(len(traj)), cuts)

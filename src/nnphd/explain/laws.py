@@ -23,7 +23,7 @@ import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
 from nnphd.explain.families import _odd_monomials, families, parse_law, perturber_family, sparse_family
-from nnphd.explain.jointfit import MU, N_BOOT, _folds, _linear_stats, _Problem, _segments, _tau
+from nnphd.explain.jointfit import MU, N_BOOT, _folds, _linear_stats, _Problem, _tau, trajectory_segments
 from nnphd.explain.table import (
     IC_TIE,
     LawFit,
@@ -151,7 +151,7 @@ def rank_laws(
         fc = None if fc is None else np.asarray(fc, float)[keep]
         conservative_cols = None if conservative_cols is None else np.asarray(conservative_cols, float)[keep]
         N = len(keep)
-    segs = _segments(traj)
+    segs = trajectory_segments(traj)
     sd = q.std(axis=0)
     center = (q.mean(axis=0), np.where(sd > 0, sd, 1.0))  # positions enter the conservative library standardised
     C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float), center, library)

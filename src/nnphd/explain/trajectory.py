@@ -12,7 +12,7 @@ import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
 from nnphd.explain.families import Family
-from nnphd.explain.jointfit import N_BOOT, _ridge, _segments, _solve
+from nnphd.explain.jointfit import N_BOOT, _ridge, _solve, trajectory_segments
 from nnphd.explain.table import LawTable, _c_hat, _law_row, _overdispersion, _relative_to_zero, _select, _zero_row
 
 __all__ = ["rank_trajectory"]
@@ -125,12 +125,12 @@ def rank_trajectory(
         MAX_WINDOW,
         MIN_WINDOW,
         WINDOW_PERIODS,
-        _blocks,
-        _pad_windows,
-        _schur,
         lm_windows,
         model_residuals,
         model_residuals_and_jac,
+        normal_blocks,
+        pad_windows,
+        schur_complement,
         shooting_windows,
     )
 
@@ -140,7 +140,7 @@ def rank_trajectory(
     N, n = q_pos.shape
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
     angles = tuple(bool(a) for a in (np.zeros(n, bool) if angles is None else angles))
-    segs = _segments(traj)
+    segs = trajectory_segments(traj)
     # the first of the window lengths that leaves min_windows of them (else, allowed, whole trajectories in-sample)
     cap = MAX_WINDOW if max_window_rows is None else max(MAX_WINDOW, int(max_window_rows))
     for periods in window_periods or (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
@@ -157,7 +157,7 @@ def rank_trajectory(
             return table
     spread = np.array([np.ptp(q_pos[:, j]) for j in range(n)])
     sig = np.maximum(np.asarray(sigma, float), 1e-3 * np.maximum(spread, 1e-12))
-    tw, qw, mask, s0 = _pad_windows(wins, t, q_pos, (q_pos, qd))
+    tw, qw, mask, s0 = pad_windows(wins, t, q_pos, (q_pos, qd))
     t0w = tw[:, 0].copy()
     tw = tw - tw[:, :1]
     dtmax = float(np.max(np.diff(tw, axis=1)))
@@ -240,8 +240,8 @@ def rank_trajectory(
         th = th[: len(idx)]
         free = free[: len(idx)]
         jac = jac[: 2 * n + len(idx)]
-        AtA, AtB, BtB, Atr, Btr, rr = _blocks(r, jac, 2 * n)
-        S, g, _XB, Xr = _schur(AtA, AtB, BtB, Atr, Btr, 0.0, free)
+        AtA, AtB, BtB, Atr, Btr, rr = normal_blocks(r, jac, 2 * n)
+        S, g, _XB, Xr = schur_complement(AtA, AtB, BtB, Atr, Btr, 0.0, free)
         c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
         Stot = S.sum(0)
         cv = chi2 if in_sample else heldout_chi2(c_loc, S, g, groups)

@@ -30,12 +30,12 @@ from pathlib import Path
 
 import numpy as np
 
-from nnphd.io.results import _json_default, atomic_write_bytes, write_json
+from nnphd.io.results import atomic_write_bytes, json_default, write_json
 
 
 def normalise(obj):
     """``obj`` as it reads back from JSON (tuples → lists, numpy scalars → numbers)."""
-    return json.loads(json.dumps(obj, default=_json_default))
+    return json.loads(json.dumps(obj, default=json_default))
 
 
 def fingerprint(settings: dict) -> str:
@@ -46,7 +46,7 @@ def save_npz(path: str | os.PathLike, meta: dict, arrays: dict[str, np.ndarray])
     """``meta`` (JSON) and ``arrays`` in one .npz, written atomically."""
     buf = io.BytesIO()
     np.savez(
-        buf, __meta__=np.array(json.dumps(meta, default=_json_default)), **{k: np.asarray(v) for k, v in arrays.items()}
+        buf, __meta__=np.array(json.dumps(meta, default=json_default)), **{k: np.asarray(v) for k, v in arrays.items()}
     )
     atomic_write_bytes(path, buf.getvalue())
 

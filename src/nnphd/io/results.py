@@ -14,7 +14,7 @@ from nnphd.io.escape import mpl as _m
 from nnphd.io.outdir import ensure_writable_dir  # noqa: F401  (re-exported: the writers' folder check)
 
 
-def _json_default(o):
+def json_default(o):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
     if isinstance(o, np.ndarray):
@@ -47,7 +47,7 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
 
 
 def write_json(path: str | os.PathLike, obj) -> None:
-    atomic_write_bytes(path, (json.dumps(obj, indent=2, default=_json_default, allow_nan=True) + "\n").encode())
+    atomic_write_bytes(path, (json.dumps(obj, indent=2, default=json_default, allow_nan=True) + "\n").encode())
 
 
 def subplots(*args, figsize=None, **kw):

@@ -34,7 +34,7 @@ import numpy as np
 from nnphd.engine.data import Dataset, gaussian_dataset, imbalanced_dataset, pie_dataset
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.systems import get_system
-from nnphd.engine.train import TrainConfig, _as_arrays, alignment, evaluate, make_trainer
+from nnphd.engine.train import TrainConfig, alignment, as_arrays, evaluate, make_trainer
 from nnphd.engine.verdict import MIN_RATIO
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
@@ -52,7 +52,7 @@ DQ_P = 1.0
 
 
 def _stack(datasets: Sequence[Dataset]):
-    arrs = [_as_arrays(d, jnp.float64) for d in datasets]
+    arrs = [as_arrays(d, jnp.float64) for d in datasets]
     return tuple(jnp.stack([a[i] for a in arrs]) for i in range(4))
 
 

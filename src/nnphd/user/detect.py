@@ -794,14 +794,14 @@ def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, leve
     """find_law's pointwise stage: (the table, the moving rows' data and trajectory ids, the rest found, the whole
     data and ids, the period)."""
     from nnphd.engine.evidence import dominant_period
-    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.jointfit import trajectory_segments
     from nnphd.explain.laws import rank_laws
 
     err = None if row_err is None else row_err["qdd_err"]
     period = dominant_period(
         np.concatenate([data.q, data.qd], axis=1),
         data.t,
-        _segments(traj),
+        trajectory_segments(traj),
         position_noise=[info["per_coordinate"][c]["noise"] for c in coords],
     )
     if field == "uniform":  # no force of position: nothing oscillates, the library is the uniform field
@@ -831,7 +831,7 @@ def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, leve
 
 def _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed):
     """find_law's trajectory-level stage: the table re-ranked by multiple shooting on the positions."""
-    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.jointfit import trajectory_segments
     from nnphd.explain.trajectory import rank_trajectory
 
     sigma = [info["per_coordinate"][c]["noise"] for c in coords]
@@ -844,7 +844,7 @@ def _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_
         traj[rows],
         sigma=sigma,
         # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
-        period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in _segments(traj))),
+        period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in trajectory_segments(traj))),
         angles=is_angle,
         fc_fn=fc_fn if fc is not None else None,
         seed=seed,
@@ -916,14 +916,14 @@ def _library(t, traj, period: float, level: str):
     (a pendulum about any rest angle, springs to degree 3) when the record is too short for held-out shooting
     windows and is ranked in-sample, else the full one (:func:`nnphd.explain.conservative.conservative_basis`)."""
     from nnphd.engine.shooting import shooting_windows
-    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.jointfit import trajectory_segments
     from nnphd.explain.trajectory import MIN_WINDOWS
 
     if not np.isfinite(period):
         return "minimal"
     if level == "pointwise":
         return True
-    wins = shooting_windows(_segments(traj), t, period, periods=min(SHORT_RECORDS["window_periods"]))
+    wins = shooting_windows(trajectory_segments(traj), t, period, periods=min(SHORT_RECORDS["window_periods"]))
     return "short" if len(wins) < MIN_WINDOWS else True
 
 
@@ -934,9 +934,9 @@ def _thinned(t, traj, period: float) -> np.ndarray:
     """The rows the trajectory-level fits use: every k-th row of each trajectory, k such that ≥ SHOOT_SAMPLES_PER_PERIOD
     rows per period remain — a 1 kHz encoder (1260 rows per period) took 15 minutes to rank at full rate, and the
     positions between the kept rows add little that the noise does not hide."""
-    from nnphd.explain.jointfit import _segments
+    from nnphd.explain.jointfit import trajectory_segments
 
-    segs = _segments(traj)
+    segs = trajectory_segments(traj)
     dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1] or [np.ones(1)])
     dt = float(np.median(dts)) if dts.size else 1.0
     k = int(period / (SHOOT_SAMPLES_PER_PERIOD * dt)) if np.isfinite(period) and dt > 0 else 1

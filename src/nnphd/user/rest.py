@@ -22,17 +22,14 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from nnphd.explain.jointfit import trajectory_segments
+
 __all__ = ["rest_mask", "without_rest"]
 
 REST_WINDOW_PERIODS = 0.5
 REST_MIN_SAMPLES = 5
 REST_TOL_SIGMA = 1.5
 MIN_PIECE = 12
-
-
-def _segments(traj: np.ndarray) -> list[np.ndarray]:
-    cuts = np.flatnonzero(np.diff(traj) != 0) + 1
-    return np.split(np.arange(len(traj)), cuts)
 
 
 def rest_mask(q, t, traj, sigma, step=None, period: float = np.inf, margin: int = 0) -> np.ndarray:
@@ -46,7 +43,7 @@ def rest_mask(q, t, traj, sigma, step=None, period: float = np.inf, margin: int 
     tol = REST_TOL_SIGMA * sigma + 0.5 * step
     tol = np.where(tol > 0, tol, 1e-12 * np.maximum(np.ptp(q, axis=0), 1e-300))
     rest = np.zeros(N, bool)
-    for seg in _segments(traj):
+    for seg in trajectory_segments(traj):
         m = len(seg)
         dt = float(np.median(np.diff(t[seg]))) if m > 1 else 0.0
         w = REST_MIN_SAMPLES
@@ -74,7 +71,7 @@ def without_rest(data, traj, rest: np.ndarray, extra: dict | None = None):
     keep = ~np.asarray(rest, bool)
     new_id = np.full(len(traj), -1)
     k = 0
-    for seg in _segments(traj):
+    for seg in trajectory_segments(traj):
         piece = keep[seg]
         cuts = np.flatnonzero(np.diff(piece.astype(int)) != 0) + 1
         for run in np.split(seg, cuts):

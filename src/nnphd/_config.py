@@ -1,0 +1,90 @@
+"""nnphd's process-wide settings — float64, the XLA:CPU flags, the persistent compilation cache — set by
+:func:`configure` (re-exported as :func:`nnphd.configure`) in the command line, the tests, the benchmarks and every
+Dask worker. A module of the lowest layer, so that :mod:`nnphd.parallel` need not import the package's front door.
+Importing it changes nothing."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+XLA_FLAG = "--xla_cpu_experimental_ynn_fusion_type="
+ONE_THREAD_FLAGS = "--xla_cpu_multi_thread_eigen=false"
+
+COMPILE_CACHE_ENV = "NNPHD_COMPILE_CACHE"
+COMPILE_CACHE_MAX_BYTES = 2**30  # least recently used programs are evicted beyond 1 GiB
+
+
+def default_compile_cache() -> Path:
+    """The command line's compiled-program cache: ``$XDG_CACHE_HOME/nnphd/jax`` (``~/.cache/nnphd/jax``)."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "nnphd" / "jax"
+
+
+def compile_cache_dir(compile_cache: str | os.PathLike | bool | None = None) -> Path | None:
+    """The folder :func:`configure` uses for ``compile_cache`` (None: off). A path is used as given; False is off;
+    True and None take NNPHD_COMPILE_CACHE when it is set (a folder, or ``0``/``off``/empty for off), else True is
+    :func:`default_compile_cache` and None is off."""
+    if compile_cache is False:
+        return None
+    if compile_cache is not None and compile_cache is not True:
+        return Path(compile_cache)
+    env = os.environ.get(COMPILE_CACHE_ENV)
+    if env is not None:
+        return None if env.strip().lower() in ("", "0", "off", "no", "false") else Path(env)
+    return default_compile_cache() if compile_cache else None
+
+
+def configure(
+    x64: bool = True,
+    fast_cpu: bool = True,
+    one_thread: bool = True,
+    compile_cache: str | os.PathLike | bool | None = None,
+) -> None:
+    """Process-wide settings for nnphd's own programs (the CLI, the tests, the benchmarks, the Dask workers).
+
+    ``x64``: turn on JAX float64 everywhere (the low-level modules, e.g. :mod:`nnphd.user.assess`, expect it).
+    ``fast_cpu``: add ``--xla_cpu_experimental_ynn_fusion_type=`` to XLA_FLAGS — XLA:CPU (jax 0.10) routes small
+    matrix products through YNNPACK, 1.8–2.5× slower for these models (benchmarks/bench_speed.py).
+    ``one_thread``: one XLA thread (no Eigen thread pool). Eigen splits a matrix product's sums differently with
+    more threads, which changes the last bits and, after thousands of training steps, the 5th digit; with one
+    thread here and in every Dask worker (:mod:`nnphd.parallel`) the same seed gives the same numbers whatever the
+    number of workers. More cores are used through workers; one sweep alone is as fast as with the Eigen pool on
+    2 cores (``nnphd sweep --steps 500``: 16.0 and 21.4 s against 19.0 and 20.8 s, alternating runs).
+    The XLA flags only take effect if JAX has not started its backend yet; NNPHD_KEEP_XLA_FLAGS=1 vetoes both.
+    ``compile_cache``: a folder for JAX's persistent compilation cache (see :func:`compile_cache_dir`; True: the
+    default folder, as the command line does). A program compiled once — a training step, a rollout, even a small
+    eager operation — is then loaded from disk by later runs and by every Dask worker started from this process
+    (the folder goes to them in NNPHD_COMPILE_CACHE) instead of compiled again: most of a short run's time is
+    compilation (the tiny ``reproduce`` of the tests: 40 of 48 s). A loaded program is the compiled one, so the
+    numbers are the same; at most 1 GiB is kept (least recently used evicted). Set it before the first compilation.
+    """
+    flags = os.environ.get("XLA_FLAGS", "")
+    if not os.environ.get("NNPHD_KEEP_XLA_FLAGS"):
+        if one_thread and "multi_thread_eigen" not in flags:
+            flags += " " + ONE_THREAD_FLAGS
+        if fast_cpu and "ynn_fusion_type" not in flags:  # last: a flag after its empty value would be lost
+            flags += " " + XLA_FLAG
+        if flags.strip():
+            os.environ["XLA_FLAGS"] = flags.strip()
+    if x64:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+    cache = compile_cache_dir(compile_cache)
+    if cache is not None:
+        _use_compile_cache(cache)
+
+
+def _use_compile_cache(cache: Path) -> None:
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError:  # an unwritable place: compile as usual
+        return
+    import jax
+
+    jax.config.update("jax_compilation_cache_dir", str(cache))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)  # small programs add up: cache them all
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    jax.config.update("jax_compilation_cache_max_size", COMPILE_CACHE_MAX_BYTES)
+    os.environ[COMPILE_CACHE_ENV] = str(cache)  # the Dask workers started from this process use it too

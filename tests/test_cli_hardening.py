@@ -138,9 +138,9 @@ def test_p_out_of_range_exit_2_nothing_written(argv, tmp_path, capsys):
 
 
 def test_p_at_the_limit_is_accepted():
-    from nnphd.cli.common import MAX_P, _parse_loss_p
+    from nnphd.cli.common import MAX_P, parse_loss_p
 
-    assert _parse_loss_p(str(MAX_P)) == MAX_P and _parse_loss_p("MSE") == "mse" and _parse_loss_p("1") == 1
+    assert parse_loss_p(str(MAX_P)) == MAX_P and parse_loss_p("MSE") == "mse" and parse_loss_p("1") == 1
 
 
 def test_p_limit_holds_for_the_api_too():

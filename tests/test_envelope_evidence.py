@@ -20,7 +20,7 @@ from nnphd.explain.envelope import (
     swing_orbit,
 )
 from nnphd.explain.families import families
-from nnphd.explain.table import _law_row, _zero_row, dissipative_ok
+from nnphd.explain.table import dissipative_ok, law_row, zero_row
 
 
 def _fam(key: str):
@@ -29,7 +29,7 @@ def _fam(key: str):
 
 def _row(key: str, beta, se, theta=()):
     fam = _fam(key)
-    r = _law_row(
+    r = law_row(
         fam, np.asarray(beta, float), np.asarray(theta, float), np.asarray(se, float), ["th"], 1.0, "trajectory"
     )
     r.fn_rel = 0.1  # the law's size on the data, relative to q̈ (set by the table)
@@ -98,7 +98,7 @@ def test_a_mixed_law_is_fitted_to_a_large_amplitude_pendulum_envelope(key, truth
     orbit = swing_orbit(tm, A, k, swing_centre(q, qd, traj), angle=True)
     assert orbit.pendulum and orbit.omega == pytest.approx(3.0, rel=0.02)
     start = _row(key, [0.5 * v for v in truth.values()], [1.0, 1.0])  # a poor start: the fit must move
-    fits = {f["key"]: f for f in fit_envelope([_zero_row(["th"], 1.0, 10, "x"), start], tm, A, k, 1e-4, orbit)}
+    fits = {f["key"]: f for f in fit_envelope([zero_row(["th"], 1.0, 10, "x"), start], tm, A, k, 1e-4, orbit)}
     for p, b in zip(_fam(key).coef_names, fits[key]["beta"]):
         assert b == pytest.approx(truth[{"gamma": "gamma", "mu": "mu", "c": "c"}[p]], rel=0.05), (p, b)
     assert fits[key]["chi2"] < 1e-3 * fits["none"]["chi2"]

@@ -9,7 +9,7 @@ from scipy.integrate import solve_ivp
 import nnphd  # noqa: F401  (float64)
 from nnphd.engine.evidence import dominant_period, energy_trend, period_blocks
 from nnphd.engine.shooting import shooting_fit, shooting_windows
-from nnphd.user.checks import Z_BOTH, Z_ONE, _seed_status, clock_testable, trajectory_evidence
+from nnphd.user.checks import Z_BOTH, Z_ONE, clock_testable, seed_status, trajectory_evidence
 
 W0 = 1.1
 
@@ -172,24 +172,24 @@ def _checks(rho=0.0, sig=False):
 def test_verdict_refuses_when_derivatives_are_too_noisy_and_the_record_is_silent():
     weak = {"significant": False, "valid": True, "bootstrap_fraction": 0.0, "rate_bound": 0.01, "effect": "energy flat"}
     bad_qdd = {"usable": True, "pointwise_ok": False, "reason": "q̈ error 80%"}
-    status, reason, _ = _seed_status(*_checks(rho=0.9, sig=True), weak, bad_qdd, 1)
+    status, reason, _ = seed_status(*_checks(rho=0.9, sig=True), weak, bad_qdd, 1)
     assert status == "inconclusive" and "derivatives too noisy for a pointwise test" in reason
     good = {"usable": True, "pointwise_ok": True, "reason": ""}
-    status, reason, _ = _seed_status(*_checks(), weak, good, 1)
+    status, reason, _ = seed_status(*_checks(), weak, good, 1)
     assert status == "none" and "95% bound" in reason
     # one trajectory: a pointwise net-power signal alone, unconfirmed by the record, is not a detection
-    status, _, _ = _seed_status(*_checks(rho=0.9, sig=True), weak, good, 1)
+    status, _, _ = seed_status(*_checks(rho=0.9, sig=True), weak, good, 1)
     assert status == "inconclusive"
     strong = weak | {"significant": True, "bootstrap_fraction": 0.97, "effect": "energy decays 6%/period, z = 40"}
-    status, reason, agree = _seed_status(*_checks(), strong, bad_qdd, 1)
+    status, reason, agree = seed_status(*_checks(), strong, bad_qdd, 1)
     assert status == "detected" and "z = 40" in reason and agree == 0.97
     # one trajectory whose energy swings without a trend (a drive off resonance): not "none"
     swing = _checks()
     swing[0]["slow_ratio_median"] = 5.0
-    status, reason, _ = _seed_status(*swing, weak, good, 1)
+    status, reason, _ = seed_status(*swing, weak, good, 1)
     assert status == "inconclusive" and "swings slowly" in reason
     unusable = {"usable": False, "pointwise_ok": False, "reason": "the positions are mostly noise"}
-    assert _seed_status(*_checks(), strong, unusable, 1)[0] == "inconclusive"
+    assert seed_status(*_checks(), strong, unusable, 1)[0] == "inconclusive"
 
 
 def test_a_none_that_one_statistic_contradicts_at_three_sigma_is_inconclusive():
@@ -197,13 +197,13 @@ def test_a_none_that_one_statistic_contradicts_at_three_sigma_is_inconclusive():
     but no "none" either."""
     good = {"usable": True, "pointwise_ok": True, "reason": ""}
     base = {"significant": False, "valid": True, "bootstrap_fraction": 0.2, "rate_bound": 0.05, "effect": "decays"}
-    status, reason, _ = _seed_status(*_checks(), base | {"z_energy": 4.5, "z_shooting": 0.8}, good, 1)
+    status, reason, _ = seed_status(*_checks(), base | {"z_energy": 4.5, "z_shooting": 0.8}, good, 1)
     assert status == "inconclusive" and "energy trend is at z = 4.5" in reason and "shooting" not in reason
-    status, reason, _ = _seed_status(*_checks(), base | {"z_energy": 0.5, "z_shooting": -3.2}, good, 1)
+    status, reason, _ = seed_status(*_checks(), base | {"z_energy": 0.5, "z_shooting": -3.2}, good, 1)
     assert status == "inconclusive" and "shooting probe is at z = -3.2" in reason
     # below Z_BOTH on both (or a statistic missing): "none" with its bound, as before
-    assert _seed_status(*_checks(), base | {"z_energy": 0.99 * Z_BOTH, "z_shooting": None}, good, 1)[0] == "none"
-    assert _seed_status(*_checks(), base | {"z_energy": None, "z_shooting": -2.9}, good, 1)[0] == "none"
+    assert seed_status(*_checks(), base | {"z_energy": 0.99 * Z_BOTH, "z_shooting": None}, good, 1)[0] == "none"
+    assert seed_status(*_checks(), base | {"z_energy": None, "z_shooting": -2.9}, good, 1)[0] == "none"
 
 
 def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():

@@ -42,11 +42,11 @@ def test_families_are_odd_in_velocity_or_explicitly_timed():
 
 def test_family_from_spec_rebuilds_every_kind():
     """A saved law's spec (built-in, sparse, perturber, user) gives back the same basis."""
-    from nnphd.explain.families import _odd_monomials, family_from_spec, perturber_family, sparse_family
+    from nnphd.explain.families import family_from_spec, odd_monomials, perturber_family, sparse_family
 
     rng = np.random.default_rng(3)
     q, v, t = rng.normal(size=(20, 2)), rng.normal(size=(20, 2)), rng.uniform(0, 5, 20)
-    support = np.zeros((2, len(_odd_monomials(2))), bool)
+    support = np.zeros((2, len(odd_monomials(2))), bool)
     support[0, 0] = support[1, 3] = True
     fams = [
         *families(2, ["x", "y"], np.array([0.5, 2.0])),

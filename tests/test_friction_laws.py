@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 from nnphd.explain.envelope import measured_envelope, predicted_envelope
 from nnphd.explain.families import families
 from nnphd.explain.laws import rank_laws
-from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, LawFit, _phase_locked, _select
+from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, LawFit, _phase_locked, select_law
 from nnphd.user.rest import rest_mask, without_rest
 
 
@@ -83,7 +83,7 @@ def _table(rows):
     old = T._significance
     T._significance = lambda rows: None  # the rows carry their eligibility
     try:
-        return _select(rows, 100.0, 1.0, "folds", {})
+        return select_law(rows, 100.0, 1.0, "folds", {})
     finally:
         T._significance = old
 

@@ -6,15 +6,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nnphd.explain.envelope import _blocked_by_disagreement
+from nnphd.explain.envelope import blocked_by_disagreement
 from nnphd.explain.families import families
-from nnphd.explain.table import LawTable, _law_row, _zero_row, combine_bases, preferred
+from nnphd.explain.table import LawTable, combine_bases, law_row, preferred, zero_row
 
 
 def _row(key, beta, ic, significant=True, barred_only_by_disagreement=False, env_dic=None, win_dic=None):
     fam = next(f for f in families(1, ["th"], np.ones(1)) if f.key == key)
     beta = np.asarray(beta, float)
-    r = _law_row(fam, beta, np.zeros(len(fam.nl_names)), 0.01 * np.ones(len(beta) + len(fam.nl_names)), ["th"], 1.0,
+    r = law_row(fam, beta, np.zeros(len(fam.nl_names)), 0.01 * np.ones(len(beta) + len(fam.nl_names)), ["th"], 1.0,
                  "trajectory")  # fmt: skip
     r.ic, r.delta_ic, r.significant = ic, ic, significant
     r.envelope = {
@@ -28,7 +28,7 @@ def _row(key, beta, ic, significant=True, barred_only_by_disagreement=False, env
 
 
 def _table(rows, law=None, ties=(), blocked=None):
-    zero = _zero_row(["th"], 1.0, 10, "trajectory")
+    zero = zero_row(["th"], 1.0, 10, "trajectory")
     zero.ic = zero.delta_ic = 0.0
     return LawTable([zero, *rows], law, "r", 10.0, 1.0, "f", {}, list(ties), blocked)
 
@@ -38,21 +38,21 @@ def test_a_candidate_the_envelope_clearly_prefers_bars_a_weaker_law_when_only_it
     # envelope and no worse on the windows, its two fits 3.4 se apart
     vdp = _row("vanderpol", [-0.6, 0.4], -35.0, env_dic=-30.7, win_dic=-4.35)
     both = _row("linear+coulomb", [0.2, 2.0], -70.0, False, True, env_dic=-65.1, win_dic=-4.9)
-    assert _blocked_by_disagreement(_table([vdp, both], law=vdp)) is both
+    assert blocked_by_disagreement(_table([vdp, both], law=vdp)) is both
     # the envelope's preference within IC_TIE, or the windows worse than the law's: the law stands
     near = _row("linear+coulomb", [0.2, 2.0], -39.0, False, True, env_dic=-33.0, win_dic=-6.0)
-    assert _blocked_by_disagreement(_table([vdp, near], law=vdp)) is None
+    assert blocked_by_disagreement(_table([vdp, near], law=vdp)) is None
     worse_windows = _row("linear+coulomb", [0.2, 2.0], -70.0, False, True, env_dic=-67.0, win_dic=-3.0)
-    assert _blocked_by_disagreement(_table([vdp, worse_windows], law=vdp)) is None
+    assert blocked_by_disagreement(_table([vdp, worse_windows], law=vdp)) is None
     # barred for another reason too (a term within 2 se of zero): the law stands
     other = _row("linear+coulomb", [0.2, 2.0], -70.0, False, False, env_dic=-65.1, win_dic=-4.9)
-    assert _blocked_by_disagreement(_table([vdp, other], law=vdp)) is None
+    assert blocked_by_disagreement(_table([vdp, other], law=vdp)) is None
     # a seismometer: a Rayleigh law only the windows prefer (6 IC), its envelope 1.9 ahead: viscous damping stands
     lin = _row("linear", [0.062], -50.2, env_dic=-51.5, win_dic=1.3)
     ray = _row("rayleigh", [-0.087, 17.0], -58.1, False, True, env_dic=-53.4, win_dic=-4.7)
-    assert _blocked_by_disagreement(_table([lin, ray], law=lin)) is None
+    assert blocked_by_disagreement(_table([lin, ray], law=lin)) is None
     # no law at all: the reference is the zero law (ΔIC 0 on both)
-    assert _blocked_by_disagreement(_table([both])) is both
+    assert blocked_by_disagreement(_table([both])) is both
 
 
 def test_both_bases_pointing_to_one_family_claim_it_with_the_first_eligible_fit():

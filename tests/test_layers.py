@@ -56,18 +56,16 @@ def test_no_import_from_a_higher_layer():
     assert bad == []
 
 
-def test_no_private_name_is_imported_from_another_subpackage():
-    """A helper another part of the package needs is public, in a module named for what it does: no module imports
-    a ``_name`` from another subpackage (within one subpackage private helpers are still shared)."""
+def test_no_private_name_is_imported_from_another_module():
+    """A helper another module needs is public, in a module named for what it does: no module of the package imports
+    a ``_name`` from another one."""
     mods = _modules()
     bad = []
     for m, p in mods.items():
-        here = m.split(".")[1] if "." in m else ""
         for node in ast.walk(ast.parse(p.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("nnphd."):
-                there = node.module.split(".")[1]
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("nnphd"):
                 bad += [(m, node.module, a.name) for a in node.names
-                        if a.name.startswith("_") and not a.name.startswith("__") and there != here]  # fmt: skip
+                        if a.name.startswith("_") and not a.name.startswith("__")]  # fmt: skip
     assert bad == []
 
 

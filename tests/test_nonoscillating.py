@@ -14,9 +14,9 @@ from nnphd.user.checks import (
     QDD_ERR_MAX,
     Z_BOTH,
     Z_ONE,
-    _seed_status,
     data_quality,
     motion_time_scale,
+    seed_status,
 )
 
 G = 9.81
@@ -134,18 +134,18 @@ def test_no_conservation_is_claimed_from_a_path_that_does_not_return():
     weak |= {"z_energy": 0.4, "z_shooting": -0.3}
     moving = {"usable": True, "pointwise_ok": True, "reason": "", "oscillating": False}
     args = (drift, tchk, gap, cap)
-    assert _seed_status(*args, weak, moving | {"oscillating": True}, 1)[0] == "none"  # oscillating: unchanged
-    status, reason, _ = _seed_status(*args, weak, moving, 1)
+    assert seed_status(*args, weak, moving | {"oscillating": True}, 1)[0] == "none"  # oscillating: unchanged
+    status, reason, _ = seed_status(*args, weak, moving, 1)
     assert status == "inconclusive" and "does not oscillate" in reason and "flat" in reason
-    assert _seed_status(*args, weak, moving, 8)[0] == "inconclusive"  # many throws are no exception
+    assert seed_status(*args, weak, moving, 8)[0] == "inconclusive"  # many throws are no exception
     one = weak | {"significant": True, "z_energy": Z_ONE + 1, "z_shooting": 0.5}  # one statistic alone
-    assert _seed_status(*args, one, moving | {"oscillating": True}, 1)[0] == "detected"
-    status, reason, _ = _seed_status(*args, one, moving, 1)
+    assert seed_status(*args, one, moving | {"oscillating": True}, 1)[0] == "detected"
+    status, reason, _ = seed_status(*args, one, moving, 1)
     assert status == "inconclusive" and f"|z| ≥ {Z_BOTH:g}" in reason
     both = weak | {"significant": True, "z_energy": Z_BOTH + 0.5, "z_shooting": Z_BOTH + 1}
-    assert _seed_status(*args, both, moving, 1)[0] == "detected"
+    assert seed_status(*args, both, moving, 1)[0] == "detected"
     clock = tchk | {"significant": True, "valid": True, "improved_fraction": 1.0, "n_trajectories": 4, "gain": 1.3}
-    status, reason, _ = _seed_status(drift, clock, gap, cap, weak, moving, 4)
+    status, reason, _ = seed_status(drift, clock, gap, cap, weak, moving, 4)
     assert status == "inconclusive" and "time since each trajectory began" in reason
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from nnphd.explain.families import families
 from nnphd.explain.stuck import OFFSET_MIN, Z_STUCK, bar_stuck, holds_at_rest, stuck_contradictions
-from nnphd.explain.table import LawTable, _law_row, _zero_row
+from nnphd.explain.table import LawTable, law_row, zero_row
 
 A = 50.0  # a pendulum −A sin θ about θ = 0 ("short" library: f_c = α₀ cos θ − α₁ sin θ)
 
@@ -17,7 +17,7 @@ A = 50.0  # a pendulum −A sin θ about θ = 0 ("short" library: f_c = α₀ co
 def _row(key, beta, ic, cons=(0.0, A), se_cons=0.01):
     fam = next(f for f in families(1, ["th"], np.ones(1)) if f.key == key)
     beta = np.asarray(beta, float)
-    r = _law_row(fam, beta, np.zeros(len(fam.nl_names)), 0.01 * np.ones(len(beta) + len(fam.nl_names)), ["th"], 1.0,
+    r = law_row(fam, beta, np.zeros(len(fam.nl_names)), 0.01 * np.ones(len(beta) + len(fam.nl_names)), ["th"], 1.0,
                  "trajectory")  # fmt: skip
     r.ic = r.delta_ic = ic
     r.conservative = np.asarray(cons, float)
@@ -26,7 +26,7 @@ def _row(key, beta, ic, cons=(0.0, A), se_cons=0.01):
 
 
 def _table(rows):
-    zero = _zero_row(["th"], 1.0, 10, "trajectory")
+    zero = zero_row(["th"], 1.0, 10, "trajectory")
     zero.ic = zero.delta_ic = 0.0
     settings = {"method": "trajectory", "names": ["th"], "library": "short", "_center": None}
     best = min(rows, key=lambda r: r.ic)

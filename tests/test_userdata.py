@@ -505,34 +505,36 @@ def test_local_polynomial_is_exact_and_reproduces_savgol():
 
 
 def test_sampling_rules():
-    from nnphd.user.sampling import _sampling
+    from nnphd.user.sampling import classify_sampling
 
     rng = np.random.default_rng(3)
     k = np.arange(400.0)
-    assert _sampling(0.05 * k).kind == "uniform"
-    s = _sampling(np.round(k / 30, 3))  # 30 fps with ms timestamps: uniform up to the rounding
+    assert classify_sampling(0.05 * k).kind == "uniform"
+    s = classify_sampling(np.round(k / 30, 3))  # 30 fps with ms timestamps: uniform up to the rounding
     assert s.kind == "uniform" and s.rounded and s.dt == pytest.approx(1 / 30, rel=1e-6)
-    s = _sampling(np.round(np.delete(k, [50, 51, 52]) / 30, 3))  # ... with a gap: nominal times known exactly
+    s = classify_sampling(np.round(np.delete(k, [50, 51, 52]) / 30, 3))  # ... with a gap: nominal times known exactly
     assert s.kind == "near-uniform" and s.rounded and s.ratio == pytest.approx(4.0, rel=0.05)
     np.testing.assert_allclose(s.nominal, np.delete(k, [50, 51, 52]) / 30, atol=1e-5)  # ≪ the 1 ms rounding
-    s = _sampling(k / 6 + rng.normal(0, 0.02 / 6, k.size))
+    s = classify_sampling(k / 6 + rng.normal(0, 0.02 / 6, k.size))
     assert s.kind == "near-uniform" and not s.rounded and s.nominal is not None
-    assert _sampling(np.delete(k, np.arange(100, 106))).kind == "irregular"  # 6 missing: a step of 7 > GROSS_RATIO
-    assert _sampling(np.sort(rng.uniform(0, 20, 400))).kind == "irregular"
-    assert _sampling(np.cumsum(rng.uniform(0.5, 1.5, 400))).nominal is None  # no lattice: recorded times only
+    assert (
+        classify_sampling(np.delete(k, np.arange(100, 106))).kind == "irregular"
+    )  # 6 missing: a step of 7 > GROSS_RATIO
+    assert classify_sampling(np.sort(rng.uniform(0, 20, 400))).kind == "irregular"
+    assert classify_sampling(np.cumsum(rng.uniform(0.5, 1.5, 400))).nominal is None  # no lattice: recorded times only
 
 
 def test_quantization_step_and_noise_floor():
-    from nnphd.user.sampling import _grid_step
+    from nnphd.user.sampling import grid_step
 
     rng = np.random.default_rng(4)
-    assert _grid_step(np.array([3.0, 7.0, 4.0, 12.0])) == 1.0
-    assert _grid_step(np.round(rng.normal(0, 50, 200)) * 0.5 + 0.25) == pytest.approx(0.5)
-    assert _grid_step(np.round(rng.uniform(0, 2, 500), 3)) == pytest.approx(1e-3)
+    assert grid_step(np.array([3.0, 7.0, 4.0, 12.0])) == 1.0
+    assert grid_step(np.round(rng.normal(0, 50, 200)) * 0.5 + 0.25) == pytest.approx(0.5)
+    assert grid_step(np.round(rng.uniform(0, 2, 500), 3)) == pytest.approx(1e-3)
     counts = np.cumsum(rng.integers(1, 40, 300))
-    assert _grid_step(counts * 2 * np.pi / 4096) == pytest.approx(2 * np.pi / 4096)  # encoder counts
-    assert _grid_step(rng.standard_normal(300)) == 0.0 and _grid_step(np.sin(0.1 * np.arange(300))) == 0.0
-    assert _grid_step(np.full(5, 2.0)) == 0.0
+    assert grid_step(counts * 2 * np.pi / 4096) == pytest.approx(2 * np.pi / 4096)  # encoder counts
+    assert grid_step(rng.standard_normal(300)) == 0.0 and grid_step(np.sin(0.1 * np.arange(300))) == 0.0
+    assert grid_step(np.full(5, 2.0)) == 0.0
     # a slow signal in whole pixels: the staircase hides the quantization from the differences (the raw estimate is
     # 0.11 px), the floor 1/√12 = 0.29 px does not
     t = np.arange(600) / 30

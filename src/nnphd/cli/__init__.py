@@ -19,7 +19,7 @@ import typer
 
 from nnphd.cli import detect as _detect  # noqa: F401  (registers the command)
 from nnphd.cli import paper as _paper  # noqa: F401  (registers the commands)
-from nnphd.cli.common import InputError, _ClickException, app, begin_run, claimed_outs, undo_run
+from nnphd.cli.common import ClickError, InputError, app, begin_run, claimed_outs, undo_run
 from nnphd.io.errors import DataError
 from nnphd.io.outdir import release_out_dirs
 from nnphd.parallel import SchedulerError, UnitsFailed
@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
         return getattr(e, "exit_code", 0)
     except (typer.Abort, KeyboardInterrupt):
         return _interrupted()
-    except _ClickException as e:
+    except ClickError as e:
         if type(e).__name__ == "NoArgsIsHelpError":  # bare `nnphd`: show help
             ctx = getattr(e, "ctx", None)
             print(ctx.get_help() if ctx is not None else e.format_message())

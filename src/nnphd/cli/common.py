@@ -42,11 +42,11 @@ def _root(
 
 
 # typer ≥ 0.2x vendors click; find its exception base classes through the public BadParameter's MRO.
-_ClickException = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+ClickError = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
 
 
 @contextmanager
-def _progress(title: str):
+def progress_bar(title: str):
     """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)`` (the title
     and messages may quote file or column names: shown literally, Rich markup escaped)."""
     from nnphd.io.escape import rich as _r
@@ -147,7 +147,7 @@ MAX_P = 10  # nnphd.engine.train.MAX_P, the largest loss index (why: there); a t
 P_HELP = f"the loss norm: index p of the L_p loss, 1 ≤ p ≤ {MAX_P} (paper: 1; larger p overflow float64), or 'mse'"
 
 
-def _parse_loss_p(value):
+def parse_loss_p(value):
     """A loss index as :func:`nnphd.engine.train.parse_p` (1 ≤ p ≤ MAX_P, or 'mse'); InputError if not."""
     from nnphd.engine.train import parse_p
 
@@ -212,7 +212,7 @@ def undo_run() -> None:
             pass
 
 
-def _parse_lambdas(value: str | None):
+def parse_lambdas(value: str | None):
     from nnphd.engine.train import PAPER_LAMBDAS
 
     if value is None:
@@ -240,7 +240,7 @@ study_app = typer.Typer(
 app.add_typer(study_app, name="study")
 
 
-def _parse_csv(name: str, value: str | None, conv, default):
+def parse_csv(name: str, value: str | None, conv, default):
     if value is None:
         return default
     toks = [t.strip() for t in value.split(",")]
@@ -249,7 +249,7 @@ def _parse_csv(name: str, value: str | None, conv, default):
     return tuple(conv(t) for t in toks)
 
 
-def _fraction(name: str):
+def fraction_option(name: str):
     def conv(tok: str) -> float:
         try:
             x = float(tok)

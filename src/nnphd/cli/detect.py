@@ -14,10 +14,10 @@ from nnphd.cli.common import (
     InputError,
     LawLevel,
     Trim,
-    _parse_lambdas,
-    _progress,
     app,
     console,
+    parse_lambdas,
+    progress_bar,
     scheduler_option,
     workers_option,
 )
@@ -91,7 +91,7 @@ def detect(
     try:
         extra = {"width": width}
         if lambdas is not None:
-            extra["lambdas"] = _parse_lambdas(lambdas)
+            extra["lambdas"] = parse_lambdas(lambdas)
         trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
         from nnphd.user.detect import check_field
 
@@ -140,7 +140,7 @@ def detect(
 
     from nnphd.user.detect import detect_data
 
-    with _progress("detect: starting") as status:
+    with progress_bar("detect: starting") as status:
         rep, _ = detect_data(
             ud, out=out, progress=status, workers=workers, scheduler=scheduler, read_s=t_read, **settings
         )
@@ -204,7 +204,7 @@ def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) 
 
     from nnphd.user.batch import detect_batch
 
-    with _progress(f"detect: {n_files} files") as status:
+    with progress_bar(f"detect: {n_files} files") as status:
         s = detect_batch(
             paths, out, angles, max_rows=max_rows, workers=workers, scheduler=scheduler, progress=status, **settings
         )

@@ -19,15 +19,15 @@ from nnphd.cli.common import (
     InputError,
     Precision,
     SweepMode,
-    _fraction,
-    _parse_csv,
-    _parse_lambdas,
-    _parse_loss_p,
-    _progress,
     app,
     claim_out,
     console,
     demo_app,
+    fraction_option,
+    parse_csv,
+    parse_lambdas,
+    parse_loss_p,
+    progress_bar,
     scheduler_option,
     study_app,
     workers_option,
@@ -94,8 +94,8 @@ def sweep(
             if not math.isfinite(overrides[k.strip()]):
                 raise InputError(f"--param {k.strip()} must be a finite number, got {v!r}")
         sysm = get_system(system, **overrides)
-        pp = _parse_loss_p(p)
-        lams = _parse_lambdas(lambdas)
+        pp = parse_loss_p(p)
+        lams = parse_lambdas(lambdas)
         claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -104,7 +104,7 @@ def sweep(
     from nnphd.paper.sweep import run_sweep
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
-    with _progress("λ-sweep (first λ includes compilation)") as bar:
+    with progress_bar("λ-sweep (first λ includes compilation)") as bar:
         res = run_sweep(
             sysm,
             p=pp,
@@ -195,7 +195,7 @@ def discover(
     systems_ = DISCOVERY_SYSTEMS if all_ else (system.value,)
     results = []
     for name in systems_:
-        with _progress(f"{name}: starting") as bar:
+        with progress_bar(f"{name}: starting") as bar:
             res = run_discover(
                 name,
                 steps=steps,
@@ -279,7 +279,7 @@ def predict(
 
     from nnphd.paper.predict import LABELS, MODELS, THETA_TOL, run_prediction
 
-    with _progress("starting") as bar:
+    with progress_bar("starting") as bar:
         res = run_prediction(seed=seed, steps=steps, out=out, uan_time=uan_time, progress=bar)
     tkey = f"t_error_exceeds_{THETA_TOL:g}"
     t = Table(title=f"prediction from t = 30 (train t ≤ 30), {steps} training steps, seed {seed}")
@@ -341,18 +341,18 @@ def study_lambda_p(
                 raise InputError(f"--systems must be among {', '.join(TOY_SYSTEMS)}; got {tok!r}")
             return tok
 
-        syss = _parse_csv("--systems", systems_, sys_conv, TOY_SYSTEMS)
-        pvals = _parse_csv("--ps", ps, _parse_loss_p, LOSSES)
+        syss = parse_csv("--systems", systems_, sys_conv, TOY_SYSTEMS)
+        pvals = parse_csv("--ps", ps, parse_loss_p, LOSSES)
         if len(set(syss)) != len(syss) or len({p_label(p) for p in pvals}) != len(pvals):
             raise InputError("--systems and --ps must not repeat an entry")
-        lams = _parse_lambdas(lambdas)
+        lams = parse_lambdas(lambdas)
         claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
     from nnphd.paper.lambda_p import lambda_p_study
 
-    with _progress("λ/p study (each sweep compiles first)") as bar:
+    with progress_bar("λ/p study (each sweep compiles first)") as bar:
         res = lambda_p_study(
             steps=steps,
             seed=seed,
@@ -419,15 +419,15 @@ def study_data_quality(
     from nnphd.paper.data_quality import DQ_GRID
 
     try:
-        al = _parse_csv("--alphas", alphas, _fraction("--alphas"), DQ_GRID)
-        be = _parse_csv("--betas", betas, _fraction("--betas"), DQ_GRID)
+        al = parse_csv("--alphas", alphas, fraction_option("--alphas"), DQ_GRID)
+        be = parse_csv("--betas", betas, fraction_option("--betas"), DQ_GRID)
         claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
     from nnphd.paper.data_quality import data_quality_study
 
-    with _progress("data-quality study: starting") as bar:
+    with progress_bar("data-quality study: starting") as bar:
         res = data_quality_study(
             steps=steps, seed=seed, alphas=al, betas=be, out=out, progress=bar, workers=workers, scheduler=scheduler
         )
@@ -481,7 +481,7 @@ def reproduce(
 
     from nnphd.paper.reproduce import reproduce as run_reproduce
 
-    with _progress("reproduce: starting") as bar:
+    with progress_bar("reproduce: starting") as bar:
         s = run_reproduce(out=out, quick=quick, seed=seed, progress=bar, workers=workers, scheduler=scheduler)
     from nnphd.paper.reproduce import EXPERIMENTS, TITLES
 
@@ -532,7 +532,7 @@ def demo_neptune(
     from nnphd.astro.neptune import print_summary, run_neptune_demo
 
     try:
-        with _progress("neptune: starting") as bar:
+        with progress_bar("neptune: starting") as bar:
             res = run_neptune_demo(out=out, seed=seed, progress=bar)
     except EphemerisUnavailable as e:
         raise InputError(str(e)) from None

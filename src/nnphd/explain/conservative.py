@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nnphd.explain.families import _eye_cols
+from nnphd.explain.families import eye_columns
 
 __all__ = ["conservative_basis"]
 
@@ -61,7 +61,7 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
     N, n = q.shape
     cols = []
     if fc is not None:
-        cols.append(_eye_cols(xp, fc))
+        cols.append(eye_columns(xp, fc))
     if not library:
         if fc is None:
             raise ValueError("library=False needs a conservative force fc")

@@ -330,7 +330,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
     (a cycle average loses their phase): they keep their windows' IC."""
     from dataclasses import replace
 
-    from nnphd.explain.table import IC_TIE, _select
+    from nnphd.explain.table import IC_TIE, select_law
 
     q, qd, t, traj = (np.asarray(a) for a in (q, qd, t, traj))
     tm, A, k = measured_envelope(q, qd, t, traj, sigma)
@@ -369,7 +369,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
         # the envelope sorts the families the windows do not reject: it does not make a law they reject
         new.significant = bool(new.significant and r.delta_ic < IC_TIE)
         rows.append(new)
-    out = _select(
+    out = select_law(
         rows,
         table.n_eff,
         table.tau,
@@ -377,7 +377,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
         {**table.settings, "envelope_swings": n, "envelope_omega": orbit.omega, "envelope_pendulum": orbit.pendulum},
         judge=False,
     )
-    blocked = _blocked_by_disagreement(out)
+    blocked = blocked_by_disagreement(out)
     if blocked is not None:
         out.law, out.ties = None, []
         zero = [r for r in out.rows if r.key == "none"]
@@ -401,7 +401,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
     return out
 
 
-def _blocked_by_disagreement(table):
+def blocked_by_disagreement(table):
     """The row that bars the table's law, or None: a candidate that fails eligibility only because its windows' and
     envelope's coefficients disagree, whose envelope fit is ≥ IC_TIE better than the law's (or no law's) and whose
     windows fit is no worse. The envelope is the evidence of how the loss depends on the amplitude: where it clearly
@@ -438,7 +438,7 @@ def _pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
     MIN_TERM_SHARE of the force, a sum of friction terms dissipates, and the table's other conditions hold."""
     from scipy.stats import chi2
 
-    from nnphd.explain.table import MIN_TERM_SHARE, Z_TERM, _law_row, dissipative_ok
+    from nnphd.explain.table import MIN_TERM_SHARE, Z_TERM, dissipative_ok, law_row
 
     fam = r.family
     K = len(fam.coef_names)
@@ -458,7 +458,7 @@ def _pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
     d2 = float(diff @ np.linalg.pinv(C_tab + C_env) @ diff)  # Mahalanobis: the terms' trade-offs included
     agree = bool(d2 <= chi2.ppf(AGREE_P, K))
     se_nl = [r.stderr.get(p, np.nan) for p in fam.nl_names]
-    new = _law_row(fam, pooled, r.theta, np.concatenate([se, se_nl]), names, r.heldout_mse, r.method)
+    new = law_row(fam, pooled, r.theta, np.concatenate([se, se_nl]), names, r.heldout_mse, r.method)
     new.on_rows(np.reshape(q, (-1, 1)), np.reshape(qd, (-1, 1)), t)
     new.fn_rel, new.cov = r.fn_rel, C
     ok = not fam.per_term or bool(np.all(np.abs(pooled) >= Z_TERM * se))
@@ -479,6 +479,6 @@ def _pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
 def _other_conditions(r) -> bool:
     """The table's conditions on a row other than its terms' size against their errors: not a drive locked to the
     motion, no parameter at the edge of its range, not at the rounding level of the data."""
-    from nnphd.explain.table import DRIVE_STATE_R2, _at_bound
+    from nnphd.explain.table import DRIVE_STATE_R2, at_bound
 
-    return r.state_like < DRIVE_STATE_R2 and r.fn_rel >= 1e-9 and not _at_bound(r.family, r.theta)
+    return r.state_like < DRIVE_STATE_R2 and r.fn_rel >= 1e-9 and not at_bound(r.family, r.theta)

@@ -65,7 +65,7 @@ class Family:
         return len(self.coef_names) + len(self.nl_names)
 
 
-def _eye_cols(xp, cols):
+def eye_columns(xp, cols):
     """(N, n) columns → (N, n, n) with column j in component j only."""
     n = cols.shape[1]
     return cols[:, :, None] * xp.eye(n, dtype=cols.dtype)[None]
@@ -103,7 +103,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         "linear-diag" if not one else "linear",
         "linear friction −γ_i q̇_i" if not one else "linear friction −γ q̇",
         tuple(f"gamma_{c}" for c in nm) if not one else ("gamma",),
-        lambda xp, th, q, v, t: _eye_cols(xp, -v),
+        lambda xp, th, q, v, t: eye_columns(xp, -v),
         lambda th, Q, V, T: _sym_diag(n, [-x for x in V]),
         terms=("q̇_i",) if not one else ("q̇",),
     )
@@ -134,7 +134,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         "quadratic-diag" if not one else "quadratic",
         "quadratic drag −c_i |q̇_i| q̇_i" if not one else "quadratic drag −c |q̇| q̇",
         tuple(f"c_{c}" for c in nm) if not one else ("c",),
-        lambda xp, th, q, v, t: _eye_cols(xp, -xp.abs(v) * v),
+        lambda xp, th, q, v, t: eye_columns(xp, -xp.abs(v) * v),
         lambda th, Q, V, T: _sym_diag(n, [-sp.Abs(x) * x for x in V]),
         terms=("|q̇_i|q̇_i",) if not one else ("|q̇|q̇",),
     )
@@ -152,7 +152,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         "coulomb-diag" if not one else "coulomb",
         "Coulomb friction −μ_i sign(q̇_i)" if not one else "Coulomb friction −μ sign(q̇)",
         tuple(f"mu_{c}" for c in nm) if not one else ("mu",),
-        lambda xp, th, q, v, t: _eye_cols(xp, -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2)),
+        lambda xp, th, q, v, t: eye_columns(xp, -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2)),
         lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]),
         terms=("sign(q̇_i)",) if not one else ("sign(q̇)",),
     )
@@ -170,7 +170,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         parts = [term[c] for c in combo]
 
         def _mixed_basis(xp, th, q, v, t, parts=parts):
-            return xp.concatenate([_eye_cols(xp, f(xp, v)) for _, f, _, _ in parts], axis=2)
+            return xp.concatenate([eye_columns(xp, f(xp, v)) for _, f, _, _ in parts], axis=2)
 
         def _mixed_sym(th, Q, V, T, parts=parts):
             rows = [_sym_diag(n, [s(x) for x in V]) for _, _, s, _ in parts]
@@ -210,7 +210,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         "rayleigh",
         "Rayleigh (a + c q̇²) q̇",
         tuple(f"{p}{sfx(c)}" for p in ("a", "c") for c in nm),
-        lambda xp, th, q, v, t: xp.concatenate([_eye_cols(xp, v), _eye_cols(xp, v**3)], axis=2),
+        lambda xp, th, q, v, t: xp.concatenate([eye_columns(xp, v), eye_columns(xp, v**3)], axis=2),
         lambda th, Q, V, T: [r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**3 for x in V]))],
         terms=("q̇", "q̇³"),
     )
@@ -218,7 +218,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         "vanderpol",
         "van der Pol (a + b q²) q̇",
         tuple(f"{p}{sfx(c)}" for p in ("a", "b") for c in nm),
-        lambda xp, th, q, v, t: xp.concatenate([_eye_cols(xp, v), _eye_cols(xp, q * q * v)], axis=2),
+        lambda xp, th, q, v, t: xp.concatenate([eye_columns(xp, v), eye_columns(xp, q * q * v)], axis=2),
         lambda th, Q, V, T: [
             r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]))
         ],
@@ -229,7 +229,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         "Rayleigh–van der Pol (a + b q² + c q̇²) q̇",
         tuple(f"{p}{sfx(c)}" for p in ("a", "b", "c") for c in nm),
         lambda xp, th, q, v, t: xp.concatenate(
-            [_eye_cols(xp, v), _eye_cols(xp, q * q * v), _eye_cols(xp, v**3)], axis=2
+            [eye_columns(xp, v), eye_columns(xp, q * q * v), eye_columns(xp, v**3)], axis=2
         ),
         lambda th, Q, V, T: [
             r1 + r2 + r3
@@ -244,7 +244,7 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
     def _drive_basis(xp, th, q, v, t):
         c, s = xp.cos(th[0] * t), xp.sin(th[0] * t)
         ones = xp.ones_like(q)
-        return xp.concatenate([_eye_cols(xp, c[:, None] * ones), _eye_cols(xp, s[:, None] * ones)], axis=2)
+        return xp.concatenate([eye_columns(xp, c[:, None] * ones), eye_columns(xp, s[:, None] * ones)], axis=2)
 
     add(
         "drive",
@@ -329,7 +329,7 @@ def perturber_family(names: Sequence[str]) -> Family:
     )
 
 
-def _odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
+def odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
     """Exponent pairs (of q, of q̇) of the monomials of total degree ≤ degree that are odd in q̇."""
     import itertools
 
@@ -360,8 +360,8 @@ def _monomial_sym(mons, Q, V):
 
 
 def sparse_family(n: int, names: Sequence[str], support: np.ndarray) -> Family:
-    """The sparse polynomial law restricted to ``support`` (n × M boolean over :func:`_odd_monomials`)."""
-    mons = _odd_monomials(n)
+    """The sparse polynomial law restricted to ``support`` (n × M boolean over :func:`odd_monomials`)."""
+    mons = odd_monomials(n)
     idx = [(i, m) for i in range(n) for m in range(len(mons)) if support[i, m]]
 
     def basis(xp, th, q, v, t):

@@ -31,7 +31,7 @@ N_FOLDS = 5  # held-out folds per trajectory when there are fewer than 3 traject
 N_BOOT = 200
 
 
-class _Problem:
+class JointProblem:
     """The weighted joint least-squares problem on the data rows."""
 
     def __init__(self, q, qd, qdd, t, w, C, angles):
@@ -143,14 +143,14 @@ class _Problem:
         return J, R
 
 
-def _solve(A, b):
+def solve_or_lstsq(A, b):
     try:
         return np.linalg.solve(A, b)
     except np.linalg.LinAlgError:
         return np.linalg.lstsq(A, b, rcond=None)[0]
 
 
-def _ridge(G):
+def ridge_regularised(G):
     return G + 1e-12 * max(float(np.trace(G)) / max(G.shape[0], 1), 1e-300) * np.eye(G.shape[0])
 
 
@@ -161,7 +161,7 @@ def trajectory_segments(traj) -> list[np.ndarray]:
     return np.split(np.arange(len(traj)), cuts)
 
 
-def _folds(segs) -> tuple[list[np.ndarray], str]:
+def heldout_folds(segs) -> tuple[list[np.ndarray], str]:
     if len(segs) >= 3:
         k = min(len(segs), 10)
         groups = np.array_split(np.arange(len(segs)), k)
@@ -170,7 +170,7 @@ def _folds(segs) -> tuple[list[np.ndarray], str]:
     return folds, f"{N_FOLDS} contiguous stretches of each trajectory"
 
 
-def _tau(r: np.ndarray, segs) -> float:
+def autocorrelation_time(r: np.ndarray, segs) -> float:
     """Integrated autocorrelation time of residuals (N, n) within trajectories (summed up to the first ρ < 0.05)."""
     num = np.zeros(64)
     den = 0.0
@@ -190,7 +190,7 @@ def _tau(r: np.ndarray, segs) -> float:
     return float(min(max(tau, 1.0), max(1.0, sum(len(s) for s in segs) / 20)))
 
 
-def _linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
+def linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     """Held-out MSE by one Gauss–Newton step per fold, bootstrap and model covariance of the law parameters."""
     N, rows2, P = J.shape
     n = rows2 // 2
@@ -201,7 +201,7 @@ def _linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     m = 0
     for f in folds:
         Gf, hf = Gs[f].sum(0), hs[f].sum(0)
-        d = _solve(_ridge(G - Gf), h - hf)
+        d = solve_or_lstsq(ridge_regularised(G - Gf), h - hf)
         pred = R[f, :n] - np.einsum("sri,i->sr", J[f, :n], d)
         sse += float(np.sum(pred**2))
         m += pred.size
@@ -213,10 +213,10 @@ def _linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     hb = np.stack([hs[b].sum(0) for b in blocks])
     rng = np.random.default_rng(seed)
     reps = []
-    Gi = _ridge(G)
+    Gi = ridge_regularised(G)
     for _ in range(n_boot):
         idx = rng.integers(0, len(blocks), len(blocks))
-        reps.append(_solve(_ridge(Gb[idx].sum(0)), hb[idx].sum(0)))
+        reps.append(solve_or_lstsq(ridge_regularised(Gb[idx].sum(0)), hb[idx].sum(0)))
     reps = np.asarray(reps)[:, P_law_idx] if len(P_law_idx) else np.zeros((n_boot, 0))
     se_boot = reps.std(axis=0) if n_boot > 1 else np.full(len(P_law_idx), np.inf)
     dof = max(N * n - P, 1)

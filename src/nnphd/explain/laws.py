@@ -22,18 +22,26 @@ from collections.abc import Sequence
 import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
-from nnphd.explain.families import _odd_monomials, families, parse_law, perturber_family, sparse_family
-from nnphd.explain.jointfit import MU, N_BOOT, _folds, _linear_stats, _Problem, _tau, trajectory_segments
+from nnphd.explain.families import families, odd_monomials, parse_law, perturber_family, sparse_family
+from nnphd.explain.jointfit import (
+    MU,
+    N_BOOT,
+    JointProblem,
+    autocorrelation_time,
+    heldout_folds,
+    linear_stats,
+    trajectory_segments,
+)
 from nnphd.explain.table import (
     IC_TIE,
     LawFit,
     LawTable,
-    _c_hat,
-    _law_row,
-    _overdispersion,
-    _relative_to_zero,
-    _select,
-    _zero_row,
+    law_row,
+    overdispersion_c_hat,
+    overdispersion_ratio,
+    relative_to_zero,
+    select_law,
+    zero_row,
 )
 
 __all__ = ["rank_laws"]
@@ -65,7 +73,7 @@ def _drive_omegas(t, r, segs, n_peaks: int = 3) -> list[float]:
     return [float(w[i]) for i in peaks[:n_peaks]] or [float(w[int(np.argmax(P))])]
 
 
-def _sparse_supports(prob: _Problem, mons_n: int, n: int) -> list[np.ndarray]:
+def _sparse_supports(prob: JointProblem, mons_n: int, n: int) -> list[np.ndarray]:
     """Sequentially thresholded joint least squares over a grid of thresholds: the distinct supports (n × M)."""
     full = np.ones((n, mons_n), bool)
     fam = sparse_family(n, [f"q{i}" for i in range(n)], full)
@@ -161,8 +169,8 @@ def rank_laws(
         if X.ndim != 3 or X.shape[:2] != (N, n) or not np.all(np.isfinite(X)):
             raise ValueError(f"conservative_cols must be finite and (N, n, K) = ({N}, {n}, K); got {X.shape}")
         C, n_extra = np.concatenate([C, X], axis=2), X.shape[2]
-    prob = _Problem(q, qd, qdd, t, w, C, angles)
-    folds, fold_desc = _folds(segs)
+    prob = JointProblem(q, qd, qdd, t, w, C, angles)
+    folds, fold_desc = heldout_folds(segs)
     v_rms = np.sqrt(np.mean(qd**2, axis=0))
 
     zero = prob.fit(None, {})
@@ -172,7 +180,7 @@ def rank_laws(
     if (perturber or (include is not None and "perturber" in include)) and n == 2:
         fams.append(perturber_family(names))
     if include is None or "sparse" in include:
-        for sup in _sparse_supports(prob, len(_odd_monomials(n)), n):
+        for sup in _sparse_supports(prob, len(odd_monomials(n)), n):
             fams.append(sparse_family(n, names, sup))
     fams += [parse_law(u, names) for u in user_laws]
 
@@ -183,7 +191,7 @@ def rank_laws(
             fits.append((f, fit))
     # τ from the residuals of the best in-sample fit (the most signal removed), then held-out errors
     best_in = min(fits, key=lambda x: float(np.sum(x[1]["r"] ** 2)))
-    tau = _tau(best_in[1]["r"].reshape(N, n), segs)
+    tau = autocorrelation_time(best_in[1]["r"].reshape(N, n), segs)
     n_eff = N * n / tau
     rows: list[LawFit] = []
     stats: list = []
@@ -192,24 +200,28 @@ def rank_laws(
     for f, fit in fits:
         J, R = prob.jacobian(f, fit)
         law_idx = np.arange(Kc, J.shape[2])
-        mse, se_b, se_m = _linear_stats(J, R, folds, segs, tau, n_boot if f is not None else 0, seed, law_idx)
+        mse, se_b, se_m = linear_stats(J, R, folds, segs, tau, n_boot if f is not None else 0, seed, law_idx)
         stats.append(
-            (mse, 0 if f is None else f.k, _overdispersion(se_b, se_m, np.concatenate([fit["beta"], fit["theta"]])))
+            (
+                mse,
+                0 if f is None else f.k,
+                overdispersion_ratio(se_b, se_m, np.concatenate([fit["beta"], fit["theta"]])),
+            )
         )
         if f is None:
-            row = _zero_row(names, mse, N, "pointwise")
+            row = zero_row(names, mse, N, "pointwise")
         else:
-            row = _law_row(f, fit["beta"], fit["theta"], np.maximum(se_b, se_m), names, mse, "pointwise")
+            row = law_row(f, fit["beta"], fit["theta"], np.maximum(se_b, se_m), names, mse, "pointwise")
             row.on_rows(q, qd, t)
         rows.append(row)
         alphas[id(row)] = fit["alpha"]
-    c_hat = _c_hat([x[2] for x in stats], [x[0] for x in stats])  # IC once the overdispersion is known
+    c_hat = overdispersion_c_hat([x[2] for x in stats], [x[0] for x in stats])  # IC once the overdispersion is known
     n_eff = n_eff / c_hat
     tau = tau * c_hat
     for r, (mse, k, _) in zip(rows, stats):
         r.ic = n_eff * math.log(max(mse, 1e-300)) + k * math.log(max(n_eff, 2.0))
     y_rms = float(np.sqrt(np.mean(qdd**2)))
-    _relative_to_zero(rows, y_rms)
+    relative_to_zero(rows, y_rms)
     # the sparse family keeps only its best support
     sparse = [r for r in rows if r.key == "sparse"]
     if len(sparse) > 1:
@@ -234,4 +246,4 @@ def rank_laws(
         "_center": center,
         "_y_rms": y_rms,
     }
-    return _select(rows, n_eff, tau, fold_desc, settings)
+    return select_law(rows, n_eff, tau, fold_desc, settings)

@@ -258,8 +258,8 @@ def stop_contradictions(
 def bar_stuck(table, contradicted: dict):
     """``table`` with the ``contradicted`` families (:func:`stuck_contradictions`) not eligible, ranked again (a
     candidate the amplitude envelope preferred that is contradicted bars nothing); unchanged when none is."""
-    from nnphd.explain.envelope import _blocked_by_disagreement
-    from nnphd.explain.table import _select
+    from nnphd.explain.envelope import blocked_by_disagreement
+    from nnphd.explain.table import select_law
 
     if not contradicted or not any(r.key in contradicted for r in table.rows):
         return table
@@ -269,8 +269,8 @@ def bar_stuck(table, contradicted: dict):
             env = None if r.envelope is None else {**r.envelope, "eligible_but_agreement": False}
             r = replace(r, significant=False, stuck=contradicted[r.key], envelope=env)
         rows.append(r)
-    out = _select(rows, table.n_eff, table.tau, table.folds, table.settings, judge=False)
-    blocked = _blocked_by_disagreement(out)
+    out = select_law(rows, table.n_eff, table.tau, table.folds, table.settings, judge=False)
+    blocked = blocked_by_disagreement(out)
     if blocked is not None:  # as in nnphd.explain.envelope: a candidate the envelope clearly prefers bars the law
         out.law, out.ties, out.blocked = None, [], blocked
         zero = [r for r in out.rows if r.key == "none"]

@@ -4,7 +4,7 @@ Candidates are ranked by
 
     IC = N_eff · log(held-out MSE) + k · log(N_eff),    N_eff = (rows × coordinates) / τ,
 
-k the number of law parameters (τ and N_eff shrunk by the overdispersion ĉ, :func:`_c_hat`); the zero law (f_c
+k the number of law parameters (τ and N_eff shrunk by the overdispersion ĉ, :func:`overdispersion_c_hat`); the zero law (f_c
 alone) is a candidate too. A candidate with a term within :data:`Z_TERM` standard errors of zero, a nonlinear
 parameter at the edge of its range, a size at the rounding level of the data, (a sum of terms) a term carrying
 less than :data:`MIN_TERM_SHARE` of the law's force, or a drive whose force over the record is a force of the state
@@ -158,7 +158,7 @@ class LawTable:
         }
 
 
-def _overdispersion(se_boot, se_model, values=None) -> float | None:
+def overdispersion_ratio(se_boot, se_model, values=None) -> float | None:
     """Mean (bootstrap se / model se)² over a candidate's law parameters, at most C_HAT_MAX (None without any, or
     when the model error is at rounding level: exact data carry no information about overdispersion)."""
     scale = np.abs(values) if values is not None else np.zeros_like(se_model)
@@ -166,7 +166,7 @@ def _overdispersion(se_boot, se_model, values=None) -> float | None:
     return float(min(C_HAT_MAX, np.mean((se_boot[ok] / se_model[ok]) ** 2))) if ok.any() else None
 
 
-def _c_hat(ratios, errors) -> float:
+def overdispersion_c_hat(ratios, errors) -> float:
     """Overdispersion ĉ ≥ 1 (as in QAIC, from the best-fitting model): (bootstrap / model variance) of the
     candidate with the lowest held-out error — when the resampled fits scatter more than the residuals' own scatter
     implies (misfit that varies along the record), the information in the data is smaller than its row count says,
@@ -175,7 +175,7 @@ def _c_hat(ratios, errors) -> float:
     return float(max(1.0, min(ok)[1])) if ok else 1.0
 
 
-def _at_bound(fam: Family, theta) -> bool:
+def at_bound(fam: Family, theta) -> bool:
     """A nonlinear parameter on (or past) a finite edge of its range: the optimum is not interior, the law is not
     identified (e.g. a power law pushed to m = 8 to fit a few of the fastest rows)."""
     if not fam.nl_names or theta is None or len(theta) == 0:
@@ -227,7 +227,7 @@ def _significance(rows: list[LawFit]) -> None:
         if r.family is not None and r.fn_rel < 1e-9:  # a law at the rounding level of the data is no law
             r.significant = False
             continue
-        if r.family is not None and _at_bound(r.family, r.theta):
+        if r.family is not None and at_bound(r.family, r.theta):
             r.significant = False
             continue
         if r.family is not None and not dissipative_ok(r.family, r.beta):
@@ -247,7 +247,7 @@ def dissipative_ok(fam: Family, beta) -> bool:
     return not fam.dissipative or bool(np.all(np.asarray(beta, float) >= 0))
 
 
-def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
+def law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
     """A table row: parameters ± se and the law as SymPy/LaTeX in the coordinates' names (IC set by the caller)."""
     Q = [sp.Symbol(c) for c in names]
     V = [sp.Symbol(f"{c}_dot") for c in names]
@@ -281,7 +281,7 @@ def _law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: st
     )
 
 
-def _zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
+def zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
     zero = {f"{c}_ddot": "0" for c in names}
     return LawFit(
         "none",
@@ -302,7 +302,7 @@ def _zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
     )
 
 
-def _relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
+def relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
     """Held-out ratio and ΔIC against the zero law (rows[0]), and the law's size relative to q̈."""
     z = rows[0]
     for r in rows:
@@ -311,7 +311,7 @@ def _relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
         r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / (y_rms or 1.0)
 
 
-def _select(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = True) -> LawTable:
+def select_law(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = True) -> LawTable:
     if judge:
         _significance(rows)
     order = {id(r): i for i, r in enumerate(rows)}

@@ -12,8 +12,16 @@ import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
 from nnphd.explain.families import Family
-from nnphd.explain.jointfit import N_BOOT, _ridge, _solve, trajectory_segments
-from nnphd.explain.table import LawTable, _c_hat, _law_row, _overdispersion, _relative_to_zero, _select, _zero_row
+from nnphd.explain.jointfit import N_BOOT, ridge_regularised, solve_or_lstsq, trajectory_segments
+from nnphd.explain.table import (
+    LawTable,
+    law_row,
+    overdispersion_c_hat,
+    overdispersion_ratio,
+    relative_to_zero,
+    select_law,
+    zero_row,
+)
 
 __all__ = ["rank_trajectory"]
 
@@ -75,7 +83,7 @@ def heldout_chi2(c_loc, S, g, groups) -> float | None:
     cv = 0.0
     for grp in groups:
         Sg, gg = S[grp].sum(0), g[grp].sum(0)
-        d = -_solve(_ridge(Stot - Sg), gtot - gg)
+        d = -solve_or_lstsq(ridge_regularised(Stot - Sg), gtot - gg)
         c_g = float(c_loc[grp].sum())
         cv_g = float(c_g + 2 * gg @ d + d @ Sg @ d)
         if not np.isfinite(cv_g) or cv_g < HELDOUT_FLOOR * c_g:
@@ -253,13 +261,15 @@ def rank_trajectory(
         for _ in range(n_boot if fam is not None else 0):
             idx = rng.integers(0, W, W)
             rep = th.copy()
-            rep[fi] -= _solve(_ridge(S[idx].sum(0)), g[idx].sum(0))
+            rep[fi] -= solve_or_lstsq(ridge_regularised(S[idx].sum(0)), g[idx].sum(0))
             reps.append(rep)
         law_idx = np.arange(Kc, len(th))
         se_b = np.asarray(reps)[:, law_idx].std(axis=0) if reps else np.zeros(len(law_idx))
         s2 = chi2 / max(n_res - W * 2 * n - len(fi), 1)
         var = np.zeros(len(th))
-        cov_full = s2 * np.linalg.pinv(_ridge(Stot))  # over the free parameters; the Kc conservative ones first
+        cov_full = s2 * np.linalg.pinv(
+            ridge_regularised(Stot)
+        )  # over the free parameters; the Kc conservative ones first
         var[fi] = np.diag(cov_full)
         se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
         R = r.reshape(W, -1)
@@ -271,31 +281,31 @@ def rank_trajectory(
                 c = np.corrcoef(np.asarray(reps)[:, law_idx].T)
             corr = np.where(np.isfinite(c), c, corr) if c.ndim == 2 else corr
         results.append(
-            (row, th, max(cv, 1e-300), se, rho, _overdispersion(se_b, se_m, th[Kc:]), corr * np.outer(se, se),
+            (row, th, max(cv, 1e-300), se, rho, overdispersion_ratio(se_b, se_m, th[Kc:]), corr * np.outer(se, se),
              cov_full[:Kc, :Kc])
         )  # fmt: skip
     if len(results) < 2 or results[0][0].key != "none":
         return table
     rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
-    c_hat = _c_hat([x[5] for x in results], [x[2] for x in results])
+    c_hat = overdispersion_c_hat([x[5] for x in results], [x[2] for x in results])
     tau = (1 + rho) / (1 - rho) * c_hat
     n_eff = n_res / tau
     rows = []
     for row, th, cv, se, _, _, cov, cov_c in results:
         fam = row.family
         if fam is None:
-            new = _zero_row(table.settings["names"], cv / n_res, N, "trajectory")
+            new = zero_row(table.settings["names"], cv / n_res, N, "trajectory")
         else:
             K = len(fam.coef_names)
-            new = _law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, table.settings["names"], cv / n_res, "trajectory")
+            new = law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, table.settings["names"], cv / n_res, "trajectory")
             new.on_rows(q_pos, qd, t)
             new.cov = cov[:K, :K]
         new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
         # the conservative part of the joint fit; its covariance widened by the residuals' correlation (τ)
         new.conservative, new.conservative_cov = np.asarray(th[:Kc], float), cov_c * tau
         rows.append(new)
-    _relative_to_zero(rows, table.settings["_y_rms"])
-    return _select(
+    relative_to_zero(rows, table.settings["_y_rms"])
+    return select_law(
         rows,
         n_eff,
         tau,

@@ -40,7 +40,7 @@ from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig6
-from nnphd.paper.lambda_p import _FORMAT, ALIGN_TOL, NEAR_ZERO_FRACTION
+from nnphd.paper.lambda_p import ALIGN_TOL, NEAR_ZERO_FRACTION, RESULT_FORMAT
 from nnphd.parallel import Unit, UnitsFailed, run_units
 
 __all__ = ["DQ_GRID", "data_quality_study"]
@@ -90,7 +90,7 @@ def _dq_grid_run(kind: str, grid, steps: int, seed: int, n_train: int, n_test: i
         "model": asdict(cfg),
         "standardize": False,
         "training": "from scratch at fixed λ, all grid points in one vmap",
-        "format": _FORMAT,
+        "format": RESULT_FORMAT,
     }
     cache = Cache(path.parent if path is not None else None, settings)
     cached = cache.load(path.name) if path is not None else None

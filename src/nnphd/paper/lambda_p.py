@@ -88,7 +88,7 @@ SMOOTH_SHARPNESS = 1.0  # sharpness < this: smooth (the curve is as steep elsewh
 ALIGN_TOL = 0.05  # "aligned": m_c, m_n ≤ 0.05 = 10% of the rms of the true f_n = −½q̇ (rms 0.5 on N(0,1) data)
 NEAR_ZERO_FRACTION = 0.1  # "nearly zero" L_e: ≤ 10% of the rms/L1 size of the non-conservative force on the data
 
-_FORMAT = 1  # version of the cached sub-run files (bump when their content changes)
+RESULT_FORMAT = 1  # version of the cached sub-run files (bump when their content changes)
 
 
 def p_label(p) -> str:
@@ -181,7 +181,7 @@ def _lambda_p_subrun(
         "n_test": n_test,
         "force_lambdas": force_lams,
         "n_force_points": N_FORCE_POINTS if force_lams else 0,
-        "format": _FORMAT,
+        "format": RESULT_FORMAT,
     }
     plan = plan_sweep(system, p, steps, seed, lambdas, "warm", None, n_train, n_test, True, subdir, extra)
     cached = plan.cache.load()

@@ -77,8 +77,8 @@ from nnphd.user.checks import (
 )
 from nnphd.user.limits import MIN_ROWS
 from nnphd.user.rounds import (
-    _accel_fn,
-    _one_seed,
+    lnn_accel_fn,
+    one_seed,
 )
 from nnphd.user.scaling import (
     Scaling,
@@ -219,7 +219,7 @@ def assess(
             progress(done[0], total, "training")
 
     here = runs_here(workers, scheduler, n_seeds)
-    units = [Unit(f"seed {seed + i}", _one_seed, dict(ctx=ctx, seed=seed + i, tick=tick if here else None)) for i in range(n_seeds)]  # fmt: skip
+    units = [Unit(f"seed {seed + i}", one_seed, dict(ctx=ctx, seed=seed + i, tick=tick if here else None)) for i in range(n_seeds)]  # fmt: skip
     if not here and progress:
         progress(0, n_seeds, f"training {n_seeds} seeds on Dask workers")
     outs = run_units(units, workers, scheduler, progress=None if here else progress)
@@ -405,7 +405,7 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
 def conservative_fn(cons: dict):
     """The LNN's conservative acceleration f_c(q, q̇) in the file's units as a JAX function (batched), from
     ``assess(...)["_conservative"]`` — for fits that integrate the model (the laws' trajectory-level ranking)."""
-    accel = _accel_fn(cons["cfg"])
+    accel = lnn_accel_fn(cons["cfg"])
     lnn, sc = cons["lnn"], cons["scaling"]
     mu, s_q, s_t = jnp.asarray(sc.mu_q), jnp.asarray(sc.s_q), float(sc.s_t)
 

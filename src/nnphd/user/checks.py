@@ -46,7 +46,7 @@ of a fraction of the record (:func:`nnphd.engine.evidence.evidence_block`), and 
 :func:`_status_not_oscillating` — such a path never returns to its states, so a potential can be shaped to follow it
 whatever force acts: "detected" only when both record-level statistics agree, never "none".
 
-Status per seed (:func:`_seed_status`): ``inconclusive`` if the data cannot decide (quality gate); ``detected`` if
+Status per seed (:func:`seed_status`): ``inconclusive`` if the data cannot decide (quality gate); ``detected`` if
 check 2 is significant and testable, or the trajectory-level evidence (0) is significant, or check 1 is significant
 with ≥ 3 trajectories and usable derivatives (and valid or gap_train ≥ GAP_MIN); otherwise ``inconclusive`` when the
 derivatives are too noisy for a pointwise test, when the pointwise residual does net work that the record-level
@@ -369,7 +369,7 @@ def _both_agree(traj: dict) -> bool:
     return zt is not None and zs is not None and np.sign(zt) == np.sign(zs) and min(abs(zt), abs(zs)) >= Z_BOTH
 
 
-def _effect(traj: dict, trend: dict, shoot: dict) -> str:
+def effect_text(traj: dict, trend: dict, shoot: dict) -> str:
     """ "energy decays 3.2 %/period (r = 0.011/time unit), z = 41" from the evidence (motion that does not oscillate:
     per block of a fraction of the record, :func:`nnphd.engine.evidence.evidence_block`)."""
     parts = []
@@ -390,7 +390,7 @@ def _effect(traj: dict, trend: dict, shoot: dict) -> str:
     return "; ".join(parts) if parts else "no trajectory-level statistic could be computed"
 
 
-def _seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tuple[str, str, float]:
+def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tuple[str, str, float]:
     """(status, reason, agreement of the bootstrap with the status) of one seed.
 
     Order: (1) explicit time dependence (only where the clock is testable); (2) trajectory-level evidence (energy

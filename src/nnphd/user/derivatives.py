@@ -4,7 +4,7 @@ Derivative estimation (:func:`estimate_derivatives`, one trajectory and coordina
 --------------------------------------------------------------------------------------------
 1. **Noise level σ** of the positions (:func:`nnphd.user.sampling.noise_level`), at least the quantization noise of
    values on a grid.
-2. **Sampling and time base** (:func:`nnphd.user.sampling._sampling`): *uniform* → Savitzky–Golay; *near-uniform*
+2. **Sampling and time base** (:func:`nnphd.user.sampling.classify_sampling`): *uniform* → Savitzky–Golay; *near-uniform*
    (jitter, short gaps) → local polynomial regression in the recorded or the nominal (lattice) times; *grossly
    irregular* → the spline (item 6).
 3.–5. **Local polynomial regression, its error model (order and window of least estimated error) and the end rows**:
@@ -54,9 +54,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import UnivariateSpline
 
-from nnphd.user.localpoly import MIN_SAMPLES, MIN_WINDOW, POLYORDER, _poly_coordinate
+from nnphd.user.localpoly import MIN_SAMPLES, MIN_WINDOW, POLYORDER, poly_coordinate
 from nnphd.user.recording import DataError, Trajectory, UserData
-from nnphd.user.sampling import UNIFORM_RTOL, _grid_step, _sampling, noise_level
+from nnphd.user.sampling import UNIFORM_RTOL, classify_sampling, grid_step, noise_level
 
 __all__ = ["DerivativeEstimate", "estimate_derivatives", "to_dataset"]
 
@@ -170,7 +170,7 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
         raise DataError("t must be strictly increasing")
     if method not in ("auto", "savgol", "local", "spline"):
         raise ValueError(f"method must be 'auto', 'savgol', 'local' or 'spline', got {method!r}")
-    smp = _sampling(t)
+    smp = classify_sampling(t)
     if method == "savgol" and smp.dt is None:
         raise DataError(
             "Savitzky–Golay needs uniform sampling: t deviates from a uniform grid by more than "
@@ -201,7 +201,7 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
     qd = np.zeros((n_rows, n))
     qdd = np.zeros((n_rows, n))
     err_rows = np.zeros((2, n_rows, n))
-    q_step = np.array([_grid_step(q2[:, j]) for j in range(n)])
+    q_step = np.array([grid_step(q2[:, j]) for j in range(n)])
     windows: list[tuple] = []
     orders: list[tuple] = [(None, None) if method == "spline" else (POLYORDER, POLYORDER)] * n
     for j in range(n):
@@ -213,7 +213,7 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
             qd[:, j], qdd[:, j], e = _spline_coordinate(t, y, noise[j])
             win = (None, None)
         else:
-            qd[:, j], qdd[:, j], win, order, e = _poly_coordinate(
+            qd[:, j], qdd[:, j], win, order, e = poly_coordinate(
                 tg, y, noise[j], trim, smp.dt if method == "savgol" else None
             )
             orders[j] = order
@@ -264,7 +264,7 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
     given_qd, given_qdd = np.array(ud.given_qd), np.array(ud.given_qdd)
     qd, qdd = tr.qd.copy(), tr.qdd.copy()
     keep = np.ones(len(tr), dtype=bool)
-    smp = _sampling(tr.t)
+    smp = classify_sampling(tr.t)
     stats = {
         "noise": np.zeros(n),
         "noise_rel": np.zeros(n),
@@ -292,7 +292,7 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
         std = q.std(axis=0)
         stats["noise"] = np.array([noise_level(tr.t, q[:, j]) for j in range(n)])
         stats["noise_rel"] = np.divide(stats["noise"], std, out=np.zeros(n), where=std > 0)
-        stats["q_step"] = np.array([_grid_step(q[:, j]) for j in range(n)])
+        stats["q_step"] = np.array([grid_step(q[:, j]) for j in range(n)])
     else:
         est = estimate_derivatives(tr.t, q, method, trim=trim)
         stats.update(

@@ -52,7 +52,7 @@ MAX_WINDOW = 2001
 MIN_SAMPLES = MIN_WINDOW + 2  # two windows (5, 7) are needed to measure the bias
 ORDERS = (4, 6)  # polynomial orders tried for the whole trajectory (the end rows may also use 2 and 3)
 MIN_DECLINE_HIGH = -3.0  # order 6 is used only where its bias scales nearly as Taylor's (_OrderFits.decline)
-ROUGH_DECLINE = -1.5  # order 4 declining faster: a rough signal, windows scored over all rows (see _poly_coordinate)
+ROUGH_DECLINE = -1.5  # order 4 declining faster: a rough signal, windows scored over all rows (see poly_coordinate)
 
 
 # ---- local polynomial estimates: Savitzky–Golay (uniform) and its generalisation to the actual times ----------------
@@ -353,7 +353,7 @@ def _grow_windows(tg, y, sigma, dt, p, rows) -> _OrderFits:
     return _OrderFits(p, used, stencils, pairs)
 
 
-def _poly_coordinate(
+def poly_coordinate(
     tg: np.ndarray, y: np.ndarray, sigma: float, trim: bool, dt: float | None = None, ends: bool = True
 ):
     """q̇, q̈ of one coordinate by local polynomials: order (4 or 6) and window chosen per derivative by the estimated

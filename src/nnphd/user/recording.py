@@ -76,7 +76,7 @@ from nnphd.user.limits import (
     T_SPAN,
 )
 from nnphd.user.localpoly import MIN_SAMPLES
-from nnphd.user.sampling import _grid_step
+from nnphd.user.sampling import grid_step
 
 __all__ = [
     "DataError",
@@ -967,7 +967,7 @@ def suggest_angles(userdata: UserData) -> list[tuple[str, str]]:
                 and np.max(np.abs(np.diff(np.unwrap(y)))) < 0.5 * math.pi
             ):
                 wrapped = (tr.id, int(big.sum()))
-            if turns is None and np.ptp(y) > 2.0 * two_pi and not _CARTESIAN.match(name) and _grid_step(y) < 0.1:
+            if turns is None and np.ptp(y) > 2.0 * two_pi and not _CARTESIAN.match(name) and grid_step(y) < 0.1:
                 turns = (tr.id, float(np.ptp(y)))
         if wrapped is not None:
             label = f" in trajectory {wrapped[0]}" if userdata.n_traj > 1 else ""

@@ -27,23 +27,23 @@ from nnphd.engine.shooting import shooting_fit
 from nnphd.engine.train import SweepPoint, TrainConfig, lambda_sweep, make_trainer, pnorm
 from nnphd.engine.verdict import verdict as naive_verdict
 from nnphd.user.checks import (
-    _effect,
-    _seed_status,
     capacity_check,
     drift_check,
+    effect_text,
     energy_net_fraction,
     gap_check,
     ridge_fit_predict,
+    seed_status,
     time_check,
     time_design,
     trajectory_evidence,
 )
 from nnphd.user.scaling import (
-    _shoot_units,
-    _trend_units,
     holdout,
     oscillations,
+    shoot_units,
     time_features,
+    trend_units,
 )
 
 REPRESENTATIVE_LAMBDA = 0.2
@@ -95,7 +95,7 @@ def _free_eval(params, q, qd, cfg):
 
 
 @functools.lru_cache(maxsize=64)
-def _accel_fn(cfg: ModelConfig):
+def lnn_accel_fn(cfg: ModelConfig):
     """f_c(params, q, q̇) of an LNN config: one function object per config, so the shooting fit compiles once."""
 
     def accel(lnn, q, qd):
@@ -201,7 +201,7 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
     return pts, evals, table, check
 
 
-def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
+def one_seed(ctx: dict, seed: int, tick=None) -> dict:
     tick = tick or (lambda: None)
     q, qd, tp, qdd, segs = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"]
     steps, lambdas, width, long_factor, sc = ctx["steps"], ctx["lambdas"], ctx["width"], ctx["long_factor"], ctx["sc"]
@@ -316,12 +316,12 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
     trend["orientation"] = orient
     done("energy_trend_s")
     if np.all(np.isfinite(power_l)):
-        shoot = shooting_fit(_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], block, seed=seed)
+        shoot = shooting_fit(lnn_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], block, seed=seed)
     else:
         shoot = {"valid": False, "reason": "the conservative model diverged"}
     done("shooting_probe_s")
-    trend = _trend_units(trend, sc)
-    shoot = _shoot_units(shoot, sc)
+    trend = trend_units(trend, sc)
+    shoot = shoot_units(shoot, sc)
     trend["oscillating"] = shoot["oscillating"] = oscillating
 
     # checks
@@ -352,10 +352,10 @@ def _one_seed(ctx: dict, seed: int, tick=None) -> dict:
         chosen_round=best[0],
     )
     traj = trajectory_evidence(trend, shoot)
-    traj["effect"] = _effect(traj, trend, shoot)
+    traj["effect"] = effect_text(traj, trend, shoot)
 
     if np.all(np.isfinite(power_l)) and np.isfinite(cons_tr):
-        status, reason, boot_agree = _seed_status(drift, tchk, gap, cap, traj, ctx["quality"], len(segs))
+        status, reason, boot_agree = seed_status(drift, tchk, gap, cap, traj, ctx["quality"], len(segs))
     else:
         status, reason, boot_agree = (
             "inconclusive",

@@ -6,12 +6,12 @@ r"""Sampling grids and the noise level of one trajectory's samples: items 1 and 
    matrix on an irregular one), annihilates polynomials of degree < k and has standard deviation exactly σ on white
    noise, while a smooth signal contributes ~(ω dt)ᵏ.  σ is the RMS of these differences at the first k = 1…10 where
    going one order higher no longer lowers it by 10 % (signal gone, noise left).  **Quantized values** (all on a grid
-   c + g·ℤ: integer pixels, a fixed number of decimals, encoder counts; g found Euclid-style by :func:`_grid_step`)
+   c + g·ℤ: integer pixels, a fixed number of decimals, encoder counts; g found Euclid-style by :func:`grid_step`)
    have σ ≥ g/√12: a slow signal in whole pixels is a staircase whose differences hide the rounding (measured 0.11 px
    raw for a ±3 px sine at 30 fps, 0.29 px with the floor).  On noise-free float data σ comes out at the level of the
    data's own roughness.
 
-2. **Sampling and time base** (:func:`_sampling`; with dt̃ the median spacing):
+2. **Sampling and time base** (:func:`classify_sampling`; with dt̃ the median spacing):
 
    * *uniform*: t within 1e-6·dt of a uniform grid, or within 0.55 of its own resolution (the common step of the
      recorded times, ≤ dt̃/10) of one — 30 fps with ms timestamps is uniform (before, it took the spline path and
@@ -45,7 +45,7 @@ _MAX_DIFF_ORDER = 10
 
 
 # ---- sampling and value grids -------------------------------------------------------------------------------------
-def _grid_step(v) -> float:
+def grid_step(v) -> float:
     """The common step g of the values v (all v lie on c + g·ℤ, g as large as possible), 0.0 if there is none.
 
     Found Euclid-style on the differences of the sorted distinct values: g starts at the smallest difference and is
@@ -84,7 +84,7 @@ class _Sampling:
     rounded: bool = False  # t equals the nominal times up to its own rounding (ROUNDING_TOL·t_step)
 
 
-def _sampling(t: np.ndarray) -> _Sampling:
+def classify_sampling(t: np.ndarray) -> _Sampling:
     """Classify the sampling times of one trajectory (see the module docstring for the rule)."""
     n = t.shape[0]
     if n < 2:  # a single sample (allowed when every derivative is given)
@@ -92,7 +92,7 @@ def _sampling(t: np.ndarray) -> _Sampling:
     steps = np.diff(t)
     med = float(np.median(steps))
     ratio, ratio_min = float(steps.max() / med), float(steps.min() / med)
-    t_step = _grid_step(t)
+    t_step = grid_step(t)
     dt = float((t[-1] - t[0]) / (n - 1))
     if np.max(np.abs(t - (t[0] + dt * np.arange(n)))) <= UNIFORM_RTOL * dt:
         return _Sampling("uniform", dt, med, ratio, ratio_min, t_step, t, True)
@@ -115,7 +115,7 @@ def _sampling(t: np.ndarray) -> _Sampling:
 
 def _uniform_dt(t: np.ndarray) -> float | None:
     """The spacing if t lies on a uniform grid (within UNIFORM_RTOL·dt, or within the rounding of t), else None."""
-    return _sampling(t).dt
+    return classify_sampling(t).dt
 
 
 # ---- noise level --------------------------------------------------------------------------------------------------
@@ -144,7 +144,7 @@ def noise_level(t, y) -> float:
             break
     if est is None:
         est = min(sig)
-    return max(est, _grid_step(y) / math.sqrt(12.0))
+    return max(est, grid_step(y) / math.sqrt(12.0))
 
 
 def _irregular_differences(t: np.ndarray, y: np.ndarray, k: int) -> np.ndarray:

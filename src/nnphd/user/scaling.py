@@ -127,7 +127,7 @@ def oscillations(x, segs) -> np.ndarray:
 # evidence from model units to the file's
 
 
-def _trend_units(tr: dict, sc: Scaling) -> dict:
+def trend_units(tr: dict, sc: Scaling) -> dict:
     """Energy-trend rates from model time units to the file's."""
     out = dict(tr)
     for k in ("rate", "se", "kinetic_rate", "kinetic_se", "energy_rate", "energy_se"):
@@ -139,7 +139,7 @@ def _trend_units(tr: dict, sc: Scaling) -> dict:
     return out
 
 
-def _shoot_units(sh: dict, sc: Scaling) -> dict:
+def shoot_units(sh: dict, sc: Scaling) -> dict:
     out = dict(sh)
     if not sh.get("valid"):
         out["_bootstrap_z"] = []

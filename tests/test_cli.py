@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from nnphd.cli import main
+from nnphd.engine.data import train_test
 from nnphd.engine.systems import SYSTEMS
+from nnphd.engine.verdict import MIN_RATIO, MIN_RELATIVE_SIZE
 
 
 def test_systems_lists_every_system(capsys):
@@ -26,8 +28,13 @@ def test_small_sweep_writes_results(tmp_path, capsys):
     rc = main(["sweep", "--system", "ho+ld", "--steps", "40", "--lambdas", "0.2,5", "--seed", "3", "--out", str(out)])
     assert rc == 0
     res = json.loads((out / "results.json").read_text())
-    assert isinstance(res["new_physics"], bool)
-    assert res["statistic"]["value"] == pytest.approx(res["verdict"]["ratio"])
+    # the statistic and the verdict, recomputed from the table: one λ on each side of 1, so the ratio is L_e(5) over
+    # L_e(0.2); ‖f‖₁ is the mean |q̈| of the test set (seed 3, 1000 samples) the table's L_e is measured on
+    le = {r["lam"]: r["L_e"] for r in res["table"]}
+    assert res["statistic"]["value"] == pytest.approx(le[5.0] / le[0.2], rel=1e-12)
+    fnorm = float(np.mean(np.abs(train_test("ho+ld", seed=3, n_train=1000, n_test=1000)[1].qdd)))
+    assert res["verdict"]["force_norm"] == pytest.approx(fnorm, rel=1e-12)
+    assert res["new_physics"] is (le[5.0] >= MIN_RATIO * le[0.2] and le[5.0] >= MIN_RELATIVE_SIZE * fnorm)
     assert [r["lam"] for r in res["table"]] == [0.2, 5.0]
     for r in res["table"]:
         assert r["L_e"] >= 0 and r["L_b"] >= 0 and r["m_c"] is not None
@@ -58,9 +65,17 @@ def test_fast_sweep_reports_its_protocol(tmp_path, capsys):
     res = json.loads((out / "results.json").read_text())
     pr = res["protocol"]
     assert pr["first_lambdas"] == [0.1, 0.5, 2.0, 10.0] and res["settings"]["mode"] == "fast"
-    trained = [r["lam"] for r in res["table"]]
-    assert trained == ([0.05, 0.1, 0.5, 2.0, 10.0, 20.0] if pr["ran_paper_protocol"] else [0.1, 0.5, 2.0, 10.0])
-    assert pr["ran_paper_protocol"] == bool(pr["doubts"])
+    # 40 steps per λ leave the 4-λ chain far from converged (measured: L_e 0.13-0.18 below λ = 1, a ratio ×1.9 inside
+    # the close band [×1, ×6)), so the paper protocol runs on the whole grid and the table is its six λ
+    assert pr["ran_paper_protocol"] and any("ratio" in w for w in pr["doubts"]), pr
+    assert [r["lam"] for r in res["table"]] == [0.05, 0.1, 0.5, 2.0, 10.0, 20.0]
+    # 40 steps over 4 learning rates is 10 per rate, less than one 100-step chunk, so no stopping rule shortens it:
+    # 40 steps at each chain λ, and the paper protocol's 40 at every λ of the grid
+    assert pr["steps_by_lambda"] == {"0.05": 40, "0.1": 80, "0.5": 80, "2": 80, "10": 80, "20": 40}
+    assert pr["steps_total"] == 4 * 40 + 6 * 40
+    # the verdict is the paper protocol's: median L_e over λ = 2, 10, 20 over the median over λ = 0.05, 0.1, 0.5
+    le = [r["L_e"] for r in res["table"]]
+    assert res["verdict"]["ratio"] == pytest.approx(np.median(le[3:]) / np.median(le[:3]), rel=1e-12)
     assert "fast mode:" in capsys.readouterr().out
 
 

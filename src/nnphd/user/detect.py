@@ -88,8 +88,9 @@ def _check_declared_field(field: str, data, traj, ud, info) -> None:
     path = ud.path
     if np.isfinite(period):
         raise DataError(
-            f"{path}: the field was declared uniform, under which nothing oscillates, but this record oscillates "
-            f"(period {period:.4g} in its time unit); leave the field to be learned (field 'learned', the default)"
+            f"{path}: the field was declared uniform, under which nothing oscillates, but this record swings back and "
+            f"forth (period {period:.4g} in its time unit): it oscillates, or its positions are mostly noise; leave the "
+            "field to be learned (field 'learned', the default)"
         )
 
 

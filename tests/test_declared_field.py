@@ -11,11 +11,13 @@ import pytest
 
 from nnphd.io.errors import DataError
 from nnphd.user.detect import (
+    DRAG_ALONG_MIN,
     FIELD_FIT_MSE,
     LAW_DETECT_CONFIDENCE,
     LAW_DETECT_DIC,
     _declared_field_verdict,
     _reconcile,
+    against_velocity,
     check_field,
 )
 from tests.test_nonoscillating import G, _csv, _throw
@@ -84,6 +86,47 @@ def _report(status="inconclusive", oscillating=False, library_law=None):
         "quality": {"usable": True, "oscillating": oscillating},
         "checks": {"per_seed": [{"status": status}]},
     }, lib
+
+
+def test_the_share_of_a_force_that_opposes_the_velocity_is_one_for_a_drag_and_not_for_a_field():
+    rng = np.random.default_rng(0)
+    v = rng.standard_normal((200, 2))
+    speed = np.linalg.norm(v, axis=1, keepdims=True)
+    assert against_velocity(-0.3 * v, v) == pytest.approx(1.0)  # linear drag
+    assert against_velocity(-0.02 * speed * v, v) == pytest.approx(1.0)  # quadratic drag
+    assert against_velocity(0.5 * v / speed, v) == pytest.approx(-1.0)  # a thrust
+    assert against_velocity(np.c_[-v[:, 1], v[:, 0]], v) == pytest.approx(0.0, abs=1e-12)  # a lift, across v
+    # the remainder of a field that varies over the record, g(q) − g(q0) = −k (q − q0), along straight-line motion
+    # from q0: it opposes the displacement, and the velocity only on the way out — half along, half against
+    t = np.linspace(-1, 1, 201)[:, None]
+    vel = np.tile([[1.0, 0.5]], (201, 1))
+    assert against_velocity(-2.0 * t * vel, vel) == pytest.approx(0.0, abs=1e-12)
+    assert against_velocity(np.zeros((5, 2)), v[:5]) is None and against_velocity(v[:5], np.zeros((5, 2))) is None
+    # rows at rest do not count; a 1-D fall's drag opposes the velocity wherever it moves
+    vz = np.r_[np.zeros(10), -np.linspace(0.1, 5, 90)][:, None]
+    assert against_velocity(-0.05 * np.abs(vz) * vz + np.r_[np.full(10, 7.0), np.zeros(90)][:, None], vz) == 1.0
+
+
+def test_a_decisive_law_that_does_not_oppose_the_velocity_is_no_drag_and_decides_nothing():
+    """A 1/r² field declared uniform: the arc's remainder fits a law that fits to the noise and beats the field alone
+    decisively, yet it does not oppose the velocity — the declaration may be wrong, so the verdict is "inconclusive"
+    with the reason; a law that opposes it is "detected" as before."""
+    for along, status in (
+        (0.3, "inconclusive"),
+        (-0.85, "inconclusive"),
+        (DRAG_ALONG_MIN, "detected"),
+        (1.0, "detected"),
+    ):
+        t = _table()
+        t["_field"] = {"against_velocity": along}
+        s, conf, why = _declared_field_verdict(t)
+        assert s == status, (along, why)
+        if status == "inconclusive":
+            assert conf == 1.0 and "no drag" in why and f"only {100 * along:.0f}% of it opposes" in why
+            assert "check that the field is uniform" in why
+    t = _table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False)  # no decisive law: the share plays no part
+    t["_field"] = {"against_velocity": -1.0}
+    assert _declared_field_verdict(t)[0] == "none"
 
 
 def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_not_detect():
@@ -191,10 +234,28 @@ def fitted(tmp_path_factory):
         data = nnphd.Trajectories.from_csv(_csv(d / f"{name}.csv", t, noisy[:, list(cols)], names))
         m = nnphd.NNPhD(seed=0, steps=300, n_seeds=1, field="uniform").fit(data)
         out[name] = (m, t, q[:, list(cols)], v[:, list(cols)])
+    t, q, noisy = _kepler_arc(20.0)
+    data = nnphd.Trajectories.from_csv(_csv(d / "arc.csv", t, noisy, ("x", "y")))
+    out["arc"] = (nnphd.NNPhD(seed=0, steps=300, n_seeds=1, field="uniform").fit(data), t, q, None)
     return out
 
 
-@pytest.mark.slow  # three fits of ~15 s
+def _kepler_arc(R, seed=0):
+    """(t, positions, noisy positions) of the throw of :func:`_throw` without drag in a 1/r² field about a centre R
+    below the release (g there): a field that varies over the record, wrongly declared uniform."""
+    from scipy.integrate import solve_ivp
+
+    def rhs(_, s):
+        d = np.array([s[0], s[1] + R])
+        return [s[2], s[3], *(-G * R * R * d / np.linalg.norm(d) ** 3)]
+
+    t, _, _, _, _ = _throw()
+    s0 = [0.0, 0.0, 8.0 * np.cos(np.radians(50.0)), 8.0 * np.sin(np.radians(50.0))]
+    q = solve_ivp(rhs, (0, t[-1]), s0, t_eval=t, rtol=1e-11, atol=1e-12).y[:2].T
+    return t, q, q + 0.002 * np.random.default_rng(seed).standard_normal(q.shape)
+
+
+@pytest.mark.slow  # four fits of ~15 s
 def test_declared_field_verdicts_and_laws_on_throws_and_falls(fitted):
     m, *_ = fitted["drag"]
     assert m.status_ == "detected" and m.report_["field"]["kind"] == "uniform"
@@ -205,6 +266,12 @@ def test_declared_field_verdicts_and_laws_on_throws_and_falls(fitted):
     fall = fitted["fall"][0]
     assert fall.status_ == "detected" and fall.law_.params["c"] == pytest.approx(0.05, rel=0.05)
     assert fall.report_["field"]["g"]["y"] == pytest.approx(-G, rel=0.01)
+    assert m.report_["field"]["against_velocity"] == pytest.approx(1.0)
+    assert fall.report_["field"]["against_velocity"] == pytest.approx(1.0)
+    # a 1/r² field declared uniform (R = 20 m): a law fits its remainder decisively, but it is no drag — not believed
+    arc = fitted["arc"][0]
+    assert arc.status_ == "inconclusive" and arc.law_ is None and "no drag" in arc.report_["reasons"][0]
+    assert arc.report_["field"]["against_velocity"] < DRAG_ALONG_MIN
 
 
 @pytest.mark.slow

@@ -328,7 +328,13 @@ def _field_html(report: dict) -> str:
         return "<p><b>Conservative force:</b> learned by the Lagrangian network</p>"
     g = "; ".join(f"{_e(c)}: {_e(_fmt(v))} ± {_e(_fmt(f['stderr'].get(c)))}" for c, v in (f.get("g") or {}).items())
     beside = f" (fitted beside {_e(f['law'])})" if f.get("law") not in (None, "none") else ""
-    return f"<p><b>Conservative force:</b> {_e(f['text'])}; g = {g or '—'}{beside}</p>"
+    along = f.get("against_velocity")
+    drag = (
+        f"; share of the best law's force that opposes the velocity: {100 * along:.0f}% (a drag: 100%)"
+        if isinstance(along, (int, float))
+        else ""
+    )
+    return f"<p><b>Conservative force:</b> {_e(f['text'])}; g = {g or '—'}{beside}{drag}</p>"
 
 
 def render_html(report: dict, figs: dict[str, bytes]) -> str:

@@ -144,6 +144,13 @@ def detect(
         rep, _ = detect_data(
             ud, out=out, progress=status, workers=workers, scheduler=scheduler, read_s=t_read, **settings
         )
+    _print_report(rep)
+    console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
+
+
+def _print_report(rep: dict) -> None:
+    """The verdict of one file's report on the console: status, effect, warnings, angle notes, reasons, the law
+    and the hint or blind formula."""
     # every text from the report may quote the file's column names or path: Rich markup escaped (_r)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(
@@ -163,7 +170,22 @@ def detect(
     for r in rep["reasons"]:
         console.print(f"  • {_r(r)}", highlight=False)
     f = rep["formula"]
-    lw = rep.get("law") or {}
+    _print_law(rep.get("law") or {})
+    h = rep.get("hint")
+    if h is not None:
+        console.print(
+            _r(
+                "  hint (not a law): " + "; ".join(f"{k} = {v}" for k, v in h["formula"].items()) + f"  [{h['method']}]"
+            ),
+            highlight=False,
+        )
+    elif rep["blind"] and f is None:
+        console.print("  blind formula: nothing readable", highlight=False)
+
+
+def _print_law(lw: dict) -> None:
+    """The law of a report (``rep["law"]``) on the console: the winner and any ties with their parameters, or why
+    there is none."""
     if lw.get("law"):
         tie = lw.get("status") == "tie"
         if tie:
@@ -182,17 +204,6 @@ def detect(
             )
     if lw.get("reason") and not lw.get("law"):
         console.print(f"  law: none — {_r(lw['reason'])}", highlight=False)
-    h = rep.get("hint")
-    if h is not None:
-        console.print(
-            _r(
-                "  hint (not a law): " + "; ".join(f"{k} = {v}" for k, v in h["formula"].items()) + f"  [{h['method']}]"
-            ),
-            highlight=False,
-        )
-    elif rep["blind"] and f is None:
-        console.print("  blind formula: nothing readable", highlight=False)
-    console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
 
 
 def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) -> None:

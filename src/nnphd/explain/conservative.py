@@ -46,6 +46,59 @@ def _pot_monomials(d: int, deg: int | None = None) -> list[tuple[int, ...]]:
     )
 
 
+def _potential_gradients(xp, q, angles, center, library):
+    """(N, n, M) columns −∂V_e/∂q … of the potential monomials V_e in the position features that ``library`` keeps
+    (see :func:`conservative_basis`): each column the gradient of one monomial, mapped back to the coordinates."""
+    n = q.shape[1]
+    u, du, owner = _position_features(xp, q, angles, center)
+    d = u.shape[1]
+    onehot = np.zeros((d, n))
+    onehot[np.arange(d), owner] = 1.0
+    onehot = xp.asarray(onehot, dtype=q.dtype)
+    grads = []
+    mons = _pot_monomials(d, 1 if library == "minimal" else (3 if library == "short" else None))
+    if library == "short":  # the angles' sin/cos to degree 1 (a pendulum about any rest angle), the rest to 3
+        is_ang = [bool(angles[o]) for o in owner]
+        mons = [e for e in mons if sum(k for k, a in zip(e, is_ang) if a) <= 1 and (sum(e) == 1 or not any(
+            k and a for k, a in zip(e, is_ang)))]  # fmt: skip
+    for e in mons:
+        parts = []
+        for f in range(d):  # ∂V_e/∂u_f
+            if e[f] == 0:
+                parts.append(xp.zeros_like(q[:, 0]))
+                continue
+            c = e[f] * u[:, f] ** (e[f] - 1)
+            for g, k in enumerate(e):
+                if g != f and k:
+                    c = c * u[:, g] ** k
+            parts.append(c)
+        dV = xp.stack(parts, axis=1) * du  # (N, d): ∂V/∂u_f · du_f/dq_owner(f)
+        grads.append(dV @ onehot)  # (N, n)
+    return xp.stack(grads, axis=2)
+
+
+def _velocity_columns(xp, q, v) -> list:
+    """The velocity-dependent conservative columns: the quadratic terms q̇_a q̇_b (N, n, n·M) per coordinate, and
+    (n ≥ 2) the antisymmetric gyroscopic term (N, n, n(n−1)/2)."""
+    N, n = q.shape
+    cols = []
+    pc = []
+    for a in range(n):
+        for b in range(a, n):
+            pc.append(v[:, a] * v[:, b])
+    P = xp.stack(pc, axis=1)  # (N, M)
+    cols.append((P[:, None, :, None] * xp.eye(n, dtype=q.dtype)[None, :, None, :]).reshape(N, n, -1))
+    if n >= 2:
+        g = []
+        for a in range(n):
+            for b in range(a + 1, n):
+                col = xp.zeros_like(q)
+                col = col + v[:, b][:, None] * (xp.arange(n) == a)[None] - v[:, a][:, None] * (xp.arange(n) == b)[None]
+                g.append(col)
+        cols.append(xp.stack(g, axis=2))
+    return cols
+
+
 def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = True):
     """(N, n, Kc) columns of the conservative model (see the module docstring): per-coordinate scale of ``fc``
     (if given); gradients −∂V_e/∂q of potential monomials V_e in the position features (degree ≤ 4, ≤ 3 beyond two
@@ -66,46 +119,8 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
         if fc is None:
             raise ValueError("library=False needs a conservative force fc")
         return cols[0]
-    u, du, owner = _position_features(xp, q, angles, center)
-    d = u.shape[1]
-    onehot = np.zeros((d, n))
-    onehot[np.arange(d), owner] = 1.0
-    onehot = xp.asarray(onehot, dtype=q.dtype)
-    grads = []
-    minimal = library in ("minimal", "short")
-    mons = _pot_monomials(d, 1 if library == "minimal" else (3 if library == "short" else None))
-    if library == "short":  # the angles' sin/cos to degree 1 (a pendulum about any rest angle), the rest to 3
-        is_ang = [bool(angles[o]) for o in owner]
-        mons = [e for e in mons if sum(k for k, a in zip(e, is_ang) if a) <= 1 and (sum(e) == 1 or not any(
-            k and a for k, a in zip(e, is_ang)))]  # fmt: skip
-    for e in mons:
-        parts = []
-        for f in range(d):  # ∂V_e/∂u_f
-            if e[f] == 0:
-                parts.append(xp.zeros_like(q[:, 0]))
-                continue
-            c = e[f] * u[:, f] ** (e[f] - 1)
-            for g, k in enumerate(e):
-                if g != f and k:
-                    c = c * u[:, g] ** k
-            parts.append(c)
-        dV = xp.stack(parts, axis=1) * du  # (N, d): ∂V/∂u_f · du_f/dq_owner(f)
-        grads.append(dV @ onehot)  # (N, n)
-    cols.append(xp.stack(grads, axis=2))
-    if minimal:
+    cols.append(_potential_gradients(xp, q, angles, center, library))
+    if library in ("minimal", "short"):
         return xp.concatenate(cols, axis=2)
-    pc = []
-    for a in range(n):
-        for b in range(a, n):
-            pc.append(v[:, a] * v[:, b])
-    P = xp.stack(pc, axis=1)  # (N, M)
-    cols.append((P[:, None, :, None] * xp.eye(n, dtype=q.dtype)[None, :, None, :]).reshape(N, n, -1))
-    if n >= 2:
-        g = []
-        for a in range(n):
-            for b in range(a + 1, n):
-                col = xp.zeros_like(q)
-                col = col + v[:, b][:, None] * (xp.arange(n) == a)[None] - v[:, a][:, None] * (xp.arange(n) == b)[None]
-                g.append(col)
-        cols.append(xp.stack(g, axis=2))
+    cols += _velocity_columns(xp, q, v)
     return xp.concatenate(cols, axis=2)

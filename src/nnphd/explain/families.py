@@ -517,27 +517,11 @@ def check_law_text(text: str) -> None:
         parse_formula(body if sep else p, own, label=label)
 
 
-def parse_law(text: str, coords: Sequence[str]) -> Family:
-    """A user law from a formula: ``"-c*x_dot*abs(x_dot)"`` (one coordinate) or ``"x: -c*x_dot; y: -c*y_dot"``.
-
-    The text is untrusted (a --law, a shared model file): :func:`nnphd.explain.lawtext.parse_formula` reads it
-    without evaluating it — numbers, names, + - * / ** (^), parentheses and the functions of
-    :data:`nnphd.explain.lawtext.FUNCTIONS` only.
-
-    Symbols: the coordinate names, ``<name>_dot``, ``t``; every other symbol is a parameter (shared between
-    components). Parameters the law is linear in are solved exactly, the rest (e.g. an exponent) by least squares
-    from 1. Raises ValueError with a one-line message on a law that cannot be used.
-    """
-    coords = list(coords)
-    text = str(text).strip()
-    if not text:
-        raise ValueError("--law is empty: expected a formula such as 'c*x_dot*abs(x_dot)'")
-    if len(text) > MAX_CHARS:
-        raise ValueError(f"law {short(text)}: {len(text)} characters is too long (at most {MAX_CHARS})")
-    label = f"law {short(text)}"
-    parts = [p for p in _USER_SPLIT.split(text) if p]
+def _law_components(text: str, coords: list[str], label: str) -> dict[int, str]:
+    """The formula text of each component of a law, by coordinate index: ``"x: ...; y: ..."`` names them, a single
+    coordinate may take one unnamed formula. ValueError (one line) on an unknown, repeated or unnamed component."""
     comps: dict[int, str] = {}
-    for p in parts:
+    for p in (p for p in _USER_SPLIT.split(text) if p):
         head, sep, body = p.partition(":")
         if sep:
             name = head.strip().removesuffix("_ddot")
@@ -561,18 +545,12 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
                 f"{label}: with {len(coords)} coordinates name the component of each term, "
                 f"e.g. '{coords[0]}: -c*{coords[0]}_dot; {coords[1]}: -c*{coords[1]}_dot'"
             )
-    # real symbols: on complex ones SymPy's automatic evaluation asks for real and imaginary parts, which took 5 s
-    # for abs(cosh(2*x**100)) (and the formula is real: the force of real states)
-    Q = [sp.Symbol(c, real=True) for c in coords]
-    V = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
-    T = sp.Symbol("t", real=True)
-    known = {s.name: s for s in (*Q, *V, T)}
-    exprs = [sp.Integer(0)] * len(coords)
-    expected = (
-        f"a formula of the coordinates, their _dot velocities, t, parameters, numbers, + - * / ** and {FUNC_LIST}"
-    )
-    for i, body in comps.items():  # never sympify: it evaluates the text with Python's eval (see lawtext)
-        exprs[i] = parse_formula(body, known, label=label, expected=expected)
+    return comps
+
+
+def _law_params(exprs: list, known: dict, coords: list[str], label: str) -> list:
+    """The parameters of a law (its symbols other than ``known``), sorted by name. ValueError (one line) when there
+    is none, more than MAX_PARAMS, or one that looks like the velocity of an unknown coordinate."""
     params = sorted({s for e in exprs for s in e.free_symbols} - set(known.values()), key=lambda s: s.name)
     if not params:
         raise ValueError(
@@ -586,14 +564,13 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
         raise ValueError(
             f"{label}: {short(bad[0])} is not the velocity of a coordinate (coordinates: {', '.join(coords)})"
         )
-    # the parameters the law is jointly linear in (their coefficients may hold the others)
-    lin = _linear_params(exprs, params)
-    if not lin:  # before any more SymPy work
-        raise ValueError(
-            f"{label}: it must be linear in at least one parameter (a coefficient in front of a "
-            "term), e.g. 'c*x_dot**m'"
-        )
-    nl = [p for p in params if p not in lin]
+    return params
+
+
+def _separate_linear(exprs: list, lin: list, label: str) -> tuple[list, list]:
+    """The law split over its linear parameters ``lin``: (rest, base), rest[i] the component i without them (0
+    where it is numerically zero), base[i][k] the term of component i that lin[k] multiplies. ValueError (one line)
+    when the split produces an infinity or NaN."""
     # affine in the linear parameters: the law at lin = 0 is what is left without them, and a parameter's term
     # is the law at that parameter = 1 (the others 0) less it (substitution; no symbolic derivative)
     # (parts that become numbers are computed in float64: exact evaluation of exp(1e30 + 0**x_dot) overflows)
@@ -603,6 +580,50 @@ def parse_law(text: str, coords: Sequence[str]) -> Family:
     if any(x.has(sp.zoo, sp.nan, sp.oo, -sp.oo) for x in (*rest, *(b for row in base for b in row))):
         raise ValueError(f"{label}: its linear parameters cannot be separated; expected terms linear in a coefficient")
     rest = [sp.Integer(0) if _is_zero(r) else r for r in rest]
+    return rest, base
+
+
+def parse_law(text: str, coords: Sequence[str]) -> Family:
+    """A user law from a formula: ``"-c*x_dot*abs(x_dot)"`` (one coordinate) or ``"x: -c*x_dot; y: -c*y_dot"``.
+
+    The text is untrusted (a --law, a shared model file): :func:`nnphd.explain.lawtext.parse_formula` reads it
+    without evaluating it — numbers, names, + - * / ** (^), parentheses and the functions of
+    :data:`nnphd.explain.lawtext.FUNCTIONS` only.
+
+    Symbols: the coordinate names, ``<name>_dot``, ``t``; every other symbol is a parameter (shared between
+    components). Parameters the law is linear in are solved exactly, the rest (e.g. an exponent) by least squares
+    from 1. Raises ValueError with a one-line message on a law that cannot be used.
+    """
+    coords = list(coords)
+    text = str(text).strip()
+    if not text:
+        raise ValueError("--law is empty: expected a formula such as 'c*x_dot*abs(x_dot)'")
+    if len(text) > MAX_CHARS:
+        raise ValueError(f"law {short(text)}: {len(text)} characters is too long (at most {MAX_CHARS})")
+    label = f"law {short(text)}"
+    comps = _law_components(text, coords, label)
+    # real symbols: on complex ones SymPy's automatic evaluation asks for real and imaginary parts, which took 5 s
+    # for abs(cosh(2*x**100)) (and the formula is real: the force of real states)
+    Q = [sp.Symbol(c, real=True) for c in coords]
+    V = [sp.Symbol(f"{c}_dot", real=True) for c in coords]
+    T = sp.Symbol("t", real=True)
+    known = {s.name: s for s in (*Q, *V, T)}
+    exprs = [sp.Integer(0)] * len(coords)
+    expected = (
+        f"a formula of the coordinates, their _dot velocities, t, parameters, numbers, + - * / ** and {FUNC_LIST}"
+    )
+    for i, body in comps.items():  # never sympify: it evaluates the text with Python's eval (see lawtext)
+        exprs[i] = parse_formula(body, known, label=label, expected=expected)
+    params = _law_params(exprs, known, coords, label)
+    # the parameters the law is jointly linear in (their coefficients may hold the others)
+    lin = _linear_params(exprs, params)
+    if not lin:  # before any more SymPy work
+        raise ValueError(
+            f"{label}: it must be linear in at least one parameter (a coefficient in front of a "
+            "term), e.g. 'c*x_dot**m'"
+        )
+    nl = [p for p in params if p not in lin]
+    rest, base = _separate_linear(exprs, lin, label)
     args = (nl, Q, V, T)
     n = len(coords)
 

@@ -184,13 +184,8 @@ def _planet_field(q, t, R, omega, phi):
     return d / dist[:, None] ** 3, d, dist
 
 
-def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.0, n_keep: int = 5) -> Fit:
-    """Fit a circularly orbiting point-mass perturber: f_n ≈ GM (r_p(t) − q)/|r_p(t) − q|³ (n = 2 only).
-
-    ``r_grid``: start radii (default 12 values over 0.5…4 × median |q|, skipping radii that come within 5 % of
-    the data). ``omega_grid``: start angular velocities (default ± the Kepler frequency sqrt(gm_central/R³)
-    times 0.8, 0.9, 1, 1.1, 1.25 for each R). Negative ω is a retrograde perturber.
-    """
+def _perturber_inputs(q, t, fn, gm_central: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The perturber fit's inputs checked and as arrays: (q (N, 2), t (N,), fn (N, 2)); ValueError otherwise."""
     q = _as_array("q", q, 2)
     fn = _as_array("fn", fn, 2)
     t = _as_array("t", t, 1)
@@ -201,7 +196,12 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
         raise ValueError(f"t must have shape ({q.shape[0]},), got {t.shape}")
     if not (np.isfinite(gm_central) and gm_central > 0):
         raise ValueError(f"gm_central must be positive and finite, got {gm_central!r}")
+    return q, t, fn
 
+
+def _perturber_radii(q: np.ndarray, r_grid):
+    """The start radii: ``r_grid`` checked, or by default 12 values over 0.5…4 × median |q| that keep 5 % clear of
+    the data (all 12 if none does)."""
     rq = np.linalg.norm(q, axis=1)
     if r_grid is None:
         rmed = float(np.median(rq))
@@ -215,8 +215,14 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
         r_grid = _as_array("r_grid", r_grid, 1)
         if np.any(r_grid <= 0):
             raise ValueError("r_grid values must be positive")
-    if omega_grid is not None:
-        omega_grid = _as_array("omega_grid", omega_grid, 1)
+    return r_grid
+
+
+def _perturber_starts(
+    q, t, fn, r_grid, omega_grid, gm_central: float
+) -> list[tuple[float, float, float, float, float]]:
+    """Coarse starts (rss, GM, R, ω, φ), best first: GM solved linearly (clipped at 0) for each (R, ω, φ) of the
+    grids (ω by default ± the Kepler frequency at R times 0.8…1.25; 8 phases)."""
     phis = np.linspace(-np.pi, np.pi, 8, endpoint=False)
     mults = np.array([0.8, 0.9, 1.0, 1.1, 1.25])
 
@@ -244,6 +250,11 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
     if not starts:
         raise ValueError("no usable perturber start (r_grid/omega_grid put the planet on the data)")
     starts.sort(key=lambda s: s[0])
+    return starts
+
+
+def _perturber_model(q, t, fn):
+    """The perturber model's residuals fn − GM g and their Jacobian, as functions of x = (GM, R, ω, φ)."""
 
     def resid(x):
         gm, R, w, ph = x
@@ -269,6 +280,12 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
         cols = [-g.ravel(), -gm * dg(drp_R).ravel(), -gm * dg(drp_w).ravel(), -gm * dg(drp_ph).ravel()]
         return np.column_stack(cols)
 
+    return resid, jac
+
+
+def _best_perturber_refit(resid, jac, starts, n_keep: int) -> np.ndarray:
+    """Bounded least squares from the ``n_keep`` best starts (at least one); the parameters (GM, R, ω, φ) of the
+    lowest finite cost. ValueError if every start fails."""
     lower = [0.0, 1e-12, -np.inf, -np.inf]
     upper = [np.inf, np.inf, np.inf, np.inf]
     best = None
@@ -297,7 +314,23 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
             best = (cost, res.x.copy())
     if best is None:
         raise ValueError("perturber fit failed from every start")
-    gm, R, w, ph = best[1]
+    return best[1]
+
+
+def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.0, n_keep: int = 5) -> Fit:
+    """Fit a circularly orbiting point-mass perturber: f_n ≈ GM (r_p(t) − q)/|r_p(t) − q|³ (n = 2 only).
+
+    ``r_grid``: start radii (default 12 values over 0.5…4 × median |q|, skipping radii that come within 5 % of
+    the data). ``omega_grid``: start angular velocities (default ± the Kepler frequency sqrt(gm_central/R³)
+    times 0.8, 0.9, 1, 1.1, 1.25 for each R). Negative ω is a retrograde perturber.
+    """
+    q, t, fn = _perturber_inputs(q, t, fn, gm_central)
+    r_grid = _perturber_radii(q, r_grid)
+    if omega_grid is not None:
+        omega_grid = _as_array("omega_grid", omega_grid, 1)
+    starts = _perturber_starts(q, t, fn, r_grid, omega_grid, gm_central)
+    resid, jac = _perturber_model(q, t, fn)
+    gm, R, w, ph = _best_perturber_refit(resid, jac, starts, n_keep)
     ph = _wrap(ph)
     x = np.array([gm, R, w, ph])
     r = resid(x)

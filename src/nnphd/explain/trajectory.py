@@ -92,6 +92,201 @@ def heldout_chi2(c_loc, S, g, groups) -> float | None:
     return cv
 
 
+def _choose_windows(
+    segs, t, period: float, window_periods, max_window_rows, max_windows: int, min_windows: int, allow_in_sample: bool
+):
+    """The shooting windows: the first length in ``window_periods`` (periods; default ¾, ⅜, 3/16) that gives
+    ``min_windows`` windows of at most ``max_window_rows`` rows, thinned evenly to ``max_windows``. Returns
+    (windows, in_sample); with fewer windows the whole trajectories (in_sample True) where allowed and short enough,
+    else None: the record is not ranked by trajectory."""
+    from nnphd.engine.shooting import MAX_WINDOW, MIN_WINDOW, WINDOW_PERIODS, shooting_windows
+
+    # the first of the window lengths that leaves min_windows of them (else, allowed, whole trajectories in-sample)
+    cap = MAX_WINDOW if max_window_rows is None else max(MAX_WINDOW, int(max_window_rows))
+    for periods in window_periods or (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
+        wins = shooting_windows(segs, t, period, periods=periods, max_window=cap)
+        if len(wins) >= min_windows:
+            break
+    if len(wins) > max_windows:
+        keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
+        wins = [wins[i] for i in keep]
+    in_sample = len(wins) < min_windows
+    if in_sample:  # too short for held-out windows: whole trajectories, ranked by their in-sample fit (BIC)
+        wins = [sg for sg in segs if len(sg) >= 2 * MIN_WINDOW] if allow_in_sample else []
+        if not wins or sum(len(w) for w in wins) > IN_SAMPLE_MAX_ROWS:
+            return None
+    return wins, in_sample
+
+
+def _window_arrays(wins, t, q_pos, qd, sigma, period: float):
+    """The windows padded for the shooting fit. Returns (args, s0, mask, nsub): the JAX arguments of the model
+    residuals (times from each window's start, start times, positions, mask, 1/σ with σ at least 1e-3 of each
+    coordinate's spread), the windows' start states, the mask of recorded rows, and the RK4 substeps per step (enough
+    for 0.3 rad of the fastest motion, at most 8)."""
+    import jax.numpy as jnp
+
+    from nnphd.engine.shooting import pad_windows
+
+    n = q_pos.shape[1]
+    spread = np.array([np.ptp(q_pos[:, j]) for j in range(n)])
+    sig = np.maximum(np.asarray(sigma, float), 1e-3 * np.maximum(spread, 1e-12))
+    tw, qw, mask, s0 = pad_windows(wins, t, q_pos, (q_pos, qd))
+    t0w = tw[:, 0].copy()
+    tw = tw - tw[:, :1]
+    dtmax = float(np.max(np.diff(tw, axis=1)))
+    vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
+    nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
+    args = (jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(1.0 / sig))
+    return args, s0, mask, nsub
+
+
+def _parameter_layout(fams: Sequence[Family], Kc: int):
+    """The universal θ = (α, [β_f, θ_f, gate_f]…) of :func:`_universal_rhs`. Returns (slots, P_dir, nl_defaults):
+    each family's (offset, K, m) in θ, the number of parameters one candidate fits (α and the largest family), and
+    the default θ — each family's nonlinear parameters at 1 (within their bounds), all else 0."""
+    slots, off = [], Kc  # where each family's (β, θ, gate) sit in the universal θ
+    for f in fams:
+        K, m = len(f.coef_names), len(f.nl_names)
+        slots.append((off, K, m))
+        off += K + m + 1
+    P_glob = off
+    P_dir = Kc + max([K + m for _, K, m in slots], default=0)
+    nl_defaults = np.zeros(P_glob)
+    for f, (o, K, m) in zip(fams, slots):
+        if m:
+            lo, hi = (np.asarray(x, float) for x in f.nl_bounds)
+            nl_defaults[o + K : o + K + m] = np.clip(1.0, lo, np.where(np.isfinite(hi), hi, 1.0))
+    return slots, P_dir, nl_defaults
+
+
+def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: int):
+    """One row's parametrisation θ = base + u·D of the universal θ: u = its α, then (a family) its β and θ — that
+    family's gate at 1, the others' at 0. Returns (base, D, u0, n_fit): u0 the row's pointwise fit (padded with zeros
+    to P_dir), n_fit the number of its parameters."""
+    fam = row.family
+    base = nl_defaults.copy()
+    idx = list(range(Kc))
+    u0 = list(alpha0[id(row)])
+    if fam is not None:
+        o, K, m = slots[ci - 1]
+        base[o + K + m] = 1.0
+        idx += list(range(o, o + K + m))
+        u0 += list(row.beta) + list(row.theta)
+        base[o : o + K + m] = 0.0
+    D = np.zeros((P_dir, len(nl_defaults)))
+    D[np.arange(len(idx)), idx] = 1.0
+    u0 = np.concatenate([u0, np.zeros(P_dir - len(idx))])
+    return base, D, u0, len(idx)
+
+
+def _shoot_candidate(resjac, res, s0, starts, free, fam: Family | None, Kc: int, n_fit: int):
+    """Levenberg–Marquardt of the windows from each of ``starts`` until one gives a finite χ²; a family's nonlinear
+    parameters out of their bounds are clipped, fixed (in ``free``, in place) and the fit repeated. Returns
+    (θ, r, jac, χ²), or None when no fit is finite."""
+    from nnphd.engine.shooting import lm_windows
+
+    chi2 = np.nan
+    for u_start in starts:
+        try:
+            s, th, r, jac, chi2 = lm_windows(resjac, s0, u_start, free, iters=15, res=res)
+        except (np.linalg.LinAlgError, FloatingPointError, ValueError):
+            continue
+        if np.isfinite(chi2):
+            break
+    if not np.isfinite(chi2):
+        return None
+    if fam is not None and fam.nl_names:  # LM knows no bounds: out of them, fit again with θ clipped and fixed
+        lo, hi = (np.asarray(x, float) for x in fam.nl_bounds)
+        K = len(fam.coef_names)
+        nl = th[Kc + K : n_fit]
+        if np.any(nl < lo) or np.any(nl > hi):
+            th1 = th.copy()
+            th1[Kc + K : n_fit] = np.clip(nl, lo, hi)
+            free[Kc + K : n_fit] = False
+            s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15, res=res)
+            if not np.isfinite(chi2):
+                return None
+    return th, r, jac, chi2
+
+
+def _window_bootstrap(th, fi, S, g, W: int, n_boot: int, seed: int) -> list:
+    """``n_boot`` window-bootstrap replicates of θ: the fit moved by one linearised step to the windows drawn with
+    replacement (S, g the windows' Schur-reduced normal matrices and gradients over the free parameters ``fi``)."""
+    rng = np.random.default_rng(seed)
+    reps = []
+    for _ in range(n_boot):
+        idx = rng.integers(0, W, W)
+        rep = th.copy()
+        rep[fi] -= solve_or_lstsq(ridge_regularised(S[idx].sum(0)), g[idx].sum(0))
+        reps.append(rep)
+    return reps
+
+
+def _candidate_statistics(row, th, r, jac, chi2, free, n_fit, *, Kc, n, W, groups, in_sample, n_res, n_boot, seed):
+    """A fitted row's ranking entry (row, θ, held-out χ², se, ρ, overdispersion ratio, law covariance, conservative
+    covariance): the held-out χ² of the groups of windows (in-sample: the fit's χ²), se the larger of the window
+    bootstrap's and the model's, ρ the residuals' lag-one correlation. None when the fit is not at an optimum."""
+    from nnphd.engine.shooting import normal_blocks, schur_complement
+
+    th = th[:n_fit]
+    free = free[:n_fit]
+    jac = jac[: 2 * n + n_fit]
+    AtA, AtB, BtB, Atr, Btr, rr = normal_blocks(r, jac, 2 * n)
+    S, g, _XB, Xr = schur_complement(AtA, AtB, BtB, Atr, Btr, 0.0, free)
+    c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
+    Stot = S.sum(0)
+    cv = chi2 if in_sample else heldout_chi2(c_loc, S, g, groups)
+    if cv is None:  # not at an optimum: its held-out error means nothing — the candidate is not ranked
+        return None
+    fi = np.flatnonzero(free)  # S, g are over the free parameters
+    reps = _window_bootstrap(th, fi, S, g, W, n_boot if row.family is not None else 0, seed)
+    law_idx = np.arange(Kc, len(th))
+    se_b = np.asarray(reps)[:, law_idx].std(axis=0) if reps else np.zeros(len(law_idx))
+    s2 = chi2 / max(n_res - W * 2 * n - len(fi), 1)
+    var = np.zeros(len(th))
+    cov_full = s2 * np.linalg.pinv(ridge_regularised(Stot))  # over the free parameters; the Kc conservative ones first
+    var[fi] = np.diag(cov_full)
+    se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
+    R = r.reshape(W, -1)
+    rho = float(np.sum(R[:, n:] * R[:, :-n]) / max(np.sum(R * R), 1e-300))
+    se = np.maximum(se_b, se_m)
+    corr = np.eye(len(law_idx))
+    if len(reps) > len(law_idx) + 1:  # the terms' trade-off from the bootstrap, the sizes from se
+        with np.errstate(all="ignore"):
+            c = np.corrcoef(np.asarray(reps)[:, law_idx].T)
+        corr = np.where(np.isfinite(c), c, corr) if c.ndim == 2 else corr
+    return (row, th, max(cv, 1e-300), se, rho, overdispersion_ratio(se_b, se_m, th[Kc:]), corr * np.outer(se, se),
+            cov_full[:Kc, :Kc])  # fmt: skip
+
+
+def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
+    """The table's rows from the ranking entries: IC with n_eff = n_res/τ residuals, τ = (1 + ρ)/(1 − ρ)·ĉ from the
+    median lag-one correlation ρ and the overdispersion ĉ; each row with its joint fit's conservative part. Returns
+    (rows, n_eff, τ)."""
+    Kc = settings["conservative_columns"]
+    N = q_pos.shape[0]
+    rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
+    c_hat = overdispersion_c_hat([x[5] for x in results], [x[2] for x in results])
+    tau = (1 + rho) / (1 - rho) * c_hat
+    n_eff = n_res / tau
+    rows = []
+    for row, th, cv, se, _, _, cov, cov_c in results:
+        fam = row.family
+        if fam is None:
+            new = zero_row(settings["names"], cv / n_res, N, "trajectory")
+        else:
+            K = len(fam.coef_names)
+            new = law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, settings["names"], cv / n_res, "trajectory")
+            new.on_rows(q_pos, qd, t)
+            new.cov = cov[:K, :K]
+        new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
+        # the conservative part of the joint fit; its covariance widened by the residuals' correlation (τ)
+        new.conservative, new.conservative_cov = np.asarray(th[:Kc], float), cov_c * tau
+        rows.append(new)
+    relative_to_zero(rows, settings["_y_rms"])
+    return rows, n_eff, tau
+
+
 def rank_trajectory(
     table: LawTable,
     q_pos,
@@ -129,18 +324,7 @@ def rank_trajectory(
     """
     import jax.numpy as jnp
 
-    from nnphd.engine.shooting import (
-        MAX_WINDOW,
-        MIN_WINDOW,
-        WINDOW_PERIODS,
-        lm_windows,
-        model_residuals,
-        model_residuals_and_jac,
-        normal_blocks,
-        pad_windows,
-        schur_complement,
-        shooting_windows,
-    )
+    from nnphd.engine.shooting import model_residuals, model_residuals_and_jac
 
     if table.settings.get("conservative_extra", 0):
         raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
@@ -149,29 +333,13 @@ def rank_trajectory(
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
     angles = tuple(bool(a) for a in (np.zeros(n, bool) if angles is None else angles))
     segs = trajectory_segments(traj)
-    # the first of the window lengths that leaves min_windows of them (else, allowed, whole trajectories in-sample)
-    cap = MAX_WINDOW if max_window_rows is None else max(MAX_WINDOW, int(max_window_rows))
-    for periods in window_periods or (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
-        wins = shooting_windows(segs, t, period, periods=periods, max_window=cap)
-        if len(wins) >= min_windows:
-            break
-    if len(wins) > max_windows:
-        keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
-        wins = [wins[i] for i in keep]
-    in_sample = len(wins) < min_windows
-    if in_sample:  # too short for held-out windows: whole trajectories, ranked by their in-sample fit (BIC)
-        wins = [sg for sg in segs if len(sg) >= 2 * MIN_WINDOW] if allow_in_sample else []
-        if not wins or sum(len(w) for w in wins) > IN_SAMPLE_MAX_ROWS:
-            return table
-    spread = np.array([np.ptp(q_pos[:, j]) for j in range(n)])
-    sig = np.maximum(np.asarray(sigma, float), 1e-3 * np.maximum(spread, 1e-12))
-    tw, qw, mask, s0 = pad_windows(wins, t, q_pos, (q_pos, qd))
-    t0w = tw[:, 0].copy()
-    tw = tw - tw[:, :1]
-    dtmax = float(np.max(np.diff(tw, axis=1)))
-    vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
-    nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
-    args = (jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(1.0 / sig))
+    chosen = _choose_windows(
+        segs, t, period, window_periods, max_window_rows, max_windows, min_windows, allow_in_sample
+    )
+    if chosen is None:
+        return table
+    wins, in_sample = chosen
+    args, s0, mask, nsub = _window_arrays(wins, t, q_pos, qd, sigma, period)
     W = len(wins)
     G = min(W, 10)
     groups = np.array_split(np.arange(W), G)
@@ -181,34 +349,12 @@ def rank_trajectory(
     cands = [r for r in table.rows if r.key != "none"][:shortlist]  # the table holds one row per family
     alpha0 = table.settings["_alpha"]
     fams = [r.family for r in cands]
-    slots, off = [], Kc  # where each family's (β, θ, gate) sit in the universal θ
-    for f in fams:
-        K, m = len(f.coef_names), len(f.nl_names)
-        slots.append((off, K, m))
-        off += K + m + 1
-    P_glob = off
-    P_dir = Kc + max([K + m for _, K, m in slots], default=0)
+    slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
     rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"], table.settings.get("library", True))
-    nl_defaults = np.zeros(P_glob)
-    for f, (o, K, m) in zip(fams, slots):
-        if m:
-            lo, hi = (np.asarray(x, float) for x in f.nl_bounds)
-            nl_defaults[o + K : o + K + m] = np.clip(1.0, lo, np.where(np.isfinite(hi), hi, 1.0))
     results = []
     for ci, row in enumerate([zero, *cands]):
         fam = row.family
-        base = nl_defaults.copy()
-        idx = list(range(Kc))
-        u0 = list(alpha0[id(row)])
-        if fam is not None:
-            o, K, m = slots[ci - 1]
-            base[o + K + m] = 1.0
-            idx += list(range(o, o + K + m))
-            u0 += list(row.beta) + list(row.theta)
-            base[o : o + K + m] = 0.0
-        D = np.zeros((P_dir, P_glob))
-        D[np.arange(len(idx)), idx] = 1.0
-        u0 = np.concatenate([u0, np.zeros(P_dir - len(idx))])
+        base, D, u0, n_fit = _candidate_start(row, ci, slots, nl_defaults, alpha0, Kc, P_dir)
         aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32))  # branch ci: this row's family
 
         def resjac(s_, u_, aux=aux):
@@ -218,93 +364,24 @@ def rank_trajectory(
             return model_residuals(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
 
         free = np.zeros(P_dir, bool)
-        free[: len(idx)] = True
+        free[:n_fit] = True
         # the conservative starts: this row's own, then (the zero law, whole trajectories) the other rows' — the
         # zero law's pointwise f_c soaks up what it can of the friction and can run away over a long window
         starts = [u0] + [
             np.concatenate([alpha0[id(c)], u0[Kc:]]) for c in (cands[:2] if fam is None and in_sample else [])
         ]
-        chi2 = np.nan
-        for u_start in starts:
-            try:
-                s, th, r, jac, chi2 = lm_windows(resjac, s0, u_start, free, iters=15, res=res)
-            except (np.linalg.LinAlgError, FloatingPointError, ValueError):
-                continue
-            if np.isfinite(chi2):
-                break
-        if not np.isfinite(chi2):
+        fit = _shoot_candidate(resjac, res, s0, starts, free, fam, Kc, n_fit)
+        if fit is None:
             continue
-        if fam is not None and fam.nl_names:  # LM knows no bounds: out of them, fit again with θ clipped and fixed
-            lo, hi = (np.asarray(x, float) for x in fam.nl_bounds)
-            K = len(fam.coef_names)
-            nl = th[Kc + K : len(idx)]
-            if np.any(nl < lo) or np.any(nl > hi):
-                th1 = th.copy()
-                th1[Kc + K : len(idx)] = np.clip(nl, lo, hi)
-                free[Kc + K : len(idx)] = False
-                s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15, res=res)
-                if not np.isfinite(chi2):
-                    continue
-        th = th[: len(idx)]
-        free = free[: len(idx)]
-        jac = jac[: 2 * n + len(idx)]
-        AtA, AtB, BtB, Atr, Btr, rr = normal_blocks(r, jac, 2 * n)
-        S, g, _XB, Xr = schur_complement(AtA, AtB, BtB, Atr, Btr, 0.0, free)
-        c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
-        Stot = S.sum(0)
-        cv = chi2 if in_sample else heldout_chi2(c_loc, S, g, groups)
-        if cv is None:  # not at an optimum: its held-out error means nothing — the candidate is not ranked
-            continue
-        fi = np.flatnonzero(free)  # S, g are over the free parameters
-        rng = np.random.default_rng(seed)
-        reps = []
-        for _ in range(n_boot if fam is not None else 0):
-            idx = rng.integers(0, W, W)
-            rep = th.copy()
-            rep[fi] -= solve_or_lstsq(ridge_regularised(S[idx].sum(0)), g[idx].sum(0))
-            reps.append(rep)
-        law_idx = np.arange(Kc, len(th))
-        se_b = np.asarray(reps)[:, law_idx].std(axis=0) if reps else np.zeros(len(law_idx))
-        s2 = chi2 / max(n_res - W * 2 * n - len(fi), 1)
-        var = np.zeros(len(th))
-        cov_full = s2 * np.linalg.pinv(
-            ridge_regularised(Stot)
-        )  # over the free parameters; the Kc conservative ones first
-        var[fi] = np.diag(cov_full)
-        se_m = np.sqrt(np.maximum(var[law_idx], 0.0))
-        R = r.reshape(W, -1)
-        rho = float(np.sum(R[:, n:] * R[:, :-n]) / max(np.sum(R * R), 1e-300))
-        se = np.maximum(se_b, se_m)
-        corr = np.eye(len(law_idx))
-        if len(reps) > len(law_idx) + 1:  # the terms' trade-off from the bootstrap, the sizes from se
-            with np.errstate(all="ignore"):
-                c = np.corrcoef(np.asarray(reps)[:, law_idx].T)
-            corr = np.where(np.isfinite(c), c, corr) if c.ndim == 2 else corr
-        results.append(
-            (row, th, max(cv, 1e-300), se, rho, overdispersion_ratio(se_b, se_m, th[Kc:]), corr * np.outer(se, se),
-             cov_full[:Kc, :Kc])
+        entry = _candidate_statistics(
+            row, *fit, free, n_fit, Kc=Kc, n=n, W=W, groups=groups, in_sample=in_sample, n_res=n_res,
+            n_boot=n_boot, seed=seed,
         )  # fmt: skip
+        if entry is not None:
+            results.append(entry)
     if len(results) < 2 or results[0][0].key != "none":
         return table
-    rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
-    c_hat = overdispersion_c_hat([x[5] for x in results], [x[2] for x in results])
-    tau = (1 + rho) / (1 - rho) * c_hat
-    n_eff = n_res / tau
-    rows = []
-    for row, th, cv, se, _, _, cov, cov_c in results:
-        fam = row.family
-        if fam is None:
-            new = zero_row(table.settings["names"], cv / n_res, N, "trajectory")
-        else:
-            K = len(fam.coef_names)
-            new = law_row(fam, th[Kc : Kc + K], th[Kc + K :], se, table.settings["names"], cv / n_res, "trajectory")
-            new.on_rows(q_pos, qd, t)
-            new.cov = cov[:K, :K]
-        new.ic = n_eff * math.log(cv / n_res) + row.k * math.log(max(n_eff, 2.0))
-        # the conservative part of the joint fit; its covariance widened by the residuals' correlation (τ)
-        new.conservative, new.conservative_cov = np.asarray(th[:Kc], float), cov_c * tau
-        rows.append(new)
-    relative_to_zero(rows, table.settings["_y_rms"])
+    rows, n_eff, tau = _trajectory_rows(results, table.settings, q_pos, qd, t, n_res)
     return select_law(
         rows,
         n_eff,

@@ -326,53 +326,145 @@ def _fmt(x, nd=3) -> str:
     return "—" if x is None else f"{x:.{nd}g}"
 
 
+def _nonconservative_pnorm_claims(runs: dict, nc: list, pnorm_labels: list) -> list[dict]:
+    """The non-conservative systems under the p-norm losses: the verdict finds new physics, and the transition at
+    λ = 1 is a sharp step."""
+    claims = []
+    ok, parts = True, []
+    for l in pnorm_labels:
+        for s in nc:
+            v = runs[s][l]["verdict"]
+            ok &= v["new_physics"]
+            parts.append(f"{s} p={l}: ×{v['ratio']:.3g} ({'new physics' if v['new_physics'] else 'none'})")
+    claims.append(
+        {
+            "claim": f"L_e jumps at λ=1 (verdict: new physics) for {', '.join(nc)} with p={', '.join(pnorm_labels)}",
+            "ours": "; ".join(parts),
+            "met": bool(ok),
+        }
+    )
+    ok, parts = True, []
+    for l in pnorm_labels:
+        for s in nc:
+            t = runs[s][l]["transition"]
+            ok &= t["kind"] == "jump"
+            parts.append(f"{s} p={l}: {_fmt(t['sharpness'])} ({t['kind']})")
+    claims.append(
+        {
+            "claim": f"those transitions are sharp steps: sharpness ≥ {JUMP_SHARPNESS:g} "
+            f"(slope across λ=1 vs steepest slope elsewhere)",
+            "ours": "; ".join(parts),
+            "met": bool(ok),
+        }
+    )
+    return claims
+
+
+def _conservative_pnorm_claims(runs: dict, cons: list, pnorm_labels: list) -> list[dict]:
+    """The conservative systems under the p-norm losses: the verdict finds no new physics."""
+    claims = []
+    ok, parts = True, []
+    for l in pnorm_labels:
+        for s in cons:
+            v = runs[s][l]["verdict"]
+            ok &= not v["new_physics"]
+            parts.append(f"{s} p={l}: ×{v['ratio']:.3g} ({'new physics' if v['new_physics'] else 'none'})")
+    claims.append(
+        {
+            "claim": f"no jump at λ=1 (verdict: no new physics) for {', '.join(cons)} with p={', '.join(pnorm_labels)}",
+            "ours": "; ".join(parts),
+            "met": bool(ok),
+        }
+    )
+    return claims
+
+
+def _mse_claims(runs: dict, nc: list) -> list[dict]:
+    """The non-conservative systems under the MSE loss: a smooth (second-order) transition."""
+    claims = []
+    ok, parts = True, []
+    for s in nc:
+        t = runs[s]["mse"]["transition"]
+        v = runs[s]["mse"]["verdict"]
+        ok &= t["kind"] == "smooth"
+        parts.append(
+            f"{s}: sharpness {_fmt(t['sharpness'])} ({t['kind']}; L_e ×{v['ratio']:.3g} across λ=1, "
+            f"verdict {'new physics' if v['new_physics'] else 'none'})"
+        )
+    claims.append(
+        {
+            "claim": f"MSE loss gives a smooth (second-order) transition for {', '.join(nc)}: "
+            f"sharpness < {SMOOTH_SHARPNESS:g}",
+            "ours": "; ".join(parts),
+            "met": bool(ok),
+        }
+    )
+    return claims
+
+
+def _force_claims(runs: dict, labels, lambdas) -> list[dict]:
+    """The learned forces of HO+LD (FORCE_SYSTEM): f_c^NN and f_n^NN against the truth below λ = 1, f_n^NN ≈ 0 and
+    f_c^NN ≈ −q above it (p = 1), and the UAN absorbing part of the conservative force at the smallest λ."""
+    claims = []
+    by_p = runs[FORCE_SYSTEM]
+    rng = [x for x in lambdas if 0.05 <= x < 1]
+    for l in labels:
+        rows = [r for r in by_p[l]["table"] if r["lam"] in rng]
+        if not rows:
+            continue
+        worst = max(max(r["m_c"], r["m_n"]) for r in rows)
+        claims.append(
+            {
+                "claim": f"HO+LD, p={l}, 0.05 ≲ λ < 1: f_c^NN ≈ −q and f_n^NN ≈ −½q̇ (m_c, m_n ≤ {ALIGN_TOL:g} "
+                f"at λ = {', '.join(f'{x:g}' for x in rng)})",
+                "ours": "; ".join(f"λ={r['lam']:g}: {r['m_c']:.3f}/{r['m_n']:.3f}" for r in rows),
+                "met": bool(worst <= ALIGN_TOL),
+            }
+        )
+    if "1" in labels:
+        t1 = by_p["1"]["table"]
+        fnr = by_p["1"]["fn_true_rms"]
+        hi = [r for r in t1 if r["lam"] > 1]
+        if hi:
+            claims.append(
+                {
+                    "claim": f"HO+LD, p=1, λ > 1: f_n^NN ≈ 0 (rms ≤ {NEAR_ZERO_FRACTION:g}× rms f_n^PHY = "
+                    f"{NEAR_ZERO_FRACTION * fnr:.3f})",
+                    "ours": "; ".join(f"λ={r['lam']:g}: {r['fn_rms']:.2g}" for r in hi),
+                    "met": bool(all(r["fn_rms"] <= NEAR_ZERO_FRACTION * fnr for r in hi)),
+                }
+            )
+            claims.append(
+                {
+                    "claim": f"HO+LD, p=1, λ > 1: f_c^NN ≈ f_c^PHY = −q (m_c ≤ {ALIGN_TOL:g})",
+                    "ours": "; ".join(f"λ={r['lam']:g}: m_c {r['m_c']:.3f}" for r in hi),
+                    "met": bool(all(r["m_c"] <= ALIGN_TOL for r in hi)),
+                }
+            )
+        lo = min(t1, key=lambda r: r["lam"])
+        mid = [r for r in t1 if 0.1 <= r["lam"] <= 0.5]
+        if lo["lam"] <= 0.05 and mid:
+            ref = max(r["m_c"] for r in mid)
+            claims.append(
+                {
+                    "claim": "HO+LD, p=1, λ ≲ 0.05: the weakly penalised UAN absorbs part of the conservative force "
+                    "(m_c at the smallest λ above every m_c on 0.1 ≤ λ ≤ 0.5)",
+                    "ours": f"m_c(λ={lo['lam']:g}) = {lo['m_c']:.3f} vs max m_c on [0.1, 0.5] = {ref:.3f}",
+                    "met": bool(lo["m_c"] > ref),
+                }
+            )
+    return claims
+
+
 def _lambda_p_claims(runs: dict, systems, labels, lambdas) -> list[dict]:
     claims = []
     nc = [s for s in systems if s in NONCONSERVATIVE]
     cons = [s for s in systems if s not in NONCONSERVATIVE]
     pnorm_labels = [l for l in labels if l in ("1", "2", "3")]
     if nc and pnorm_labels:
-        ok, parts = True, []
-        for l in pnorm_labels:
-            for s in nc:
-                v = runs[s][l]["verdict"]
-                ok &= v["new_physics"]
-                parts.append(f"{s} p={l}: ×{v['ratio']:.3g} ({'new physics' if v['new_physics'] else 'none'})")
-        claims.append(
-            {
-                "claim": f"L_e jumps at λ=1 (verdict: new physics) for {', '.join(nc)} with p={', '.join(pnorm_labels)}",
-                "ours": "; ".join(parts),
-                "met": bool(ok),
-            }
-        )
-        ok, parts = True, []
-        for l in pnorm_labels:
-            for s in nc:
-                t = runs[s][l]["transition"]
-                ok &= t["kind"] == "jump"
-                parts.append(f"{s} p={l}: {_fmt(t['sharpness'])} ({t['kind']})")
-        claims.append(
-            {
-                "claim": f"those transitions are sharp steps: sharpness ≥ {JUMP_SHARPNESS:g} "
-                f"(slope across λ=1 vs steepest slope elsewhere)",
-                "ours": "; ".join(parts),
-                "met": bool(ok),
-            }
-        )
+        claims += _nonconservative_pnorm_claims(runs, nc, pnorm_labels)
     if cons and pnorm_labels:
-        ok, parts = True, []
-        for l in pnorm_labels:
-            for s in cons:
-                v = runs[s][l]["verdict"]
-                ok &= not v["new_physics"]
-                parts.append(f"{s} p={l}: ×{v['ratio']:.3g} ({'new physics' if v['new_physics'] else 'none'})")
-        claims.append(
-            {
-                "claim": f"no jump at λ=1 (verdict: no new physics) for {', '.join(cons)} with p={', '.join(pnorm_labels)}",
-                "ours": "; ".join(parts),
-                "met": bool(ok),
-            }
-        )
+        claims += _conservative_pnorm_claims(runs, cons, pnorm_labels)
     if "ho+mf" in systems and "1" in labels:
         v = runs["ho+mf"]["1"]["verdict"]
         claims.append(
@@ -383,71 +475,9 @@ def _lambda_p_claims(runs: dict, systems, labels, lambdas) -> list[dict]:
             }
         )
     if nc and "mse" in labels:
-        ok, parts = True, []
-        for s in nc:
-            t = runs[s]["mse"]["transition"]
-            v = runs[s]["mse"]["verdict"]
-            ok &= t["kind"] == "smooth"
-            parts.append(
-                f"{s}: sharpness {_fmt(t['sharpness'])} ({t['kind']}; L_e ×{v['ratio']:.3g} across λ=1, "
-                f"verdict {'new physics' if v['new_physics'] else 'none'})"
-            )
-        claims.append(
-            {
-                "claim": f"MSE loss gives a smooth (second-order) transition for {', '.join(nc)}: "
-                f"sharpness < {SMOOTH_SHARPNESS:g}",
-                "ours": "; ".join(parts),
-                "met": bool(ok),
-            }
-        )
+        claims += _mse_claims(runs, nc)
     if FORCE_SYSTEM in systems:
-        by_p = runs[FORCE_SYSTEM]
-        rng = [x for x in lambdas if 0.05 <= x < 1]
-        for l in labels:
-            rows = [r for r in by_p[l]["table"] if r["lam"] in rng]
-            if not rows:
-                continue
-            worst = max(max(r["m_c"], r["m_n"]) for r in rows)
-            claims.append(
-                {
-                    "claim": f"HO+LD, p={l}, 0.05 ≲ λ < 1: f_c^NN ≈ −q and f_n^NN ≈ −½q̇ (m_c, m_n ≤ {ALIGN_TOL:g} "
-                    f"at λ = {', '.join(f'{x:g}' for x in rng)})",
-                    "ours": "; ".join(f"λ={r['lam']:g}: {r['m_c']:.3f}/{r['m_n']:.3f}" for r in rows),
-                    "met": bool(worst <= ALIGN_TOL),
-                }
-            )
-        if "1" in labels:
-            t1 = by_p["1"]["table"]
-            fnr = by_p["1"]["fn_true_rms"]
-            hi = [r for r in t1 if r["lam"] > 1]
-            if hi:
-                claims.append(
-                    {
-                        "claim": f"HO+LD, p=1, λ > 1: f_n^NN ≈ 0 (rms ≤ {NEAR_ZERO_FRACTION:g}× rms f_n^PHY = "
-                        f"{NEAR_ZERO_FRACTION * fnr:.3f})",
-                        "ours": "; ".join(f"λ={r['lam']:g}: {r['fn_rms']:.2g}" for r in hi),
-                        "met": bool(all(r["fn_rms"] <= NEAR_ZERO_FRACTION * fnr for r in hi)),
-                    }
-                )
-                claims.append(
-                    {
-                        "claim": f"HO+LD, p=1, λ > 1: f_c^NN ≈ f_c^PHY = −q (m_c ≤ {ALIGN_TOL:g})",
-                        "ours": "; ".join(f"λ={r['lam']:g}: m_c {r['m_c']:.3f}" for r in hi),
-                        "met": bool(all(r["m_c"] <= ALIGN_TOL for r in hi)),
-                    }
-                )
-            lo = min(t1, key=lambda r: r["lam"])
-            mid = [r for r in t1 if 0.1 <= r["lam"] <= 0.5]
-            if lo["lam"] <= 0.05 and mid:
-                ref = max(r["m_c"] for r in mid)
-                claims.append(
-                    {
-                        "claim": "HO+LD, p=1, λ ≲ 0.05: the weakly penalised UAN absorbs part of the conservative force "
-                        "(m_c at the smallest λ above every m_c on 0.1 ≤ λ ≤ 0.5)",
-                        "ours": f"m_c(λ={lo['lam']:g}) = {lo['m_c']:.3f} vs max m_c on [0.1, 0.5] = {ref:.3f}",
-                        "met": bool(lo["m_c"] > ref),
-                    }
-                )
+        claims += _force_claims(runs, labels, lambdas)
     return claims
 
 

@@ -73,36 +73,9 @@ def scan_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> tu
     out_r = Path(out).resolve() if out is not None else None
     files: list[Path] = []
     skipped: list[dict[str, str]] = []
-
-    def skip(p: Path, why: str) -> None:
-        skipped.append({"file": str(p), "reason": why})
-
     for p in map(Path, paths):
         if p.is_dir():
-            if out_r is not None and p.resolve() == out_r:
-                raise ValueError(
-                    f"{p}: the input folder is the --out folder; nnphd would read its own output (summary.csv) as "
-                    f"data on the next run: choose another --out, e.g. {p / 'nnphd'}"
-                )
-            found, n_skip = [], len(skipped)
-            with os.scandir(p) as it:
-                entries = sorted(it, key=lambda e: e.name)
-            for e in entries:
-                f = Path(p, e.name)
-                if f.suffix.lower() not in SUFFIXES:
-                    continue
-                if e.is_symlink():
-                    skip(f, "symbolic link, not followed")
-                elif e.is_dir(follow_symlinks=False):
-                    skip(f, "a folder, not read (folders are not searched recursively)")
-                elif not e.is_file(follow_symlinks=False):
-                    skip(f, "not a regular file")
-                else:
-                    found.append(f)
-            if not found:
-                why = f" ({len(skipped) - n_skip} skipped: {skipped[-1]['reason']})" if len(skipped) > n_skip else ""
-                raise ValueError(f"{p}: the folder holds no .csv or .npz file{why}")
-            files.extend(found)
+            files.extend(_scan_folder(p, out_r, skipped))
         elif p.exists():
             files.append(p)
         else:
@@ -110,7 +83,7 @@ def scan_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> tu
     if out_r is not None:
         inside = [f for f in files if _inside(f.resolve(), out_r)]
         for f in inside:
-            skip(f, "inside the --out folder (nnphd's own output), not read")
+            _skip(skipped, f, "inside the --out folder (nnphd's own output), not read")
         files = [f for f in files if f not in inside]
         if not files:
             raise ValueError(f"every file given is inside the --out folder {out}; choose an --out outside the data")
@@ -121,6 +94,40 @@ def scan_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> tu
             raise ValueError(f"{p}: the file is given twice")
         seen.add(r)
     return files, skipped
+
+
+def _skip(skipped: list[dict[str, str]], p: Path, why: str) -> None:
+    """Record an entry left out, with the reason."""
+    skipped.append({"file": str(p), "reason": why})
+
+
+def _scan_folder(p: Path, out_r: Path | None, skipped: list[dict[str, str]]) -> list[Path]:
+    """The regular ``*.csv`` / ``*.npz`` files directly in folder ``p``, sorted by name; the other entries with such a
+    suffix go to ``skipped``.  Refuses the output folder ``out_r`` (resolved) and a folder with no file to read."""
+    if out_r is not None and p.resolve() == out_r:
+        raise ValueError(
+            f"{p}: the input folder is the --out folder; nnphd would read its own output (summary.csv) as "
+            f"data on the next run: choose another --out, e.g. {p / 'nnphd'}"
+        )
+    found, n_skip = [], len(skipped)
+    with os.scandir(p) as it:
+        entries = sorted(it, key=lambda e: e.name)
+    for e in entries:
+        f = Path(p, e.name)
+        if f.suffix.lower() not in SUFFIXES:
+            continue
+        if e.is_symlink():
+            _skip(skipped, f, "symbolic link, not followed")
+        elif e.is_dir(follow_symlinks=False):
+            _skip(skipped, f, "a folder, not read (folders are not searched recursively)")
+        elif not e.is_file(follow_symlinks=False):
+            _skip(skipped, f, "not a regular file")
+        else:
+            found.append(f)
+    if not found:
+        why = f" ({len(skipped) - n_skip} skipped: {skipped[-1]['reason']})" if len(skipped) > n_skip else ""
+        raise ValueError(f"{p}: the folder holds no .csv or .npz file{why}")
+    return found
 
 
 def _names(paths: Sequence[Path]) -> list[str]:

@@ -158,18 +158,8 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
     first and last half-window rows (largest window over coordinates and derivatives; for the spline, the end rows
     whose estimated error exceeds twice the median) via ``keep``, and chooses windows for the interior rows.
     """
-    t = np.asarray(t, dtype=np.float64).reshape(-1)
-    q = np.asarray(q, dtype=np.float64)
-    q2 = q.reshape(q.shape[0], -1)
+    t, q2 = _checked_inputs(t, q, method)
     n_rows, n = q2.shape
-    if t.shape[0] != n_rows:
-        raise DataError(f"t has {t.shape[0]} samples but q has {n_rows}; expected equal lengths")
-    if n_rows < MIN_SAMPLES:
-        raise DataError(f"{n_rows} samples; at least {MIN_SAMPLES} are needed to estimate derivatives")
-    if not np.all(np.diff(t) > 0):
-        raise DataError("t must be strictly increasing")
-    if method not in ("auto", "savgol", "local", "spline"):
-        raise ValueError(f"method must be 'auto', 'savgol', 'local' or 'spline', got {method!r}")
     smp = classify_sampling(t)
     if method == "savgol" and smp.dt is None:
         raise DataError(
@@ -177,26 +167,8 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
             f"{UNIFORM_RTOL:g}·dt (and more than the rounding of t); use method='local', 'spline' or "
             "'auto'"
         )
-    time_base = "recorded"
-    tg = t  # the times the derivatives are taken in
     noise = np.array([noise_level(t, q2[:, j]) for j in range(n)])
-    if method == "auto":
-        method = {"uniform": "savgol", "near-uniform": "local", "irregular": "spline"}[smp.kind]
-        if smp.kind == "uniform" and smp.rounded:
-            time_base = "nominal"
-        elif method == "local" and smp.nominal is not None:
-            if smp.rounded:
-                use_nominal = True
-            else:  # which clock are the positions smoother on: the recorded times or the nominal ones?
-                noise_nom = np.array([noise_level(smp.nominal, q2[:, j]) for j in range(n)])
-                moving = (noise > 0) & (noise_nom > 0)
-                use_nominal = bool(moving.any() and np.sum(np.log(noise_nom[moving] / noise[moving])) < 0)
-                if use_nominal:
-                    noise = noise_nom
-            if use_nominal:
-                time_base, tg = "nominal", smp.nominal
-    if method == "savgol":
-        tg = t[0] + smp.dt * np.arange(n_rows)
+    method, time_base, tg, noise = _method_and_time_base(t, q2, smp, method, noise)
 
     qd = np.zeros((n_rows, n))
     qdd = np.zeros((n_rows, n))
@@ -221,12 +193,7 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
         err_rows[:, :, j] = e
     keep = np.ones(n_rows, dtype=bool)
     if trim:
-        if method == "spline":
-            lead, trail = _spline_trim(err_rows.transpose(0, 2, 1).reshape(2 * n, n_rows))
-        else:
-            lead = trail = max(max(w) for w in windows) // 2
-        if n_rows - lead - trail < 1:
-            raise DataError(f"trimming {lead} + {trail} edge samples leaves none of {n_rows}; use trim=False")
+        lead, trail = _trim_counts(method, windows, err_rows)
         keep[:lead] = False
         keep[n_rows - trail :] = False
     std = q2.std(axis=0)
@@ -253,6 +220,63 @@ def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> D
         dt_ratio=smp.ratio,
         time_base=time_base,
     )
+
+
+def _checked_inputs(t, q, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """t (N,) and q as (N, n) float64, refused unless of equal lengths, at least MIN_SAMPLES long, t strictly
+    increasing, and ``method`` one of those known."""
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    q = np.asarray(q, dtype=np.float64)
+    q2 = q.reshape(q.shape[0], -1)
+    n_rows = q2.shape[0]
+    if t.shape[0] != n_rows:
+        raise DataError(f"t has {t.shape[0]} samples but q has {n_rows}; expected equal lengths")
+    if n_rows < MIN_SAMPLES:
+        raise DataError(f"{n_rows} samples; at least {MIN_SAMPLES} are needed to estimate derivatives")
+    if not np.all(np.diff(t) > 0):
+        raise DataError("t must be strictly increasing")
+    if method not in ("auto", "savgol", "local", "spline"):
+        raise ValueError(f"method must be 'auto', 'savgol', 'local' or 'spline', got {method!r}")
+    return t, q2
+
+
+def _method_and_time_base(t: np.ndarray, q2: np.ndarray, smp, method: str, noise: np.ndarray) -> tuple:
+    """The method ("auto" resolved from the sampling ``smp``), the time base, the times the derivatives are taken in
+    and the noise levels (those in the nominal times where these are chosen): (method, time_base, tg, noise)."""
+    n_rows, n = q2.shape
+    time_base = "recorded"
+    tg = t  # the times the derivatives are taken in
+    if method == "auto":
+        method = {"uniform": "savgol", "near-uniform": "local", "irregular": "spline"}[smp.kind]
+        if smp.kind == "uniform" and smp.rounded:
+            time_base = "nominal"
+        elif method == "local" and smp.nominal is not None:
+            if smp.rounded:
+                use_nominal = True
+            else:  # which clock are the positions smoother on: the recorded times or the nominal ones?
+                noise_nom = np.array([noise_level(smp.nominal, q2[:, j]) for j in range(n)])
+                moving = (noise > 0) & (noise_nom > 0)
+                use_nominal = bool(moving.any() and np.sum(np.log(noise_nom[moving] / noise[moving])) < 0)
+                if use_nominal:
+                    noise = noise_nom
+            if use_nominal:
+                time_base, tg = "nominal", smp.nominal
+    if method == "savgol":
+        tg = t[0] + smp.dt * np.arange(n_rows)
+    return method, time_base, tg, noise
+
+
+def _trim_counts(method: str, windows: list[tuple], err_rows: np.ndarray) -> tuple[int, int]:
+    """Rows to drop at the start and at the end with ``trim=True``: half the largest window, or for the spline the
+    end rows of high estimated error (:func:`_spline_trim`); refused when no row would be left."""
+    _, n_rows, n = err_rows.shape
+    if method == "spline":
+        lead, trail = _spline_trim(err_rows.transpose(0, 2, 1).reshape(2 * n, n_rows))
+    else:
+        lead = trail = max(max(w) for w in windows) // 2
+    if n_rows - lead - trail < 1:
+        raise DataError(f"trimming {lead} + {trail} edge samples leaves none of {n_rows}; use trim=False")
+    return lead, trail
 
 
 # ---- data set -----------------------------------------------------------------------------------------------------

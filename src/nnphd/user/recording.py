@@ -323,16 +323,7 @@ def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[s
                     _check_header(path, header, header_line)
                     chunks = {name: [] for name in header}
                     continue
-                if len(rec) != len(header):
-                    where = _Rows([reader.line_num], offset=n_done + len(pending))(n_done + len(pending))
-                    raise DataError(
-                        f"{path}: {where} has {len(rec)} fields; the header has {len(header)} "
-                        f"({_q(','.join(header), 60)})"
-                    )
-                if n_done + len(pending) >= max_rows:
-                    raise DataError(_too_many(path, max_rows))
-                if (n_done + len(pending) + 1) * len(header) > max_cells:
-                    raise DataError(_too_many_cells(path, max_cells, len(header)))
+                _check_csv_record(path, rec, header, reader.line_num, n_done + len(pending), max_rows, max_cells)
                 pending.append(rec)
                 pending_lines.append(reader.line_num)
                 pending_chars += chars
@@ -353,6 +344,22 @@ def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[s
         raise DataError(f"{path}: no data rows after the header; expected at least one row of numbers")
     columns = {name: np.concatenate(parts) for name, parts in chunks.items()}
     return columns, _Rows(np.concatenate(lines))
+
+
+def _check_csv_record(
+    path: str, rec: list[str], header: list[str], line: int, n_before: int, max_rows: int, max_cells: int
+) -> None:
+    """Refuse a data record (``n_before`` data rows precede it, on file line ``line``) whose field count differs from
+    the header's, or one that would pass ``max_rows`` rows or ``max_cells`` values."""
+    if len(rec) != len(header):
+        where = _Rows([line], offset=n_before)(n_before)
+        raise DataError(
+            f"{path}: {where} has {len(rec)} fields; the header has {len(header)} ({_q(','.join(header), 60)})"
+        )
+    if n_before >= max_rows:
+        raise DataError(_too_many(path, max_rows))
+    if (n_before + 1) * len(header) > max_cells:
+        raise DataError(_too_many_cells(path, max_cells, len(header)))
 
 
 def _too_many(path: str, max_rows: int) -> str:
@@ -719,44 +726,13 @@ def _is_number(s: str, parse=float) -> bool:
 
 
 def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tuple[str, ...]) -> UserData:
+    """Check the columns (names, shapes, coordinates, angles, finite values, scales) and split them into
+    trajectories; the checks run in this order, so the first problem of a file is the one reported."""
     names = list(columns)
     _check_names(path, names)
-    if "t" not in columns:
-        raise DataError(
-            f"{path}: no 't' column; expected a time column named 't' (columns: {_cut(', '.join(names), 60)})"
-        )
-    n_rows = columns["t"].shape[0]
-    for name in names:
-        if columns[name].shape != (n_rows,):
-            raise DataError(
-                f"{path}: column {_q(name)} has shape {_cut(columns[name].shape, 30)} but 't' has {n_rows} values; "
-                "expected 1-D columns of equal length"
-            )
-    if n_rows == 0:
-        raise DataError(f"{path}: no samples (the columns are empty); expected at least {MIN_ROWS} per trajectory")
-    derived = [c for c in names if c.endswith("_dot") or c.endswith("_ddot")]
-    coords = tuple(c for c in names if c not in ("t", "traj") and c not in derived)
-    for c in derived:
-        base = c[: -len("_ddot")] if c.endswith("_ddot") else c[: -len("_dot")]
-        if base not in coords:
-            raise DataError(f"{path}: column {c!r} has no coordinate column {base!r}; expected '{base}' beside it")
-    if not coords:
-        raise DataError(
-            f"{path}: no coordinate column; expected at least one column besides 't', 'traj' and '*_dot'/'*_ddot'"
-        )
-    for a in angles:
-        if a not in coords:
-            raise DataError(
-                f"{path}: angle {_q(a)} is not a coordinate column (coordinates: {_cut(', '.join(coords), 60)})"
-            )
-    for name in names:
-        bad = ~np.isfinite(columns[name])
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise DataError(
-                f"{path}: column {_q(name)} {rows(i)}: {float(columns[name][i])!r} is not finite; "
-                "expected a finite number (no NaN or inf)"
-            )
+    n_rows = _check_shapes(path, columns, names)
+    coords = _coordinates(path, names, angles)
+    _check_finite(path, columns, names, rows)
     _check_scales(path, columns, coords, rows)
     if "traj" in columns:
         ids = columns["traj"]  # exact int64, checked by the reader
@@ -777,21 +753,7 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
         idx = np.flatnonzero(ids == tid)
         label = f"trajectory {tid}" if "traj" in columns else "the trajectory"
         t = columns["t"][idx]
-        step = np.diff(t)
-        if (step <= 0).any():
-            k = int(np.argmax(step <= 0)) + 1
-            kind = "duplicate" if step[k - 1] == 0 else "decreasing"
-            raise DataError(
-                f"{path}: {label}: t is not strictly increasing at {rows(idx[k])} ({kind} time "
-                f"{float(t[k])!r} after {float(t[k - 1])!r}); expected strictly increasing t within a "
-                "trajectory"
-            )
-        if len(idx) < MIN_ROWS:
-            what = f"a single sample ({rows(idx[0])})" if len(idx) == 1 else f"{len(idx)} samples"
-            raise DataError(
-                f"{path}: {label} has {what}; at least {MIN_ROWS} per trajectory are needed (derivative "
-                "estimates and the training's held-out rows)"
-            )
+        _check_trajectory(path, label, t, idx, rows)
         trajectories.append(Trajectory(id=int(tid), t=t, q=q_all[idx], qd=qd_all[idx], qdd=qdd_all[idx], rows=idx))
 
     if all(np.ptp(q_all[:, j]) == 0 for j in range(len(coords))):
@@ -808,6 +770,76 @@ def _validate(path: str, columns: dict[str, np.ndarray], rows: _Rows, angles: tu
     )
 
 
+def _check_shapes(path: str, columns: dict[str, np.ndarray], names: list[str]) -> int:
+    """Require a ``t`` column and 1-D columns of its length, at least one value long; returns that length."""
+    if "t" not in columns:
+        raise DataError(
+            f"{path}: no 't' column; expected a time column named 't' (columns: {_cut(', '.join(names), 60)})"
+        )
+    n_rows = columns["t"].shape[0]
+    for name in names:
+        if columns[name].shape != (n_rows,):
+            raise DataError(
+                f"{path}: column {_q(name)} has shape {_cut(columns[name].shape, 30)} but 't' has {n_rows} values; "
+                "expected 1-D columns of equal length"
+            )
+    if n_rows == 0:
+        raise DataError(f"{path}: no samples (the columns are empty); expected at least {MIN_ROWS} per trajectory")
+    return n_rows
+
+
+def _coordinates(path: str, names: list[str], angles: tuple[str, ...]) -> tuple[str, ...]:
+    """The coordinate columns in file order (all but ``t``, ``traj`` and ``*_dot``/``*_ddot``): every derivative
+    column needs its coordinate, there must be one at least, and every angle must be one."""
+    derived = [c for c in names if c.endswith("_dot") or c.endswith("_ddot")]
+    coords = tuple(c for c in names if c not in ("t", "traj") and c not in derived)
+    for c in derived:
+        base = c[: -len("_ddot")] if c.endswith("_ddot") else c[: -len("_dot")]
+        if base not in coords:
+            raise DataError(f"{path}: column {c!r} has no coordinate column {base!r}; expected '{base}' beside it")
+    if not coords:
+        raise DataError(
+            f"{path}: no coordinate column; expected at least one column besides 't', 'traj' and '*_dot'/'*_ddot'"
+        )
+    for a in angles:
+        if a not in coords:
+            raise DataError(
+                f"{path}: angle {_q(a)} is not a coordinate column (coordinates: {_cut(', '.join(coords), 60)})"
+            )
+    return coords
+
+
+def _check_finite(path: str, columns: dict[str, np.ndarray], names: list[str], rows: _Rows) -> None:
+    """Refuse NaN and inf, naming the first such value (columns in order, then rows)."""
+    for name in names:
+        bad = ~np.isfinite(columns[name])
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise DataError(
+                f"{path}: column {_q(name)} {rows(i)}: {float(columns[name][i])!r} is not finite; "
+                "expected a finite number (no NaN or inf)"
+            )
+
+
+def _check_trajectory(path: str, label: str, t: np.ndarray, idx: np.ndarray, rows: _Rows) -> None:
+    """One trajectory (times ``t`` of the data rows ``idx``): t strictly increasing, then at least MIN_ROWS rows."""
+    step = np.diff(t)
+    if (step <= 0).any():
+        k = int(np.argmax(step <= 0)) + 1
+        kind = "duplicate" if step[k - 1] == 0 else "decreasing"
+        raise DataError(
+            f"{path}: {label}: t is not strictly increasing at {rows(idx[k])} ({kind} time "
+            f"{float(t[k])!r} after {float(t[k - 1])!r}); expected strictly increasing t within a "
+            "trajectory"
+        )
+    if len(idx) < MIN_ROWS:
+        what = f"a single sample ({rows(idx[0])})" if len(idx) == 1 else f"{len(idx)} samples"
+        raise DataError(
+            f"{path}: {label} has {what}; at least {MIN_ROWS} per trajectory are needed (derivative "
+            "estimates and the training's held-out rows)"
+        )
+
+
 # ---- arrays and tables from Python (nnphd.Trajectories) -----------------------------------------------------------
 def from_arrays(
     t, q, traj=None, *, names: Sequence[str] | None = None, angles: Sequence[str] = (), qd=None, qdd=None
@@ -817,38 +849,8 @@ def from_arrays(
     trajectory ids within ±2⁵³, usable names; a single str of ``names``/``angles`` is one name). One-line
     :class:`DataError` on any problem."""
     w = "<arrays>"  # how messages name these arrays
-    try:
-        per_traj = isinstance(t, (list, tuple)) and len(t) > 0 and np.ndim(t[0]) == 1
-    except (ValueError, TypeError):  # a ragged first element: refused below
-        per_traj = False
-    if per_traj:
-        if traj is not None:
-            raise DataError(f"{w}: give either lists of per-trajectory arrays or traj ids, not both")
-        for what, a in (("q", q), ("qd", qd), ("qdd", qdd)):
-            if (a is not None or what == "q") and (not isinstance(a, (list, tuple)) or len(a) != len(t)):
-                raise DataError(f"{w}: {what} must be a list of {len(t)} arrays, one per array of t")
-        ts = [_api_numbers(w, f"t[{i}]", x) for i, x in enumerate(t)]
-        for i, x in enumerate(ts):
-            if x.ndim != 1 or not len(x):
-                raise DataError(f"{w}: t[{i}] must be a non-empty 1-D array, got shape {_cut(x.shape, 30)}")
-
-        def cat(a, what):
-            if a is None:
-                return None
-            parts = []
-            for i, (x, ti) in enumerate(zip(a, ts)):
-                x = _api_numbers(w, f"{what}[{i}]", x)
-                x = x[:, None] if x.ndim == 1 else x
-                if x.ndim != 2 or x.shape[0] != len(ti) or (parts and x.shape[1] != parts[0].shape[1]):
-                    cols = f", {parts[0].shape[1]})" if parts else ") or (N, n)"
-                    raise DataError(
-                        f"{w}: {what}[{i}] must have shape ({len(ti)}{cols} like t[{i}], got {_cut(x.shape, 30)}"
-                    )
-                parts.append(x)
-            return np.concatenate(parts)
-
-        ids = np.concatenate([np.full(len(x), i, dtype=np.int64) for i, x in enumerate(ts)])
-        t, q, qd, qdd, traj = np.concatenate(ts), cat(q, "q"), cat(qd, "qd"), cat(qdd, "qdd"), ids
+    if _is_per_trajectory(t):
+        t, q, qd, qdd, traj = _join_trajectories(w, t, q, traj, qd, qdd)
     t = _api_numbers(w, "t", t)
     if t.ndim != 1 or not len(t):
         raise DataError(f"{w}: t must be a non-empty 1-D array (one time per sample), got shape {_cut(t.shape, 30)}")
@@ -858,17 +860,7 @@ def from_arrays(
         raise DataError(
             f"{w}: q must be (N,) or (N, n) with N = {len(t)} (the length of t), got shape {_cut(q.shape, 30)}"
         )
-    n = q.shape[1]
-    if names is None:
-        names = [f"q{i + 1}" for i in range(n)]
-    else:
-        names = [names] if isinstance(names, str) else list(names)  # a single str is one name, not its letters
-    if len(names) != n:
-        raise DataError(f"{w}: names must be {n} distinct names (one per column of q), got {len(names)}")
-    _check_names(w, names, "names[{}]")
-    bad = [c for c in names if c in ("t", "traj") or c.endswith(("_dot", "_ddot"))]
-    if bad:
-        raise DataError(f"{w}: coordinate names must not be 't', 'traj' or end in _dot/_ddot, got {_q(bad[0])}")
+    names = _coordinate_names(w, names, q.shape[1])
     cols: dict[str, np.ndarray] = {"t": t}
     if traj is not None:
         cols["traj"] = _api_ids(w, traj, len(t))  # exact: 2**53 and 2**53 + 1 stay apart, 0.2 is refused
@@ -883,6 +875,68 @@ def from_arrays(
             for j, c in enumerate(names):
                 cols[c + suffix] = a[:, j]
     return _validate(w, cols, _Rows(None), _angle_names(w, angles))
+
+
+def _is_per_trajectory(t) -> bool:
+    """Whether :func:`from_arrays` got ``t`` as a list of per-trajectory 1-D arrays."""
+    try:
+        return isinstance(t, (list, tuple)) and len(t) > 0 and np.ndim(t[0]) == 1
+    except (ValueError, TypeError):  # a ragged first element: refused below, as t
+        return False
+
+
+def _join_trajectories(w: str, t, q, traj, qd, qdd) -> tuple:
+    """Lists of per-trajectory arrays (one list per argument of :func:`from_arrays`) joined into one array each;
+    returns (t, q, qd, qdd, traj) with trajectory ids 0, 1, … in list order."""
+    if traj is not None:
+        raise DataError(f"{w}: give either lists of per-trajectory arrays or traj ids, not both")
+    for what, a in (("q", q), ("qd", qd), ("qdd", qdd)):
+        if (a is not None or what == "q") and (not isinstance(a, (list, tuple)) or len(a) != len(t)):
+            raise DataError(f"{w}: {what} must be a list of {len(t)} arrays, one per array of t")
+    ts = [_api_numbers(w, f"t[{i}]", x) for i, x in enumerate(t)]
+    for i, x in enumerate(ts):
+        if x.ndim != 1 or not len(x):
+            raise DataError(f"{w}: t[{i}] must be a non-empty 1-D array, got shape {_cut(x.shape, 30)}")
+    ids = np.concatenate([np.full(len(x), i, dtype=np.int64) for i, x in enumerate(ts)])
+    return (
+        np.concatenate(ts),
+        _join_parts(w, q, "q", ts),
+        _join_parts(w, qd, "qd", ts),
+        _join_parts(w, qdd, "qdd", ts),
+        ids,
+    )
+
+
+def _join_parts(w: str, a, what: str, ts: list[np.ndarray]) -> np.ndarray | None:
+    """The per-trajectory arrays ``a`` (``what``: q, qd or qdd; None: not given) as one (N, n) array: each (N_i,) or
+    (N_i, n) with N_i the length of ``ts[i]`` and n the same for all."""
+    if a is None:
+        return None
+    parts = []
+    for i, (x, ti) in enumerate(zip(a, ts)):
+        x = _api_numbers(w, f"{what}[{i}]", x)
+        x = x[:, None] if x.ndim == 1 else x
+        if x.ndim != 2 or x.shape[0] != len(ti) or (parts and x.shape[1] != parts[0].shape[1]):
+            cols = f", {parts[0].shape[1]})" if parts else ") or (N, n)"
+            raise DataError(f"{w}: {what}[{i}] must have shape ({len(ti)}{cols} like t[{i}], got {_cut(x.shape, 30)}")
+        parts.append(x)
+    return np.concatenate(parts)
+
+
+def _coordinate_names(w: str, names, n: int) -> list[str]:
+    """The names of the n columns of q (default q1, q2, …; a single str is one name): n distinct, usable names, none
+    that a file reserves (t, traj, *_dot, *_ddot)."""
+    if names is None:
+        names = [f"q{i + 1}" for i in range(n)]
+    else:
+        names = [names] if isinstance(names, str) else list(names)  # a single str is one name, not its letters
+    if len(names) != n:
+        raise DataError(f"{w}: names must be {n} distinct names (one per column of q), got {len(names)}")
+    _check_names(w, names, "names[{}]")
+    bad = [c for c in names if c in ("t", "traj") or c.endswith(("_dot", "_ddot"))]
+    if bad:
+        raise DataError(f"{w}: coordinate names must not be 't', 'traj' or end in _dot/_ddot, got {_q(bad[0])}")
+    return names
 
 
 def from_table(df, angles: Sequence[str] = ()) -> UserData:

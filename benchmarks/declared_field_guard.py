@@ -3,7 +3,7 @@
 ``nnphd detect --field uniform`` lets the fit of the positions beside a uniform field decide a throw. Along one arc a
 field that varies over the record, fitted as uniform, leaves a remainder that a candidate law can fit — so a wrong
 declaration could turn into a confident "detected". A drag opposes the velocity; that remainder does not
-(``nnphd.user.detect.DRAG_ALONG_MIN``). This runs ``detect`` at its defaults with ``field="uniform"`` on
+(``nnphd.user.rules.DRAG_ALONG_MIN``). This runs ``detect`` at its defaults with ``field="uniform"`` on
 
 - the throw look-alike of ``benchmarks/friction_laws.py`` (quadratic drag c = 0.021 /m): truth "detected";
 - the same throw without drag: truth "none";

@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 
 from nnphd.io.errors import DataError
-from nnphd.user.detect import (
+from nnphd.user.detect import check_field
+from nnphd.user.rules import (
     DRAG_ALONG_MIN,
     FIELD_FIT_MSE,
     LAW_DETECT_CONFIDENCE,
     LAW_DETECT_DIC,
-    _declared_field_verdict,
-    _reconcile,
     against_velocity,
-    check_field,
+    declared_field_verdict,
+    reconcile,
 )
 from tests.test_nonoscillating import G, _csv, _throw
 
@@ -38,7 +38,7 @@ def _table(zero_mse=3.1, win=(-190.0, 0.52, 0.84), claimed=True, significant=Tru
 
 
 def test_a_decisive_law_that_fits_to_the_noise_beside_the_field_is_detected():
-    status, conf, why = _declared_field_verdict(_table())
+    status, conf, why = declared_field_verdict(_table())
     assert (status, conf) == ("detected", LAW_DETECT_CONFIDENCE)
     assert "quadratic drag" in why and "ΔIC = -190.0" in why and "χ²/N = 0.84" in why and "χ²/N = 3.10" in why
     assert "rests on the declared uniform field" in why  # the verdict names what it assumes
@@ -64,7 +64,7 @@ def test_a_decisive_law_that_fits_to_the_noise_beside_the_field_is_detected():
     ],
 )
 def test_the_field_alone_explains_or_the_data_cannot_decide(table, status, words):
-    s, _, why = _declared_field_verdict(table)
+    s, _, why = declared_field_verdict(table)
     assert s == status and words in why
 
 
@@ -72,8 +72,8 @@ def test_without_a_fit_of_the_positions_there_is_no_verdict_on_a_declared_field(
     t = _table()
     for r in t["candidates"]:
         r["method"] = "pointwise"
-    assert _declared_field_verdict(t)[0] == "inconclusive"
-    assert _declared_field_verdict({"candidates": [], "reason": "too short"})[0] == "inconclusive"
+    assert declared_field_verdict(t)[0] == "inconclusive"
+    assert declared_field_verdict({"candidates": [], "reason": "too short"})[0] == "inconclusive"
 
 
 def _report(status="inconclusive", oscillating=False, library_law=None):
@@ -119,20 +119,20 @@ def test_a_decisive_law_that_does_not_oppose_the_velocity_is_no_drag_and_decides
     ):
         t = _table()
         t["_field"] = {"against_velocity": along}
-        s, conf, why = _declared_field_verdict(t)
+        s, conf, why = declared_field_verdict(t)
         assert s == status, (along, why)
         if status == "inconclusive":
             assert conf == 1.0 and "no drag" in why and f"only {100 * along:.0f}% of it opposes" in why
             assert "check that the field is uniform" in why
     t = _table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False)  # no decisive law: the share plays no part
     t["_field"] = {"against_velocity": -1.0}
-    assert _declared_field_verdict(t)[0] == "none"
+    assert declared_field_verdict(t)[0] == "none"
 
 
 def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_not_detect():
     res, _ = _report()
     law = _table()
-    status, new, conf, reasons = _reconcile(res, law, "uniform")
+    status, new, conf, reasons = reconcile(res, law, "uniform")
     assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE) and law["law"]["law"] == "quadratic"
     assert reasons[0].startswith("beside the declared uniform field") and reasons[1] == res["reasons"][0]
     assert law["_effect"] == (
@@ -140,9 +140,9 @@ def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_no
         "48% (χ²/N 3.10 → 0.84, ΔIC = -190.0)"
     )
     law = _table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False)
-    assert _reconcile(res, law, "uniform")[:2] == ("none", False)
+    assert reconcile(res, law, "uniform")[:2] == ("none", False)
     law = _table(zero_mse=1.1, win=(LAW_DETECT_DIC + 2, 0.9, 0.95))
-    assert _reconcile(res, law, "uniform")[0] == "inconclusive"
+    assert reconcile(res, law, "uniform")[0] == "inconclusive"
     assert law["law"] is None and law["candidate_law"]["law"] == "quadratic"  # no law claimed on "inconclusive"
 
 
@@ -151,12 +151,12 @@ def test_an_undeclared_arc_says_what_would_decide_without_deciding():
     for lib_law, hint in ((strong, True), (dict(strong, delta_ic=LAW_DETECT_DIC + 1), False), (None, False)):
         res, lib = _report(library_law=lib_law)
         law = {"law": None, "status": "none", "ties": [], "reason": "", "settings": {"bases": [lib]}}
-        status, _, _, reasons = _reconcile(res, law)
+        status, _, _, reasons = reconcile(res, law)
         assert status == "inconclusive"  # a hint is no evidence: the verdict is unchanged
         assert ("--field uniform" in reasons[-1] and "48%" in reasons[-1]) == hint
     res, lib = _report(oscillating=True, library_law=strong)  # an oscillation has its own evidence: no hint
     law = {"law": None, "status": "none", "ties": [], "reason": "", "settings": {"bases": [lib]}}
-    assert "--field" not in " ".join(_reconcile(res, law)[3])
+    assert "--field" not in " ".join(reconcile(res, law)[3])
 
 
 def test_bad_field_settings_are_refused_with_what_is_expected():

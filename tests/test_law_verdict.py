@@ -1,4 +1,4 @@
-"""The verdict after the law table (:func:`nnphd.user.detect._reconcile`): an inconclusive verdict the seed-free law
+"""The verdict after the law table (:func:`nnphd.user.detect.reconcile`): an inconclusive verdict the seed-free law
 table decides, and a drive claimed on trajectories whose clock can be told — the rules on hand-made reports."""
 
 from __future__ import annotations
@@ -7,14 +7,14 @@ import math
 
 import pytest
 
-from nnphd.user.detect import (
+from nnphd.user.rules import (
     DRIVE_CONFIDENCE,
     DRIVE_EFFECT_MIN,
     LAW_CONFLICT_DIC,
     LAW_DETECT_CONFIDENCE,
     LAW_DETECT_DIC,
     LAW_DETECT_EFFECT,
-    _reconcile,
+    reconcile,
 )
 
 
@@ -50,7 +50,7 @@ def test_the_seed_free_law_table_decides_an_inconclusive_verdict_only_when_every
     # the servo drop: its 3 periods too few for the energy trend, the LNN absorbed the damping (shooting z 0.7),
     # while the positions need friction beside the library (error −93 %, ΔIC −17) and beside the LNN (−97 %, −36)
     law = _law()
-    status, new, conf, reasons = _reconcile(_report(), law)
+    status, new, conf, reasons = reconcile(_report(), law)
     assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE)
     assert "every conservative base" in reasons[0] and "error −93%" in reasons[0]
     assert law["law"]["law"] == "linear" and law["status"] == "tie"  # the law stays: the verdict is "detected"
@@ -64,12 +64,12 @@ def test_the_seed_free_law_table_decides_an_inconclusive_verdict_only_when_every
         (_report(oscillating=False), _law()),
         (_report(), {**_law(), "settings": {"bases": _law()["settings"]["bases"][:1]}}),
     ):
-        status, new, conf, _ = _reconcile(res, lw)
+        status, new, conf, _ = reconcile(res, lw)
         assert (status, conf) == ("inconclusive", 1.0)
         assert lw["law"] is None and lw["candidate_law"]["law"] in ("linear", "drive")
         assert lw["reason"].startswith("the verdict is 'inconclusive', so no law is claimed")
     # "none" and "detected" verdicts are not touched by this rule
-    assert _reconcile(_report(status="detected"), _law())[0] == "detected"
+    assert reconcile(_report(status="detected"), _law())[0] == "detected"
 
 
 def _drive(dic=-480.0, ratio=0.027, status="claimed", testable=True, verdict="none"):
@@ -85,7 +85,7 @@ def _drive(dic=-480.0, ratio=0.027, status="claimed", testable=True, verdict="no
 def test_a_drive_the_law_table_claims_on_trajectories_overlapping_in_time_is_detected_with_its_amplitude():
     # the Duffing oscillator under 0.2 cos(0.7 t), 3 trajectories: both seeds "none", the drive −97 %, ΔIC −480
     res, law = _drive()
-    status, new, conf, reasons = _reconcile(res, law)
+    status, new, conf, reasons = reconcile(res, law)
     assert (status, new, conf) == ("detected", True, DRIVE_CONFIDENCE)
     assert f"amplitude {math.hypot(0.12, 0.16):.3g} and angular frequency 0.7003" in reasons[0]
     assert "97.3%" in reasons[0] and law["law"]["law"] == "drive"
@@ -98,12 +98,12 @@ def test_a_drive_the_law_table_claims_on_trajectories_overlapping_in_time_is_det
         {"ratio": 1 - DRIVE_EFFECT_MIN + 0.01},
     ):
         res, law = _drive(**kw)
-        status, _, conf, _ = _reconcile(res, law)
+        status, _, conf, _ = reconcile(res, law)
         expect = "none" if "dic" in kw else "inconclusive"
         assert status == expect and law["law"] is None, kw
     # from "inconclusive" (seeds disagree) as well
     res, law = _drive(verdict="inconclusive")
-    assert _reconcile(res, law)[0] == "detected"
+    assert reconcile(res, law)[0] == "detected"
 
 
 @pytest.mark.slow  # ~60 s: the whole nnphd detect at its defaults on three trajectories

@@ -130,25 +130,25 @@ def test_pendulum_recording_damping_within_10_percent(tmp_path):
 def test_a_strong_candidate_law_turns_none_into_inconclusive():
     """The verdict's checks say "none" but a candidate law beats no law on held-out data by ΔIC ≤ −10: conflicting
     evidence gives "inconclusive" (never a confident "none"); a weak candidate leaves "none" alone."""
-    from nnphd.user.detect import LAW_CONFLICT_DIC, LAW_EFFECT_MIN, _reconcile
+    from nnphd.user.rules import LAW_CONFLICT_DIC, LAW_EFFECT_MIN, reconcile
 
     res = {"status": "none", "new_physics": False, "confidence": 0.97, "reasons": ["seed 0: a Lagrangian fits"]}
     strong = {"title": "drive A cos(ω t + φ)", "heldout_ratio": 0.03, "delta_ic": -534.0}
     law = {"law": None, "candidate_law": strong, "reason": "the verdict is 'none'"}
-    status, new, conf, reasons = _reconcile(res, law)
+    status, new, conf, reasons = reconcile(res, law)
     assert (status, new, conf) == ("inconclusive", True, 0.5)
     assert reasons[0].startswith("conflicting evidence") and "drive" in reasons[0] and "97.0%" in reasons[0]
     assert "no law is claimed" in law["reason"]
     weak = {"law": None, "candidate_law": {**strong, "delta_ic": LAW_CONFLICT_DIC + 1}}
-    assert _reconcile(res, weak)[:3] == ("none", False, 0.97)
+    assert reconcile(res, weak)[:3] == ("none", False, 0.97)
     # significant but immaterial: 0.4 % lower held-out error at ΔIC −19 (a sparse polynomial on a gyroscopic
     # record) does not contradict "none"; 1.5 % does
     tiny = {"law": None, "candidate_law": {**strong, "delta_ic": -19.0, "heldout_ratio": 1 - 0.004}}
-    assert _reconcile(res, tiny)[:3] == ("none", False, 0.97)
+    assert reconcile(res, tiny)[:3] == ("none", False, 0.97)
     small = {"law": None, "candidate_law": {**strong, "delta_ic": -19.0, "heldout_ratio": 1 - LAW_EFFECT_MIN - 0.005}}
-    assert _reconcile(res, small)[0] == "inconclusive"
+    assert reconcile(res, small)[0] == "inconclusive"
     detected = {**res, "status": "detected", "new_physics": True}
-    assert _reconcile(detected, law)[0] == "detected"
+    assert reconcile(detected, law)[0] == "detected"
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,337 @@
+"""The verdict's rules after the seeds have spoken: how the law table, the declared field and the seed-free fits
+of the positions change the status the seeds' checks gave (:func:`reconcile`), each rule with its threshold and the
+record on which that threshold was measured.
+
+The order in which :func:`reconcile` applies them:
+
+1. **A declared uniform field** (``field="uniform"``) decides alone, from the fit of the positions beside it
+   (:func:`declared_field_verdict`): "detected" when a law beats the field alone by ΔIC ≤ LAW_DETECT_DIC, lowers the
+   error by ≥ LAW_EFFECT_MIN, fits to the noise (χ²/N ≤ FIELD_FIT_MSE) and opposes the velocity
+   (≥ DRAG_ALONG_MIN of its force: a drag); "none" when the field alone fits and nothing beats it; else
+   "inconclusive" with the reason.
+2. **A drive** the law table claims, on trajectories whose clock can be told, is "detected" with the drive as the
+   law (:func:`drive_evidence`: ΔIC ≤ LAW_CONFLICT_DIC, error −DRIVE_EFFECT_MIN or more).
+3. **"none" against a strong law**: a candidate with ΔIC ≤ LAW_CONFLICT_DIC that lowers the held-out error by
+   ≥ LAW_EFFECT_MIN makes a "none" "inconclusive" (confidence 0.5: the evidence is split).
+4. **"inconclusive" with every conservative base agreeing** (one coordinate: the seed-free library and the seed's
+   LNN each find a law with ΔIC ≤ LAW_DETECT_DIC and error −LAW_DETECT_EFFECT or more) is "detected"
+   (:func:`seed_free_evidence`).
+5. Otherwise the seeds' status stands; a record that does not oscillate gets a hint of what would decide
+   (:func:`uniform_field_hint`).
+
+No law is claimed unless the final status is "detected" (:func:`withhold`). How the seeds' own statuses combine
+is :func:`nnphd.user.assess.assess`'s (a seed vote with bootstrap agreement); the paper's phase-transition rule is
+:mod:`nnphd.engine.verdict`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+LIBRARY_BASE = "the conservative library"  # the law table's seed-free conservative base
+
+LAW_CONFLICT_DIC = -10.0  # a candidate law this much better than none (held out) contradicts a verdict of "none"
+# ... and only when it lowers the held-out error by at least this much: a sparse polynomial that lowered a gyroscopic
+# record's error by 0.4 % (ΔIC −19: significant on 10⁴ rows, immaterial) made both seeds' "none" "inconclusive"
+LAW_EFFECT_MIN = 0.01
+
+
+def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, float, list[str]]:
+    """The verdict after the law table (which ``law``, the table as a dict, is made to agree with: no law is claimed
+    unless the final status is "detected").
+
+    - "none" while a candidate law beats no law on held-out data by ΔIC ≤ LAW_CONFLICT_DIC, and by at least
+      LAW_EFFECT_MIN of the held-out error (an effect below it does not contradict "none", however significant), is
+      conflicting evidence — "inconclusive" (best call: new physics), confidence 0.5 (the evidence is split), never a
+      confident "none". A drive of a few periods can cancel in the energy trend and go unseen by the verdict's
+      checks, while the joint fit of A cos(ωt + φ) finds it.
+    - "inconclusive" with no seed saying "none", on an oscillating record of one coordinate, where *every*
+      conservative base of the law table (the seed-free library and the seed's LNN) finds a law that beats no law by
+      ΔIC ≤ LAW_DETECT_DIC and lowers its error by ≥ LAW_DETECT_EFFECT, is "detected" (:func:`seed_free_evidence`).
+    - any verdict but "detected" where the table claims a drive on trajectories whose clock can be told is "detected",
+      the drive the law (:func:`drive_evidence`; checked first).
+    - a declared uniform field: the fit of the positions beside it decides (:func:`declared_field_verdict`).
+    """
+    status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
+    if field == "uniform" and (res.get("quality") or {}).get("usable", True):
+        status, conf, why = declared_field_verdict(law)
+        law["_effect"] = declared_field_effect(law)
+        withhold(law, status, None if status == "detected" else why)
+        return status, status != "none", conf, [why, *reasons]
+    cand = law.get("law") or law.get("candidate_law")
+    drive = drive_evidence(res, law) if status != "detected" else None
+    if drive is not None:
+        return "detected", True, DRIVE_CONFIDENCE, [drive, *reasons]
+    if (
+        status == "none"
+        and cand
+        and cand["delta_ic"] <= LAW_CONFLICT_DIC
+        and 1 - cand["heldout_ratio"] >= LAW_EFFECT_MIN
+    ):
+        why = (
+            f"conflicting evidence: the checks find no non-conservation, but a candidate law, {cand['title']}, "
+            f"lowers the held-out error by {100 * (1 - cand['heldout_ratio']):.1f}% (ΔIC = {cand['delta_ic']:.1f} "
+            f"against no law)"
+        )
+        withhold(law, "inconclusive", why + " — no law is claimed")
+        return "inconclusive", True, 0.5, [why, *reasons]
+    free = seed_free_evidence(res, law) if status == "inconclusive" else None
+    if free is not None:
+        return "detected", True, LAW_DETECT_CONFIDENCE, [free, *reasons]
+    withhold(law, status)
+    hint = uniform_field_hint(res, law) if status == "inconclusive" else None
+    return status, new, conf, reasons + ([hint] if hint else [])
+
+
+def uniform_field_hint(res: dict, law: dict) -> str | None:
+    """What would decide a record that does not oscillate: the fit of its positions beside a uniform field (the
+    law table's seed-free base), if it finds a law that beats the field alone by ΔIC ≤ LAW_DETECT_DIC — said, not
+    used: the field must be declared (``--field uniform``), since along one arc a field that varies could explain
+    the same motion."""
+    if (res.get("quality") or {}).get("oscillating", True):
+        return None
+    lib = next((b for b in (law.get("settings") or {}).get("bases") or [] if b["base"] == LIBRARY_BASE), None)
+    w = (lib or {}).get("law")
+    if not w or w["delta_ic"] > LAW_DETECT_DIC:
+        return None
+    return (
+        f"what would decide: if the conservative force is a uniform field (gravity near the ground, or none), "
+        f"declare it (--field uniform; NNPhD(field='uniform')): beside a uniform field {w['title']} lowers the error "
+        f"of the fit of the positions by {100 * (1 - w['heldout_ratio']):.0f}% (ΔIC = {w['delta_ic']:.1f} against "
+        "no law)"
+    )
+
+
+RECONCILED_BASIS = (
+    "set by the law table, which changed the seeds' verdict (the first reason says how): 0.5 where it contradicts "
+    "their 'none' (the evidence is split), 0.75 where it alone decides 'detected' (one line of evidence)"
+)
+
+# "inconclusive" becomes "detected" when every conservative base of a one-coordinate law table finds a law at least
+# this much better than none (the strong end of the IC scale, as LAW_CONFLICT_DIC) ...
+LAW_DETECT_DIC = -10.0
+# ... that lowers the error of the trajectory-level fit by at least this share: a servo drop whose 3 periods are too
+# few for the energy trend and whose LNN (one trajectory) absorbed most of the damping — shooting probe z = 0.7 —
+# while the seed-free fit of its positions needs viscous friction (error −93 %, ΔIC −17; LNN base −97 %, ΔIC −36)
+LAW_DETECT_EFFECT = 0.25
+# the confidence of such a verdict: one line of evidence, the seeds' own checks not decisive
+LAW_DETECT_CONFIDENCE = 0.75
+
+
+# a drive claimed by the law table (no tie with an autonomous family) on trajectories whose clock can be told from
+# their state — at least CLOCK_MIN_TRAJ overlapping in time — is "detected" with the drive as the law when it beats
+# no law by ΔIC ≤ LAW_CONFLICT_DIC and lowers the held-out error by at least this share. A drive is explicit time
+# dependence, the paper's third kind of new physics; the seeds' clock tests (a regression of the residual on
+# features of t) can miss it where the joint fit of A cos(ωt + φ) finds it: a Duffing oscillator under
+# 0.2 cos(0.7 t), 3 trajectories, both seeds "none" while the drive lowered the held-out error by 97 % (ΔIC −480).
+DRIVE_EFFECT_MIN = 0.05
+DRIVE_CONFIDENCE = 0.75
+
+
+def drive_evidence(res: dict, law: dict) -> str | None:
+    """The reason for "detected" from a drive the law table claims, or None (see DRIVE_EFFECT_MIN)."""
+    w = law.get("law")
+    clock = res.get("clock") or {}
+    if not w or w["law"] != "drive" or law.get("status") != "claimed" or not clock.get("testable"):
+        return None
+    cut = 1 - w["heldout_ratio"]
+    if w["delta_ic"] > LAW_CONFLICT_DIC or cut < DRIVE_EFFECT_MIN:
+        return None
+    p = w["params"]
+    amp = ", ".join(f"{math.hypot(v, p.get('A_sin' + k[5:], 0.0)):.3g}" for k, v in p.items() if k.startswith("A_cos"))
+    return (
+        f"the force depends on t explicitly: a drive of amplitude {amp} and angular frequency "
+        f"{abs(p.get('omega', float('nan'))):.4g} lowers the held-out error of the fit of the positions by "
+        f"{100 * cut:.1f}% (ΔIC = {w['delta_ic']:.1f} against no law; every autonomous candidate is worse), on "
+        f"{clock.get('why', 'trajectories overlapping in time')}"
+    )
+
+
+def seed_free_evidence(res: dict, law: dict) -> str | None:
+    """The reason for "detected" from the law table when the seeds' checks were not decisive, or None. Needs an
+    oscillating record of usable quality, no seed saying "none", and a table ranked with more than one conservative
+    base (one coordinate: the seed-free library and the LNN) in which every base finds a law (claimed or a tie; not
+    a drive — on one trajectory time and state are confounded) with ΔIC ≤ LAW_DETECT_DIC against no law and an
+    error lowered by ≥ LAW_DETECT_EFFECT. The law and the verdict then rest on evidence of the same strength."""
+    quality = res.get("quality") or {}
+    if not quality.get("usable", True) or not quality.get("oscillating", True):
+        return None
+    if any(s.get("status") == "none" for s in (res.get("checks") or {}).get("per_seed", [])):
+        return None
+    bases = (law.get("settings") or {}).get("bases") or []
+    if len(bases) < 2:
+        return None
+    views = []
+    for b in bases:
+        w = b.get("law")
+        if b.get("status") not in ("claimed", "tie") or not w or "drive" in [w["law"], *b.get("families", [])]:
+            return None
+        cut = 1 - w["heldout_ratio"]
+        if w["delta_ic"] > LAW_DETECT_DIC or cut < LAW_DETECT_EFFECT:
+            return None
+        views.append(f"with {b['base']}: {w['title']}, error −{100 * cut:.0f}%, ΔIC = {w['delta_ic']:.1f}")
+    return (
+        "a fit of the positions with a non-conservative law beats the conservative model alone beside every "
+        f"conservative base ({'; '.join(views)} against no law), while the seeds' own checks were not decisive"
+    )
+
+
+# a declared uniform field: the fit of the positions beside it explains the record when its mean squared residual per
+# coordinate and row, in units of the estimated position noise, is at most this (≈ 1 when it fits to the noise; the
+# noise estimate of a short record can be ~40 % off in χ²). On the 2-D throw look-alike the uniform field alone leaves
+# ~3, with a drag ~0.9 (benchmarks/results/friction_laws.json).
+FIELD_FIT_MSE = 2.0
+
+# beside a declared uniform field, a drag opposes the velocity: the share of the law's force along −v̂
+# (:func:`against_velocity`) is 1 for any drag of the speed. A field that varies over the record, fitted as uniform,
+# leaves a remainder that is no drag: on arcs of a 1/r² field (R = 5, 20, 100 m, g = 9.81 at the release, the throw's
+# 1.2 s at 60 fps, 2 mm noise, seeds 0–2) the winning law's share is −0.85 … 0.39, and 1.000 on every throw with
+# quadratic drag (results/declared_field_guard.json).
+DRAG_ALONG_MIN = 0.8
+
+
+def against_velocity(f, qd) -> float | None:
+    """Σ(−f·v̂) / Σ|f| over the rows: 1 for a force that opposes the velocity (a drag), −1 for a thrust, about 0 for
+    one across it. ``f``, ``qd`` (N, n) in the record's coordinates; rows at rest (or a law that is zero) do not
+    count. None when nothing moves or the force is zero."""
+    f, qd = np.asarray(f, float), np.asarray(qd, float)
+    speed = np.linalg.norm(qd, axis=1)
+    ok = np.isfinite(speed) & (speed > 0) & np.all(np.isfinite(f), axis=1)
+    size = float(np.sum(np.linalg.norm(f[ok], axis=1)))
+    if not np.any(ok) or size <= 0:
+        return None
+    return float(-np.sum(np.einsum("ni,ni->n", f[ok], qd[ok]) / speed[ok]) / size)
+
+
+def declared_field_effect(law: dict) -> str | None:
+    """The effect size beside a declared uniform field: how much the best law lowers the error of the fit of the
+    positions, from what to what (the network's record-level evidence says nothing here: it can absorb a drag)."""
+    rows = law.get("candidates") or []
+    zero = next((r for r in rows if r["law"] == "none"), None)
+    best = law.get("law") or next((r for r in rows if r["law"] != "none" and r.get("significant", True)), None)
+    if zero is None or best is None:
+        return None
+    return (
+        f"beside the declared uniform field, {best['title']} lowers the error of the fit of the positions by "
+        f"{100 * (1 - best['heldout_ratio']):.0f}% (χ²/N {zero['heldout_mse']:.2f} → {best['heldout_mse']:.2f}, "
+        f"ΔIC = {best['delta_ic']:.1f})"
+    )
+
+
+def declared_field_verdict(law: dict) -> tuple[str, float, str]:
+    """(status, confidence, reason) when the conservative force is declared uniform: the law table (the uniform
+    field as its only base, each trajectory one window, in-sample IC) decides, as a single line of evidence
+    (confidence LAW_DETECT_CONFIDENCE).
+
+    - "detected": the best law (claimed or leading a tie) beats the field alone by ΔIC ≤ LAW_DETECT_DIC, lowers the
+      error by ≥ LAW_EFFECT_MIN and fits to the noise (χ²/N ≤ FIELD_FIT_MSE);
+    - "none": the field alone fits to the noise and no law beats it by ΔIC ≤ LAW_DETECT_DIC;
+    - "inconclusive" otherwise: the field does not explain the record even with the best law (so the declaration
+      or the candidate laws are wrong), or a law helps but not decisively."""
+    rows = law.get("candidates") or []
+    zero = next((r for r in rows if r["law"] == "none"), None)
+    if zero is None or not rows or rows[0].get("method") != "trajectory":
+        return (
+            "inconclusive",
+            1.0,
+            (
+                "the field was declared uniform, but no fit of the positions beside it could be made "
+                f"({law.get('reason') or 'no law table'}); the verdict rests on that fit"
+            ),
+        )
+    w = law.get("law")
+    z_mse = zero["heldout_mse"]
+    base = f"the uniform field alone leaves χ²/N = {z_mse:.2f} (1: it fits to the noise)"
+    along = (law.get("_field") or {}).get("against_velocity")
+    caveat = (
+        "; this rests on the declared uniform field: along an arc that does not return a field that varies over it "
+        "could also explain the record"
+    )
+    if w is not None:
+        cut = 1 - w["heldout_ratio"]
+        say = (
+            f"{w['title']} lowers the error of the fit of the positions by {100 * cut:.0f}% (ΔIC = "
+            f"{w['delta_ic']:.1f} against no law) to χ²/N = {w['heldout_mse']:.2f}"
+        )
+        decisive = w["delta_ic"] <= LAW_DETECT_DIC and cut >= LAW_EFFECT_MIN and w["heldout_mse"] <= FIELD_FIT_MSE
+        if decisive and along is not None and along < DRAG_ALONG_MIN:
+            return (
+                "inconclusive",
+                1.0,
+                (
+                    f"beside the declared uniform field {say}, but that force is no drag: only {100 * along:.0f}% of it "
+                    f"opposes the velocity (a drag: 100%, decisive at ≥ {100 * DRAG_ALONG_MIN:.0f}%). A field that "
+                    "varies over the record leaves such a remainder beside a uniform one, and so would a lift or a "
+                    "thrust; one arc cannot tell them apart — check that the field is uniform over the record"
+                ),
+            )
+        if decisive:
+            return (
+                "detected",
+                LAW_DETECT_CONFIDENCE,
+                (
+                    f"beside the declared uniform field the motion needs a non-conservative force: {say}, where {base}"
+                    + caveat
+                ),
+            )
+        if w["heldout_mse"] > FIELD_FIT_MSE:
+            return (
+                "inconclusive",
+                1.0,
+                (
+                    f"the declared uniform field does not explain the record even with the best law ({say}, above "
+                    f"{FIELD_FIT_MSE:g}): the field is not uniform, or a force acts that no candidate law has"
+                ),
+            )
+        if w["delta_ic"] <= LAW_DETECT_DIC / 2 or z_mse > FIELD_FIT_MSE:
+            return (
+                "inconclusive",
+                1.0,
+                f"beside the declared uniform field a law helps, but not decisively: {say}, where {base}",
+            )
+    best = min((r["delta_ic"] for r in rows if r["law"] != "none"), default=float("nan"))
+    if w is None and best <= LAW_DETECT_DIC:
+        return (
+            "inconclusive",
+            1.0,
+            (
+                f"beside the declared uniform field a candidate law beats the field alone (ΔIC = {best:.1f}) but none has "
+                f"every term significant, where {base}"
+            ),
+        )
+    if z_mse <= FIELD_FIT_MSE:
+        return (
+            "none",
+            LAW_DETECT_CONFIDENCE,
+            (
+                f"the declared uniform field alone explains the motion: {base}, and no candidate law beats it "
+                f"(best ΔIC = {best:.1f}, decisive at ≤ {LAW_DETECT_DIC:g}); this rests on the declared uniform field: "
+                "along an arc that does not return a field that varies over it could hide a drag"
+            ),
+        )
+    return (
+        "inconclusive",
+        1.0,
+        (
+            f"the declared uniform field does not explain the record ({base}, above {FIELD_FIT_MSE:g}) and no candidate "
+            "law does: the field is not uniform, or a force acts that no candidate law has"
+        ),
+    )
+
+
+def withhold(law: dict, status: str, why: str | None = None) -> None:
+    """No law is claimed unless the verdict is "detected": the table's law becomes ``candidate_law``."""
+    if status == "detected":
+        return
+    if law.get("law") is None:
+        if why:
+            law["reason"] = why
+        return
+    law["candidate_law"] = law["law"]
+    law["law"], law["status"], law["ties"] = None, "none", []
+    law["reason"] = why or (
+        f"the verdict is {status!r}, so no law is claimed (the best candidate, {law['candidate_law']['title']}, "
+        f"would beat zero: {law.get('reason', '')})"
+    )

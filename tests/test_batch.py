@@ -110,7 +110,7 @@ def test_detect_seeds_on_two_workers_same_report(tmp_path):
     for w in ("1", "2"):
         assert main(["detect", str(path), "--out", str(tmp_path / w), "--workers", w, *args]) == 0
         reps[w] = json.loads((tmp_path / w / "report.json").read_text())
-    assert reps["1"]["settings"]["n_seeds"] == 2
+    assert reps["1"]["settings"]["n_seeds"] == 2 and reps["1"]["settings"]["law_fit"] == "pointwise"  # as set
     for k in ("status", "confidence", "statistic", "effect", "table"):
         assert reps["1"][k] == reps["2"][k], k
     timeless = [{k: v for k, v in r["checks"].items() if k != "wall_time_s"} for r in reps.values()]

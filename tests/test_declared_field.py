@@ -164,7 +164,7 @@ def test_bad_field_settings_are_refused_with_what_is_expected():
     check_field("uniform", "trajectory")
     with pytest.raises(ValueError, match="field must be one of 'learned', 'uniform', got 'gravity'"):
         check_field("gravity")
-    with pytest.raises(ValueError, match="law_level must be 'auto' or 'trajectory'"):
+    with pytest.raises(ValueError, match="law_fit must be 'auto' or 'trajectory'"):
         check_field("uniform", "pointwise")
 
 
@@ -305,4 +305,4 @@ def test_the_cli_refuses_a_declared_uniform_field_on_an_oscillation_in_one_line(
     assert not (tmp_path / "o").exists()  # nothing half-written
     assert main(["detect", str(path), "--field", "gravity", "--out", str(tmp_path / "o")]) == 2
     assert main(["detect", str(path), "--field", "uniform", "--law-fit", "pointwise"]) == 2
-    assert "law_level must be 'auto' or 'trajectory'" in capsys.readouterr().err
+    assert "law_fit must be 'auto' or 'trajectory'" in capsys.readouterr().err

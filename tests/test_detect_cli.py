@@ -70,6 +70,7 @@ def test_bad_angle_and_options(tmp_path, capsys):
         (["--angles", "theta"], "angle 'theta' is not a coordinate"),
         (["--steps", "x"], "Invalid value for '--steps'"),
         (["--repeats", "0"], "--repeats"),
+        (["--n-seeds", "0"], "Invalid value for '--n-seeds' / '--repeats'"),  # one setting, NNPhD(n_seeds=…)
         (["--angles", "x,"], "--angles must be comma-separated"),
         (["--width", "1"], "Invalid value for '--width': Input should be greater than or equal to 2"),
         (["--lambdas", "0.1,0.5"], "values both below and above 1"),

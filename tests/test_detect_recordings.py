@@ -14,7 +14,7 @@ from nnphd.user.detect import detect_file  # noqa: E402
 from tests.fixtures.recordings import make  # noqa: E402
 
 SMALL = dict(
-    steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1, law_level="pointwise"
+    steps=300, n_seeds=1, sr_time=0, width=32, lambdas=(0.1, 0.5, 2.0, 5.0), long_factor=1, law_fit="pointwise"
 )  # the trajectory-level law ranking is tested in tests/test_laws.py
 
 

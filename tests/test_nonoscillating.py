@@ -153,7 +153,7 @@ def test_no_conservation_is_claimed_from_a_path_that_does_not_return():
 # the whole pipeline on the recordings
 
 
-RUN = dict(seed=0, sr_time=0, n_seeds=1, steps=300, law_level="pointwise")
+RUN = dict(seed=0, sr_time=0, n_seeds=1, steps=300, law_fit="pointwise")
 
 
 @pytest.fixture(scope="module")

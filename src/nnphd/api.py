@@ -200,7 +200,7 @@ class NNPhD:
                 progress=progress,
                 trim=self.trim,
                 laws=self.laws,
-                law_level=self.law_fit,
+                law_fit=self.law_fit,
                 field=self.field,
                 **self.assess_kw,
             )

@@ -39,8 +39,13 @@ def detect(
     steps: int = typer.Option(
         1000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (and per extra round of the checks)"
     ),
-    repeats: int = typer.Option(
-        2, "--repeats", min=1, help="repeated seeds (other initialisation and held-out trajectories)"
+    n_seeds: int = typer.Option(
+        2,
+        "--n-seeds",
+        "--repeats",
+        min=1,
+        help="how many seeds (other initialisation and held-out trajectories; NNPhD(n_seeds=…); --repeats is "
+        "its old name)",
     ),
     sr_time: int = typer.Option(
         10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"
@@ -52,7 +57,7 @@ def detect(
         "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
         "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)",
     ),
-    law_level: LawLevel = typer.Option(
+    law_fit: LawLevel = typer.Option(
         LawLevel.auto,
         "--law-fit",
         help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
@@ -95,7 +100,7 @@ def detect(
         trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
         from nnphd.user.detect import check_field
 
-        check_field(field.value, law_level.value)
+        check_field(field.value, law_fit.value)
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
@@ -116,10 +121,10 @@ def detect(
     settings = dict(
         seed=seed,
         steps=steps,
-        n_seeds=repeats,
+        n_seeds=n_seeds,
         sr_time=sr_time,
         laws=tuple(law or ()),
-        law_level=law_level.value,
+        law_fit=law_fit.value,
         field=field.value,
         trim=trim_v,
         **extra,

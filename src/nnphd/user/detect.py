@@ -39,14 +39,14 @@ def detect_file(
 ) -> dict:
     """Load ``path``, assess it, find the law of f_n; write report.json / report.html / PNGs to ``out`` if given.
 
-    ``settings`` as :func:`detect_data` (seed, steps, sr_time, n_seeds, trim, laws, law_level and the keywords of
+    ``settings`` as :func:`detect_data` (seed, steps, sr_time, n_seeds, trim, laws, law_fit and the keywords of
     :func:`nnphd.user.assess.assess`); the law level is checked before the file is read.  ``max_rows``: the row
     limit of :func:`nnphd.user.recording.load_trajectories`.
     """
     from nnphd.user.recording import load_trajectories
 
-    _check_law_level(settings.get("law_level", "auto"))
-    check_field(settings.get("field", "learned"), settings.get("law_level", "auto"))
+    _check_law_fit(settings.get("law_fit", "auto"))
+    check_field(settings.get("field", "learned"), settings.get("law_fit", "auto"))
     if progress is not None:
         progress(0, 1, "reading the file")
     t0 = time.perf_counter()
@@ -54,9 +54,9 @@ def detect_file(
     return detect_data(ud, out, progress=progress, read_s=time.perf_counter() - t0, **settings)[0]
 
 
-def _check_law_level(law_level: str) -> None:
-    if law_level not in ("auto", "pointwise", "trajectory"):
-        raise ValueError(f"law_level must be 'auto', 'pointwise' or 'trajectory', got {law_level!r}")
+def _check_law_fit(law_fit: str) -> None:
+    if law_fit not in ("auto", "pointwise", "trajectory"):
+        raise ValueError(f"law_fit must be 'auto', 'pointwise' or 'trajectory', got {law_fit!r}")
 
 
 # the conservative force the user declares: learned by the LNN (any conservative force, the default), or a uniform
@@ -71,12 +71,12 @@ FIELDS = {
 }
 
 
-def check_field(field: str, law_level: str = "auto") -> None:
+def check_field(field: str, law_fit: str = "auto") -> None:
     if field not in FIELDS:
         raise ValueError(f"field must be one of {', '.join(map(repr, FIELDS))}, got {field!r}")
-    if field == "uniform" and law_level == "pointwise":
+    if field == "uniform" and law_fit == "pointwise":
         raise ValueError(
-            "a declared uniform field is judged by a fit of the positions: law_level must be 'auto' or 'trajectory', "
+            "a declared uniform field is judged by a fit of the positions: law_fit must be 'auto' or 'trajectory', "
             "got 'pointwise'"
         )
 
@@ -110,7 +110,7 @@ def detect_data(
     progress: Progress | None = None,
     trim: bool | str = "auto",
     laws: Sequence[str] = (),
-    law_level: str = "auto",
+    law_fit: str = "auto",
     field: str = "learned",
     workers: int | None = 1,
     scheduler: str | None = None,
@@ -137,8 +137,8 @@ def detect_data(
         done[:] = [d, total]
         say(f"training: {message}")
 
-    _check_law_level(law_level)
-    check_field(field, law_level)
+    _check_law_fit(law_fit)
+    check_field(field, law_fit)
     for x in laws:  # fail on a bad --law before any work
         parse_law(x, ud.coords)
     timer = StageTimer()
@@ -167,8 +167,8 @@ def detect_data(
             )
         coords = list(ud.coords)
         fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
-        law, law_fit = _law_table(
-            res, data, traj, coords, ud, info, row_err, laws, law_level, seed, lambda d, t, m: say(m), field, timer
+        law, law_row = _law_table(
+            res, data, traj, coords, ud, info, row_err, laws, law_fit, seed, lambda d, t, m: say(m), field, timer
         )
         status, new_physics, confidence, reasons = reconcile(res, law, field)
         declared = law.pop("_field", None) or {}
@@ -211,6 +211,7 @@ def detect_data(
                 "seed": seed,
                 "steps": steps,
                 "n_seeds": n_seeds,
+                "law_fit": law_fit,
                 "sr_time_per_component_s": sr_time,
                 "trim": trim,
                 "field": field,
@@ -230,7 +231,7 @@ def detect_data(
             stamp()
     model = {
         "conservative": res.get("_conservative"),
-        "law": law_fit if law.get("law") else None,
+        "law": law_row if law.get("law") else None,
         "data": data,
         "traj": traj,
         "coords": coords,

@@ -289,6 +289,9 @@ def test_the_model_of_a_declared_field_predicts_with_it_and_survives_save_and_lo
     meta = json.loads(str(np.load(path)["meta"]))
     assert meta["field"]["law"] == "quadratic" and meta["settings"]["field"] == "uniform"
     html = (m.report(tmp_path / "rep") / "report.html").read_text()
+    back = nnphd.read_report(tmp_path / "rep" / "report.json")  # the report file, typed again
+    assert back.status == m.status_ == "detected" and back.law.key == m.law_.key == "quadratic"
+    assert back.field["g"] == m.report_["field"]["g"] and back.timings["stages"]
     assert "<b>Conservative force:</b> declared uniform" in html and "fitted beside quadratic" in html
     assert "declared uniform field f_c" in str(m.figures()["forces"].axes[0].get_title())
 

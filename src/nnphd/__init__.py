@@ -25,11 +25,23 @@ from nnphd._config import default_compile_cache as default_compile_cache
 
 __version__ = "0.1.0"
 
-__all__ = ["Law", "NNPhD", "Trajectories", "Verdict", "__version__", "configure", "load"]
+__all__ = [
+    "DetectResult",
+    "Law",
+    "NNPhD",
+    "Status",
+    "Trajectories",
+    "Verdict",
+    "__version__",
+    "configure",
+    "load",
+    "read_report",
+]
+_API = ("DetectResult", "Law", "NNPhD", "Status", "Trajectories", "Verdict", "load", "read_report")
 
 
 def __getattr__(name: str):  # the API loads on first use, so `import nnphd` stays light and inert
-    if name in ("Law", "NNPhD", "Trajectories", "Verdict", "load"):
+    if name in _API:
         from nnphd import api
 
         return getattr(api, name)

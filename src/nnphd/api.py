@@ -19,6 +19,7 @@ import json
 import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
+from enum import StrEnum
 from pathlib import Path
 from typing import Any
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from nnphd.io.progress import Progress
 
-__all__ = ["Law", "NNPhD", "Trajectories", "Verdict", "load"]
+__all__ = ["DetectResult", "Law", "NNPhD", "Status", "Trajectories", "Verdict", "load", "read_report"]
 
 
 def _x64():
@@ -105,12 +106,21 @@ class Trajectories:
         )
 
 
+class Status(StrEnum):
+    """The verdict's status. A str: ``Status.DETECTED == "detected"``, and it is written to JSON as the plain word."""
+
+    DETECTED = "detected"  # a non-conservative force (or an explicit time dependence) is there
+    NONE = "none"  # the motion is conservative within what the record can tell
+    INCONCLUSIVE = "inconclusive"  # the record cannot decide; the reasons say why
+
+
 @dataclass(frozen=True)
 class Verdict:
-    """Is there new physics? ``status`` "detected" / "none" / "inconclusive"; ``confidence`` the repeatability of
-    the call (docs/RESULTS.md, "Can you trust the verdict?"); ``reasons`` why; ``statistic`` the energy-trend z."""
+    """Is there new physics? ``status`` (:class:`Status`); ``new_physics`` the best call (True with
+    "inconclusive" when the evidence leans that way); ``confidence`` the repeatability of the call (docs/RESULTS.md,
+    "Can you trust the verdict?"); ``reasons`` why; ``statistic`` the energy-trend z."""
 
-    status: str
+    status: Status
     new_physics: bool
     confidence: float
     reasons: tuple[str, ...]
@@ -141,6 +151,142 @@ class Law:
         return asdict(self)
 
 
+MAX_REPORT_BYTES = 256 * 2**20  # a report.json larger than this is refused unread
+
+
+def _report_error(where: str, what: str) -> ValueError:
+    return ValueError(f"{where}: {what}")
+
+
+def _verdict_of(report: dict, where: str = "report") -> Verdict:
+    """The report's verdict, checked: a report read from a file is untrusted."""
+    try:
+        status = Status(report.get("status"))
+    except ValueError:
+        raise _report_error(
+            where, f"status must be one of {', '.join(repr(s.value) for s in Status)}, got {report.get('status')!r:.60}"
+        ) from None
+    conf = report.get("confidence")
+    if isinstance(conf, bool) or not isinstance(conf, (int, float)) or not 0.0 <= conf <= 1.0:
+        raise _report_error(where, f"confidence must be a number in [0, 1], got {conf!r:.60}")
+    reasons = report.get("reasons", [])
+    if not isinstance(reasons, list) or not all(isinstance(r, str) for r in reasons):
+        raise _report_error(where, "reasons must be a list of strings")
+    stat = (report.get("statistic") or {}).get("value") if isinstance(report.get("statistic"), dict) else None
+    if stat is not None and (isinstance(stat, bool) or not isinstance(stat, (int, float))):
+        raise _report_error(where, f"statistic.value must be a number or null, got {stat!r:.60}")
+    return Verdict(status, bool(report.get("new_physics")), float(conf), tuple(reasons), stat)
+
+
+_LAW_KEYS = {"law": str, "title": str, "formula": dict, "latex": dict, "params": dict, "stderr": dict, "method": str}
+
+
+def _law_of(report: dict, where: str = "report") -> Law | None:
+    """The claimed law of a report (None without one), checked as :func:`_verdict_of`."""
+    table = report.get("law") or {}
+    if not isinstance(table, dict):
+        raise _report_error(where, "law must be an object")
+    w = table.get("law")
+    if not w:
+        return None
+    if not isinstance(w, dict):
+        raise _report_error(where, "law.law must be an object")
+    for k, typ in _LAW_KEYS.items():
+        if not isinstance(w.get(k), typ):
+            raise _report_error(where, f"law.law.{k} must be a {typ.__name__}")
+    cands, ties = table.get("candidates", []), table.get("ties", [])
+    if not isinstance(cands, list) or not isinstance(ties, list):
+        raise _report_error(where, "law.candidates and law.ties must be lists")
+    return Law(
+        w["law"],
+        w["title"],
+        w["formula"],
+        w["latex"],
+        w["params"],
+        w["stderr"],
+        w["method"],
+        tuple(cands),
+        status=str(table.get("status", "claimed")),
+        ties=tuple(ties),
+    )
+
+
+@dataclass(frozen=True)
+class DetectResult:
+    """What ``nnphd detect`` / :meth:`NNPhD.fit` found, typed: the :class:`Verdict`, the effect size in words, the
+    evidence, the claimed :class:`Law` (None unless "detected" with a law), how the law table ended (``law_status``
+    "claimed" / "tie" / "none", ``law_reason``), the per-stage ``timings``, data ``warnings``, the conservative
+    ``field`` and the ``settings``. ``report`` is the JSON as written (report.json); :meth:`to_dict` returns it
+    and :meth:`from_dict` / :func:`read_report` check it back."""
+
+    verdict: Verdict
+    effect: str | None
+    evidence: dict
+    law: Law | None
+    law_status: str
+    law_reason: str
+    timings: dict
+    warnings: tuple[str, ...]
+    field: dict
+    settings: dict
+    report: dict = field(repr=False, compare=False)
+
+    @property
+    def status(self) -> Status:
+        return self.verdict.status
+
+    @classmethod
+    def from_dict(cls, report: dict, where: str = "report") -> DetectResult:
+        """From a report dict (report.json's content); ValueError with one line when it is not one."""
+        if not isinstance(report, dict):
+            raise _report_error(where, f"expected a JSON object, got {type(report).__name__}")
+        verdict, law = _verdict_of(report, where), _law_of(report, where)
+        effect = report.get("effect")
+        warnings = report.get("warnings", [])
+        if effect is not None and not isinstance(effect, str):
+            raise _report_error(where, "effect must be a string or null")
+        if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+            raise _report_error(where, "warnings must be a list of strings")
+        parts = {k: {} if report.get(k) is None else report[k] for k in ("evidence", "timings", "field", "settings")}
+        for k, v in parts.items():
+            if not isinstance(v, dict):
+                raise _report_error(where, f"{k} must be an object")
+        table = report.get("law") or {}
+        return cls(
+            verdict,
+            effect,
+            parts["evidence"],
+            law,
+            str(table.get("status", "none")),
+            str(table.get("reason", "")),
+            parts["timings"],
+            tuple(warnings),
+            parts["field"],
+            parts["settings"],
+            report,
+        )
+
+    def to_dict(self) -> dict:
+        """The report as written (a deep copy: changing it changes nothing here)."""
+        return json.loads(json.dumps(self.report))
+
+
+def read_report(path) -> DetectResult:
+    """A report.json written by ``nnphd detect`` (or :meth:`NNPhD.report`), read and checked: bounded in size, parsed
+    as JSON only (never executed), its verdict and law checked for type. ValueError with one line naming the path
+    and what is wrong."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_REPORT_BYTES:
+            raise _report_error(str(path), f"{size} bytes, more than a report holds ({MAX_REPORT_BYTES} at most)")
+        with open(path, "rb") as f:
+            report = json.loads(f.read(MAX_REPORT_BYTES + 1).decode("utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        raise _report_error(str(path), f"not a readable report.json ({type(e).__name__}: {str(e)[:120]})") from None
+    return DetectResult.from_dict(report, str(path))
+
+
 class NNPhD:
     """The estimator: ``NNPhD(seed=0).fit(data)`` runs what ``nnphd detect`` runs (derivative estimates, the
     λ-sweep, the trust checks, the ranked candidate laws) and keeps the fitted model.
@@ -154,8 +300,9 @@ class NNPhD:
     the seeds on that many local Dask worker processes (default 1: here; the numbers are the same),
     ``scheduler``: on an existing Dask cluster; further keywords go to :func:`nnphd.user.assess.assess`.
 
-    After ``fit``: ``verdict_`` (:class:`Verdict`), ``status_``, ``confidence_``, ``new_physics_``, ``law_``
-    (:class:`Law` or None), ``report_`` (the JSON-ready report dict), ``names_``, ``angles_``.
+    After ``fit``: ``result_`` (:class:`DetectResult`: everything below, typed), ``verdict_`` (:class:`Verdict`),
+    ``status_`` (:class:`Status`), ``confidence_``, ``new_physics_``, ``law_`` (:class:`Law` or None), ``report_``
+    (the JSON-ready report dict), ``names_``, ``angles_``.
     """
 
     def __init__(
@@ -209,35 +356,13 @@ class NNPhD:
         self._set_results(report, model["law"])
         return self
 
-    def _set_results(self, report: dict, law_fit) -> None:
-        self.verdict_ = Verdict(
-            report["status"],
-            bool(report["new_physics"]),
-            float(report["confidence"]),
-            tuple(report["reasons"]),
-            (report.get("statistic") or {}).get("value"),
-        )
+    def _set_results(self, report: dict, law_fit, where: str = "report") -> None:
+        self.result_ = DetectResult.from_dict(report, where)
+        self.verdict_, self.law_ = self.result_.verdict, self.result_.law
         self.status_, self.confidence_, self.new_physics_ = (
             self.verdict_.status,
             self.verdict_.confidence,
             self.verdict_.new_physics,
-        )
-        w = (report.get("law") or {}).get("law")
-        self.law_ = (
-            None
-            if not w
-            else Law(
-                w["law"],
-                w["title"],
-                w["formula"],
-                w["latex"],
-                w["params"],
-                w["stderr"],
-                w["method"],
-                tuple(report["law"].get("candidates", ())),
-                status=report["law"].get("status", "claimed"),
-                ties=tuple(report["law"].get("ties", ())),
-            )
         )
         self._law = law_fit
         self._fc_jit = None  # compiled f_c of the model now held (a refit replaces it)
@@ -485,5 +610,5 @@ def load(path) -> NNPhD:
         "field": meta.get("field"),
     }
     model.report_ = meta["report"]
-    model._set_results(meta["report"], law)
+    model._set_results(meta["report"], law, f"{path}: report")
     return model

@@ -48,7 +48,7 @@ from nnphd.engine.train import (
     sweep_point,
     validate_lambdas,
 )
-from nnphd.engine.verdict import Verdict, force_norm, verdict
+from nnphd.engine.verdict import PhaseTransition, force_norm, verdict
 from nnphd.io.progress import Progress
 
 FIRST_LAMBDAS: tuple[float, ...] = (0.1, 0.5, 2.0, 10.0)
@@ -158,7 +158,7 @@ def first_lambdas(pool: Sequence[float]) -> tuple[float, ...]:
     return tuple(sorted(chosen))
 
 
-def undecided(v: Verdict, points: Sequence[SweepPoint]) -> list[str]:
+def undecided(v: PhaseTransition, points: Sequence[SweepPoint]) -> list[str]:
     """Why the verdict on ``points`` is not yet safe to report (empty when it is)."""
     why = []
     if v.min_ratio / 3 <= v.ratio < 2 * v.min_ratio:

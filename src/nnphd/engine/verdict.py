@@ -31,7 +31,11 @@ MIN_RELATIVE_SIZE = 1e-4
 
 
 @dataclass
-class Verdict:
+class PhaseTransition:
+    """The paper's verdict from a λ-sweep: does the held-out error L_e jump across λ = 1 (``ratio`` of the medians
+    above and below, at least ``min_ratio``), by a remainder large enough to matter (``relative_size``)? The user's
+    verdict on a recording is :class:`nnphd.api.Verdict`."""
+
     new_physics: bool
     ratio: float
     jump: float
@@ -63,7 +67,7 @@ def verdict(
     force_norm: float,
     min_ratio: float = MIN_RATIO,
     min_relative_size: float = MIN_RELATIVE_SIZE,
-) -> Verdict:
+) -> PhaseTransition:
     """Verdict from a λ-sweep. ``force_norm`` is ‖f‖ of the evaluation labels in the same norm as L_e."""
     below = _first_not_none(_median(points, 0.05, 1.0), _median(points, 0.0, 1.0))
     above = _median(points, 1.0 + 1e-12, np.inf)
@@ -86,7 +90,7 @@ def verdict(
             f"L_e grows x{ratio:.1f} across λ=1 but the remainder is only {100 * rel:.2f}% of the force "
             f"(< {100 * min_relative_size:g}%): within the conservative model's accuracy"
         )
-    return Verdict(
+    return PhaseTransition(
         new_physics=is_new,
         ratio=float(ratio),
         jump=float(above - below),

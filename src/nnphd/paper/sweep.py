@@ -18,7 +18,7 @@ from nnphd.engine.data import Dataset, train_test
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.systems import System, get_system
 from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
-from nnphd.engine.verdict import Verdict, force_norm, verdict
+from nnphd.engine.verdict import PhaseTransition, force_norm, verdict
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
@@ -81,7 +81,7 @@ class SystemSweep:
 
     plan: SweepPlan
     points: list[SweepPoint]
-    verdict: Verdict
+    verdict: PhaseTransition
     wall_time_s: float
     resumed: list[float]
     protocol: dict | None = None  # mode "fast": what it trained (FastInfo.to_dict)

@@ -248,12 +248,12 @@ def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
     listener does not see, is added to the training stage (compile seconds are then summed over processes, and
     workers run side by side: they can exceed the stage's wall time)."""
     elsewhere = sum(p.get("compile_s", 0.0) for p in per_seed if p.get("where", "in-process") != "in-process")
-    for st in tm["stages"]:
-        if st["stage"] == "training and trust checks":
-            st["compile_s"] += elsewhere
-    tm["compile_s"] += elsewhere
-    tm["note"] += "; the seeds' compilation on worker processes is added to the training stage, summed over them"
-    return tm | {"per_seed": per_seed}
+    stages = [
+        st | {"compile_s": st["compile_s"] + elsewhere} if st["stage"] == "training and trust checks" else dict(st)
+        for st in tm["stages"]
+    ]
+    note = tm["note"] + "; the seeds' compilation on worker processes is added to the training stage, summed over them"
+    return tm | {"stages": stages, "compile_s": tm["compile_s"] + elsewhere, "note": note, "per_seed": per_seed}
 
 
 def _prepared(ud, trim):

@@ -57,3 +57,24 @@ def test_the_readme_is_a_five_minute_read():
     lines = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read().splitlines()
     assert len(lines) <= 150
     assert lines[0].startswith("# nnphd")
+
+
+def _json(name):
+    import json
+
+    with open(os.path.join(ROOT, "benchmarks", "results", name)) as f:
+        return json.load(f)
+
+
+def test_the_readmes_time_and_scale_out_numbers_are_those_of_the_json():
+    import statistics
+
+    text = " ".join(open(os.path.join(ROOT, "README.md"), encoding="utf-8").read().split())
+    m = re.search(r"takes (\d+)–(\d+) s a file warm \(median (\d+);", text)
+    warm = [r["warm"]["total_s"] for r in _json("stage_times.json")]
+    assert m and [int(x) for x in m.groups()] == [round(min(warm)), round(max(warm)), round(statistics.median(warm))]
+    m = re.search(r"a batch of (\d+) files simulated on (\d+) workers at efficiency (\d\.\d+)", text)
+    sets = _json("cluster_scaling.json")["sets"]
+    batch = next(s for k, s in sets.items() if k.endswith(f"= {m.group(1)} files"))
+    row = next(r for r in batch["rows"] if r["workers"] == int(m.group(2)))
+    assert f"{row['efficiency']:.2f}" == m.group(3)

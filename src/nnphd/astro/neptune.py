@@ -158,18 +158,10 @@ def run_neptune_demo(
     :class:`nnphd.astro.ephemeris.EphemerisUnavailable` when the ephemeris packages are missing.
     """
     from nnphd.astro import ephemeris as E
-    from nnphd.explain.parametric import fit_perturber
 
     say = Stages(progress, len(set(lambdas)) + 4 + (out is not None))
     t0 = time.perf_counter()
-    lams = sorted({float(x) for x in lambdas})
-    if explain_lambda not in lams or not explain_lambda < 1:
-        raise ValueError(f"lambdas must contain explain_lambda = {explain_lambda:g} (< 1); got {lams}")
-    if not any(x > 1 for x in lams):
-        raise ValueError("lambdas must contain values above 1 (the verdict reads L_e across λ = 1)")
-    if int(steps) != steps or steps < len(PAPER_LRS):
-        raise ValueError(f"steps must be an integer ≥ {len(PAPER_LRS)}, got {steps!r}")
-    steps = int(steps)
+    lams, steps = _checked_settings(lambdas, explain_lambda, steps)
 
     say("neptune: reading Uranus from DE405")
     ud = E.uranus_dataset(start_year, stop_year, step_days, ndim=2, kepler=True)
@@ -186,6 +178,62 @@ def run_neptune_demo(
 
     # 2. NNPhD over the λ-grid (every λ from the same initialisation and minibatches)
     say(f"neptune: NNPhD at {len(lams)} λ ({steps} steps each)")
+    fits, points, table = _nnphd_sweep(data, fl, lams, steps, seed, cfg, c_ls, coef_scale, scale, say)
+
+    # 3. verdict
+    v = verdict(points, fnorm, MIN_RATIO, DEMO_MIN_RELATIVE_SIZE)
+    v_default = verdict(points, fnorm)
+
+    # 4. parametric explanation of the learned f_n
+    say("neptune: explaining the learned f_n (circular-orbit perturber)")
+    cf = fits[explain_lambda]
+    kepler, pf, fit, stderr = _explain_fn(data, cf, L, T)
+
+    # 5. score against the ephemeris (truth used only from here on)
+    say("neptune: scoring against the ephemeris")
+    truth, err, goals, res_eph, direct, (galle_fit, galle_true) = _score(ud, fit, reference)
+
+    result = {
+        "demo": "neptune",
+        "description": "Neptune located by NNPhD from Uranus' real orbit (JPL DE405, 2-D ecliptic projection); "
+        "constrained Kepler Lagrangian + UAN, p = 1; perturber fitted to the learned f_n",
+        **_verdict_sections(v, v_default),
+        "sweep_table": table,
+        "learned_lagrangian": _learned_lagrangian_section(fl, explain_lambda, cf, kepler, c_ls),
+        "learned_fn": {"rms": _rms(cf.fn), "remainder_scale": scale, "units": "GM_sun/L², L = 19.2 AU"},
+        "fit": _fit_section(pf, fit, stderr, galle_fit),
+        "truth": _truth_section(truth, galle_true),
+        "errors": err,
+        "goals": goals,
+        "all_goals_met": bool(all(g["met"] for g in goals.values())),
+        "diagnostics": _diagnostics_section(cf, ud, rem_ls, direct),
+        "settings": _settings_section(seed, steps, lams, explain_lambda, cfg, step_days, ud, scale, coef_scale, c_ls),
+        "wall_time_s": None,
+    }
+    if out is not None:
+        say("neptune: writing results")
+        write_neptune_demo(result, out, _FigureData(ud, cf.fn, fit, res_eph), t0=t0)
+    else:
+        result["wall_time_s"] = time.perf_counter() - t0
+    return result
+
+
+# ---------------------------------------------------------------------------------------------------- its stages
+def _checked_settings(lambdas: Sequence[float], explain_lambda: float, steps) -> tuple[list[float], int]:
+    """Check the λ-grid and the number of steps; returns (the sorted distinct λ, steps as an int)."""
+    lams = sorted({float(x) for x in lambdas})
+    if explain_lambda not in lams or not explain_lambda < 1:
+        raise ValueError(f"lambdas must contain explain_lambda = {explain_lambda:g} (< 1); got {lams}")
+    if not any(x > 1 for x in lams):
+        raise ValueError("lambdas must contain values above 1 (the verdict reads L_e across λ = 1)")
+    if int(steps) != steps or steps < len(PAPER_LRS):
+        raise ValueError(f"steps must be an integer ≥ {len(PAPER_LRS)}, got {steps!r}")
+    return lams, int(steps)
+
+
+def _nnphd_sweep(data, fl, lams, steps, seed, cfg, c_ls, coef_scale, scale, say) -> tuple[dict, list, list]:
+    """Stage 2: train the constrained Kepler Lagrangian jointly with the UAN at every λ (one "scratch" sweep, every λ
+    from the same initialisation and minibatches). Returns (the fits by λ, the sweep points, the sweep table)."""
     cm = constrained_model(
         data, fl, steps=steps, seed=seed, p=1.0, cfg=cfg, c_init=c_ls, coef_scale=coef_scale, uan_scale=scale
     )
@@ -213,14 +261,16 @@ def run_neptune_demo(
                 "gm_sun_y_minus_1": gy - 1.0,
             }
         )
+    return fits, points, table
 
-    # 3. verdict
-    v = verdict(points, fnorm, MIN_RATIO, DEMO_MIN_RELATIVE_SIZE)
-    v_default = verdict(points, fnorm)
 
-    # 4. parametric explanation of the learned f_n
-    say("neptune: explaining the learned f_n (circular-orbit perturber)")
-    cf = fits[explain_lambda]
+def _explain_fn(data, cf, L: float, T: float) -> tuple:
+    """Stage 4: fit a point mass on a circular orbit to the learned f_n (started from the learned Sun) and convert it
+    to physical units. Returns ((GM_sun x, y, mean) of the learned Lagrangian, the perturber fit in model units, the
+    :class:`~nnphd.astro.ephemeris.PerturberFit`, the standard errors in physical units)."""
+    from nnphd.astro import ephemeris as E
+    from nnphd.explain.parametric import fit_perturber
+
     gx, gy, g_sun = _kepler_gm(cf.coefs)
     pf = fit_perturber(data.q, data.t, cf.fn, gm_central=g_sun)
     p, se = pf.params, pf.stderr
@@ -249,34 +299,44 @@ def run_neptune_demo(
         "period_yr": period_yr * se["omega"] / w,
         "longitude_deg": float(np.rad2deg(se["phi"])),
     }
+    return (gx, gy, g_sun), pf, fit, stderr
 
-    # 5. score against the ephemeris (truth used only from here on)
-    say("neptune: scoring against the ephemeris")
+
+def _score(ud, fit, reference: bool) -> tuple:
+    """Stage 5: compare the fit with the ephemeris' Neptune (the truth enters only here). Returns (truth, errors,
+    goal rows, the ephemeris residual of Uranus, the direct fit of that residual or None, (fitted, true) longitude
+    on 1846-09-23)."""
+    from nnphd.astro import ephemeris as E
+
     truth = E.neptune_truth()
     err = E.compare(fit, truth)
     goals = _goal_rows(err)
     res_eph = E.uranus_residual(ud.jd)
-    if reference:
-        ref = E.fit_neptune(res_eph, ndim=2)
-        direct = {
-            "gm_ratio": ref.gm_ratio,
-            "radius_au": ref.radius_au,
-            "period_yr": ref.period_yr,
-            "longitude_j2000_deg": ref.longitude_deg,
-            "errors": E.compare(ref, truth),
-            "what": "nnphd.astro.ephemeris.fit_neptune on the ephemeris residual itself (ground-truth pipeline, "
-            "not NNPhD)",
-        }
-    else:
-        direct = None
-    a_res = ud.a_res
+    direct = _direct_fit(res_eph, truth) if reference else None
     galle_true = _longitude_deg(E.state("neptune", [GALLE_JD])[0][0])
     galle_fit = float(fit.longitude([GALLE_JD])[0])
+    return truth, err, goals, res_eph, direct, (galle_fit, galle_true)
 
-    result = {
-        "demo": "neptune",
-        "description": "Neptune located by NNPhD from Uranus' real orbit (JPL DE405, 2-D ecliptic projection); "
-        "constrained Kepler Lagrangian + UAN, p = 1; perturber fitted to the learned f_n",
+
+def _direct_fit(res_eph, truth) -> dict:
+    """The ground-truth pipeline, for reference: the perturber fitted directly to the ephemeris residual."""
+    from nnphd.astro import ephemeris as E
+
+    ref = E.fit_neptune(res_eph, ndim=2)
+    return {
+        "gm_ratio": ref.gm_ratio,
+        "radius_au": ref.radius_au,
+        "period_yr": ref.period_yr,
+        "longitude_j2000_deg": ref.longitude_deg,
+        "errors": E.compare(ref, truth),
+        "what": "nnphd.astro.ephemeris.fit_neptune on the ephemeris residual itself (ground-truth pipeline, not NNPhD)",
+    }
+
+
+# ---------------------------------------------------------------------------------------------------- its result
+def _verdict_sections(v, v_default) -> dict:
+    """The "verdict" (this demo's size floor) and "verdict_default_thresholds" (the library's) entries."""
+    return {
         "verdict": {
             **v.to_dict(),
             "statistic": v.ratio,
@@ -290,87 +350,99 @@ def run_neptune_demo(
             "min_relative_size": v_default.min_relative_size,
             "reason": v_default.reason,
         },
-        "sweep_table": table,
-        "learned_lagrangian": {
-            "terms": list(fl.names),
-            "lambda": explain_lambda,
-            "coefficients": cf.coefs.tolist(),
-            "normalized": fl.normalized(cf.coefs).tolist(),
-            "formula": fl.formula(cf.coefs, digits=9),
-            "gm_sun_x": gx,
-            "gm_sun_y": gy,
-            "gm_sun": g_sun,
-            "L_e": cf.L_e,
-            "L_b": cf.L_b,
-            "least_squares_start": c_ls.tolist(),
-        },
-        "learned_fn": {"rms": _rms(cf.fn), "remainder_scale": scale, "units": "GM_sun/L², L = 19.2 AU"},
-        "fit": {
-            "formula": pf.formula,
-            "rel_rms": pf.rel_rms,
-            "gm_au3_per_day2": fit.gm,
-            "gm_ratio": fit.gm_ratio,
-            "radius_au": fit.radius_au,
-            "period_yr": fit.period_yr,
-            "longitude_j2000_deg": fit.longitude_deg,
-            "stderr": stderr,
-            "stderr_note": "from the Jacobian, residuals taken as independent (they are not: "
-            "the real uncertainty is larger)",
-            "longitude_1846_09_23_deg": galle_fit,
-            "params_model_units": p,
-        },
-        "truth": {
-            "gm_au3_per_day2": truth.gm,
-            "gm_ratio": truth.gm_ratio,
-            "radius_au": truth.radius_au,
-            "period_yr": truth.period_yr,
-            "longitude_j2000_deg": truth.longitude_deg,
-            "mean_longitude_j2000_deg": truth.mean_longitude_deg,
-            "longitude_1846_09_23_deg": galle_true,
-            "source": "nnphd.astro.ephemeris.neptune_truth (DE405)",
-        },
-        "errors": err,
-        "goals": goals,
-        "all_goals_met": bool(all(g["met"] for g in goals.values())),
-        "diagnostics": {
-            "note": "uses the truth; computed after the pipeline",
-            "fn_vs_a_res_correlation": float(np.corrcoef(cf.fn.ravel(), a_res.ravel())[0, 1]),
-            "fn_vs_a_res_rel_rms": _rms(cf.fn - a_res) / _rms(a_res),
-            "least_squares_remainder_vs_a_res_rel_rms": _rms(rem_ls - a_res) / _rms(a_res),
-            "a_res_rms": _rms(a_res),
-            "a_res_over_kepler_rms": _rms(a_res) / _rms(ud.a_kepler),
-            "direct_fit_of_a_res": direct,
-        },
-        "settings": {
-            "seed": seed,
-            "steps_per_lambda": steps,
-            "lambdas": lams,
-            "explain_lambda": explain_lambda,
-            "p": 1.0,
-            "learning_rates": list(PAPER_LRS),
-            "batch_size": 32,
-            "dtype": cfg.dtype,
-            "uan_widths": list(cfg.uan_widths),
-            "step_days": float(step_days),
-            "n_samples": int(len(ud.t)),
-            "years": [float(E.jd_to_year(ud.jd[0])), float(E.jd_to_year(ud.jd[-1]))],
-            "length_unit_au": L,
-            "time_unit_days": T,
-            "uan_scale": scale,
-            "coef_scale": coef_scale.tolist(),
-            "c_init": c_ls.tolist(),
-            "verdict_min_ratio": MIN_RATIO,
-            "verdict_min_relative_size": DEMO_MIN_RELATIVE_SIZE,
-            "library_min_relative_size": MIN_RELATIVE_SIZE,
-        },
-        "wall_time_s": None,
     }
-    if out is not None:
-        say("neptune: writing results")
-        write_neptune_demo(result, out, _FigureData(ud, cf.fn, fit, res_eph), t0=t0)
-    else:
-        result["wall_time_s"] = time.perf_counter() - t0
-    return result
+
+
+def _learned_lagrangian_section(fl, explain_lambda: float, cf, kepler, c_ls) -> dict:
+    """The "learned_lagrangian" entry: the constrained Lagrangian learned at ``explain_lambda`` and its Sun."""
+    gx, gy, g_sun = kepler
+    return {
+        "terms": list(fl.names),
+        "lambda": explain_lambda,
+        "coefficients": cf.coefs.tolist(),
+        "normalized": fl.normalized(cf.coefs).tolist(),
+        "formula": fl.formula(cf.coefs, digits=9),
+        "gm_sun_x": gx,
+        "gm_sun_y": gy,
+        "gm_sun": g_sun,
+        "L_e": cf.L_e,
+        "L_b": cf.L_b,
+        "least_squares_start": c_ls.tolist(),
+    }
+
+
+def _fit_section(pf, fit, stderr: dict, galle_fit: float) -> dict:
+    """The "fit" entry: the perturber fitted to the learned f_n, in physical and model units."""
+    return {
+        "formula": pf.formula,
+        "rel_rms": pf.rel_rms,
+        "gm_au3_per_day2": fit.gm,
+        "gm_ratio": fit.gm_ratio,
+        "radius_au": fit.radius_au,
+        "period_yr": fit.period_yr,
+        "longitude_j2000_deg": fit.longitude_deg,
+        "stderr": stderr,
+        "stderr_note": "from the Jacobian, residuals taken as independent (they are not: "
+        "the real uncertainty is larger)",
+        "longitude_1846_09_23_deg": galle_fit,
+        "params_model_units": pf.params,
+    }
+
+
+def _truth_section(truth, galle_true: float) -> dict:
+    """The "truth" entry: the ephemeris' Neptune."""
+    return {
+        "gm_au3_per_day2": truth.gm,
+        "gm_ratio": truth.gm_ratio,
+        "radius_au": truth.radius_au,
+        "period_yr": truth.period_yr,
+        "longitude_j2000_deg": truth.longitude_deg,
+        "mean_longitude_j2000_deg": truth.mean_longitude_deg,
+        "longitude_1846_09_23_deg": galle_true,
+        "source": "nnphd.astro.ephemeris.neptune_truth (DE405)",
+    }
+
+
+def _diagnostics_section(cf, ud, rem_ls, direct: dict | None) -> dict:
+    """The "diagnostics" entry: the learned f_n and the least-squares remainder against the true a_res."""
+    a_res = ud.a_res
+    return {
+        "note": "uses the truth; computed after the pipeline",
+        "fn_vs_a_res_correlation": float(np.corrcoef(cf.fn.ravel(), a_res.ravel())[0, 1]),
+        "fn_vs_a_res_rel_rms": _rms(cf.fn - a_res) / _rms(a_res),
+        "least_squares_remainder_vs_a_res_rel_rms": _rms(rem_ls - a_res) / _rms(a_res),
+        "a_res_rms": _rms(a_res),
+        "a_res_over_kepler_rms": _rms(a_res) / _rms(ud.a_kepler),
+        "direct_fit_of_a_res": direct,
+    }
+
+
+def _settings_section(seed, steps, lams, explain_lambda, cfg, step_days, ud, scale, coef_scale, c_ls) -> dict:
+    """The "settings" entry: everything the run depended on."""
+    from nnphd.astro import ephemeris as E
+
+    return {
+        "seed": seed,
+        "steps_per_lambda": steps,
+        "lambdas": lams,
+        "explain_lambda": explain_lambda,
+        "p": 1.0,
+        "learning_rates": list(PAPER_LRS),
+        "batch_size": 32,
+        "dtype": cfg.dtype,
+        "uan_widths": list(cfg.uan_widths),
+        "step_days": float(step_days),
+        "n_samples": int(len(ud.t)),
+        "years": [float(E.jd_to_year(ud.jd[0])), float(E.jd_to_year(ud.jd[-1]))],
+        "length_unit_au": ud.length_unit_au,
+        "time_unit_days": ud.time_unit_days,
+        "uan_scale": scale,
+        "coef_scale": coef_scale.tolist(),
+        "c_init": c_ls.tolist(),
+        "verdict_min_ratio": MIN_RATIO,
+        "verdict_min_relative_size": DEMO_MIN_RELATIVE_SIZE,
+        "library_min_relative_size": MIN_RELATIVE_SIZE,
+    }
 
 
 class _FigureData:

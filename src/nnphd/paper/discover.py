@@ -131,57 +131,18 @@ def discover(
     sysm = replace(sysm, n_steps=int(n_steps or sysm.discover_n_steps))
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
-    # the trajectory and its standardisation are made once, for the sweep and the constrained fit
-    plan = plan_sweep(
-        sysm,
-        steps=sweep_steps,
-        seed=seed,
-        standardize=standardize,
-        lambdas=sweep_lambdas,
-        model_cfg=ModelConfig(n=sysm.n, dtype=dtype),
-    )
-    sw = run_sweep(sysm, plan=plan)
+    plan, sw = _detection_sweep(sysm, sweep_steps, seed, standardize, sweep_lambdas, dtype)
     say(f"constrained Lagrangian + UAN at λ = {lam:g}")
     d, cfg = plan.train, plan.cfg  # the trajectory; ModelConfig(n) standardised on it (when standardize)
     fl = FEATURE_SETS[sysm.feature_set]
-    cf = train_constrained(d, fl, lam=lam, steps=steps, seed=seed, cfg=cfg)
-    # the law and the explanations are fitted in float64 on what was trained, whatever the training's precision
-    cf = replace(cf, **{k: np.asarray(getattr(cf, k), np.float64) for k in ("coefs", "fc", "fn")})
+    cf = _constrained_fit(d, fl, lam, steps, seed, cfg)
     say("the law: candidates fitted jointly with the constrained Lagrangian")
     table = joint_laws(sysm, d, fl, cf, seed)
     hyp = next(r for r in table.rows if r.key == sysm.law_family)
-    joint, joint_se = _table2_params(sysm, hyp)
     say("parametric explanation (post hoc, of the UAN's output)")
     fit = _parametric(sysm, d, cf.fn)
-    truth, paper = sysm.truth, PAPER_TABLE2[system]
-    rows = []
-    for key, tv in truth.items():
-        ours = joint[key]
-        goal = sysm.goals[key]
-        rows.append(
-            {
-                "quantity": key,
-                "truth": tv,
-                "paper": paper[key],
-                "ours": ours,
-                "stderr": joint_se[key],
-                "goal": goal.label,
-                "goal_met": bool(goal.met(ours, tv)),
-                "posthoc": fit.params[key],
-                "posthoc_stderr": fit.stderr[key],
-            }
-        )
-    say("blind explanation (sparse regression)")
-    names = list(sysm.coords) + [f"{c}_dot" for c in sysm.coords]
-    inputs = {n: col for n, col in zip(names, np.concatenate([d.q, d.qd], axis=1).T)}
-    inputs["t"] = d.t
-    comps = [f"{c}_ddot" for c in sysm.coords]
-    blind = {
-        "sparse": sparse_formula(inputs, cf.fn, comps, velocities=[f"{c}_dot" for c in sysm.coords], time="t").to_dict()
-    }
-    if sr_time > 0:
-        say("blind explanation (genetic symbolic regression)")
-        blind["genetic"] = genetic_formula(inputs, cf.fn, comps, seed=seed, max_time=sr_time).to_dict()
+    rows = _table2_rows(sysm, PAPER_TABLE2[system], hyp, fit)
+    blind = _blind_explanations(sysm, d, cf.fn, seed, sr_time, say)
     return {
         "system": system,
         "description": sysm.description,
@@ -211,19 +172,87 @@ def discover(
         "law_winner": table.law.key if table.law else None,
         "law_hypothesis": sysm.law_family,
         "blind": blind,
-        "settings": {
-            "steps": steps,
-            "sweep_steps": sweep_steps,
-            "sweep_lambdas": sorted(sw["settings"]["lambdas"]),
-            "lambda": lam,
-            "seed": seed,
-            "standardize": standardize,
-            "dtype": dtype,
-            "sr_time_per_component_s": sr_time,
-            "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps, "paper_n_steps": paper_n_steps},
-        },
+        "settings": _settings(sysm, paper_n_steps, sw, steps, sweep_steps, lam, seed, standardize, dtype, sr_time),
         "wall_time_s": time.perf_counter() - t0,
     }
+
+
+def _detection_sweep(sysm, sweep_steps: int, seed: int, standardize: bool, sweep_lambdas, dtype: str) -> tuple:
+    """The λ-sweep with a free LNN and its verdict. Returns (the sweep's plan, whose trajectory and standardised
+    configuration the later stages reuse, and the sweep's result)."""
+    # the trajectory and its standardisation are made once, for the sweep and the constrained fit
+    plan = plan_sweep(
+        sysm,
+        steps=sweep_steps,
+        seed=seed,
+        standardize=standardize,
+        lambdas=sweep_lambdas,
+        model_cfg=ModelConfig(n=sysm.n, dtype=dtype),
+    )
+    return plan, run_sweep(sysm, plan=plan)
+
+
+def _constrained_fit(d, fl, lam: float, steps: int, seed: int, cfg):
+    """The paper's constrained-form Lagrangian trained jointly with the UAN at ``lam``, its results in float64."""
+    cf = train_constrained(d, fl, lam=lam, steps=steps, seed=seed, cfg=cfg)
+    # the law and the explanations are fitted in float64 on what was trained, whatever the training's precision
+    return replace(cf, **{k: np.asarray(getattr(cf, k), np.float64) for k in ("coefs", "fc", "fn")})
+
+
+def _settings(sysm, paper_n_steps, sw, steps, sweep_steps, lam, seed, standardize, dtype, sr_time) -> dict:
+    """The "settings" entry of the result: everything the run depended on."""
+    return {
+        "steps": steps,
+        "sweep_steps": sweep_steps,
+        "sweep_lambdas": sorted(sw["settings"]["lambdas"]),
+        "lambda": lam,
+        "seed": seed,
+        "standardize": standardize,
+        "dtype": dtype,
+        "sr_time_per_component_s": sr_time,
+        "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps, "paper_n_steps": paper_n_steps},
+    }
+
+
+def _table2_rows(sysm, paper: dict, hyp, fit) -> list[dict]:
+    """Our Table II rows: per quantity the truth, the paper's value, ours (the joint fit of the hypothesis family's
+    law-table row ``hyp``) ± stderr, the goal, and the post-hoc parametric ``fit`` of the UAN's output."""
+    joint, joint_se = _table2_params(sysm, hyp)
+    rows = []
+    for key, tv in sysm.truth.items():
+        ours = joint[key]
+        goal = sysm.goals[key]
+        rows.append(
+            {
+                "quantity": key,
+                "truth": tv,
+                "paper": paper[key],
+                "ours": ours,
+                "stderr": joint_se[key],
+                "goal": goal.label,
+                "goal_met": bool(goal.met(ours, tv)),
+                "posthoc": fit.params[key],
+                "posthoc_stderr": fit.stderr[key],
+            }
+        )
+    return rows
+
+
+def _blind_explanations(sysm, d, fn, seed: int, sr_time: float, say) -> dict:
+    """Formulas for the learned ``fn`` found without a hypothesis: sparse regression, then (``sr_time`` > 0) genetic
+    symbolic regression."""
+    say("blind explanation (sparse regression)")
+    names = list(sysm.coords) + [f"{c}_dot" for c in sysm.coords]
+    inputs = {n: col for n, col in zip(names, np.concatenate([d.q, d.qd], axis=1).T)}
+    inputs["t"] = d.t
+    comps = [f"{c}_ddot" for c in sysm.coords]
+    blind = {
+        "sparse": sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in sysm.coords], time="t").to_dict()
+    }
+    if sr_time > 0:
+        say("blind explanation (genetic symbolic regression)")
+        blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
+    return blind
 
 
 def write_discovery(res: dict, out: str | Path) -> None:

@@ -516,12 +516,37 @@ def lambda_p_study(
     runs = run_lambda_p_sweeps(
         systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress, workers, scheduler
     )
+    _add_transitions(runs, systems, labels)
+    curves = {s: {l: runs[s][l]["table"] for l in labels} for s in systems}
+    verdicts = _verdict_rows(runs, systems, labels)
+    alignment_ = _alignment(runs, labels) if FORCE_SYSTEM in systems else None
+    result = {
+        "settings": _study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas),
+        "evaluated_on": "test set (L_e, L_b, m_c, m_n, forces)",
+        "curves": curves,
+        "verdicts": verdicts,
+        "alignment": alignment_,
+        "claims": _lambda_p_claims(runs, systems, labels, lams),
+        "cached": [f"{v['system']}/p={v['p']}" for v in verdicts if v["cached"]],
+        "train_wall_time_s": sum(v["train_wall_time_s"] for v in verdicts),  # of the sweeps, when they were trained
+        "compile_time_s": sum(runs[s][l]["compile_time_s"] for s in systems for l in labels),  # in this call
+        "wall_time_s": None,  # of this call (small when the sweeps come from the cache)
+        "jax_version": jax.__version__,
+    }
+    figs = {"fig5.png": plot_fig5, **({"fig5_forces.png": plot_fig5_forces} if alignment_ is not None else {})}
+    return write_results(outdir, result, figs, t0)
+
+
+def _add_transitions(runs: dict, systems, labels) -> None:
+    """Add to every sub-run in ``runs`` its jump/smooth measure across λ = 1 (key "transition"), in place."""
     for s in systems:
         for l in labels:
             r = runs[s][l]
             r["transition"] = transition_sharpness([x["lam"] for x in r["table"]], [x["L_e"] for x in r["table"]])
 
-    curves = {s: {l: runs[s][l]["table"] for l in labels} for s in systems}
+
+def _verdict_rows(runs: dict, systems, labels) -> list[dict]:
+    """One row per (system, p): the verdict, whether it is correct, and the sharpness of the transition."""
     verdicts = []
     for s in systems:
         for l in labels:
@@ -546,55 +571,48 @@ def lambda_p_study(
                     "cached": r["cached"],
                 }
             )
-    alignment_ = None
-    if FORCE_SYSTEM in systems:
-        alignment_ = {
-            "system": FORCE_SYSTEM,
-            "truth": "f_c = −q, f_n = −½q̇",
-            "fn_true_rms": runs[FORCE_SYSTEM][labels[0]]["fn_true_rms"],
-            "by_p": {
-                l: [
-                    {"lam": r["lam"], "m_c": r["m_c"], "m_n": r["m_n"], "fn_rms": r["fn_rms"]}
-                    for r in runs[FORCE_SYSTEM][l]["table"]
-                ]
-                for l in labels
-            },
-            "forces": {l: runs[FORCE_SYSTEM][l]["forces"] for l in labels},
-        }
-    result = {
-        "settings": {
-            "systems": list(systems),
-            "ps": labels,
-            "lambdas": list(lams),
-            "steps_per_lambda": steps,
-            "seed": seed,
-            "mode": "warm (paper appendix B: increasing λ, each from the previous λ's parameters)",
-            "n_train": n_train,
-            "n_test": n_test,
-            "data": "iid N(0,1) q, q̇, t (paper III.C)",
-            "standardize": True,
-            "learning_rates": list(TrainConfig().lrs),
-            "batch_size": TrainConfig().batch_size,
-            "force_system": FORCE_SYSTEM,
-            "force_lambdas": [x for x in force_lambdas if x in lams],
-            "jump_sharpness": JUMP_SHARPNESS,
-            "smooth_sharpness": SMOOTH_SHARPNESS,
-            "align_tol": ALIGN_TOL,
-            "verdict_min_ratio": MIN_RATIO,
+    return verdicts
+
+
+def _alignment(runs: dict, labels) -> dict:
+    """HO+LD (Fig. 5 e–h): m_c, m_n and the rms of f_n per loss and λ, and the learned forces."""
+    return {
+        "system": FORCE_SYSTEM,
+        "truth": "f_c = −q, f_n = −½q̇",
+        "fn_true_rms": runs[FORCE_SYSTEM][labels[0]]["fn_true_rms"],
+        "by_p": {
+            l: [
+                {"lam": r["lam"], "m_c": r["m_c"], "m_n": r["m_n"], "fn_rms": r["fn_rms"]}
+                for r in runs[FORCE_SYSTEM][l]["table"]
+            ]
+            for l in labels
         },
-        "evaluated_on": "test set (L_e, L_b, m_c, m_n, forces)",
-        "curves": curves,
-        "verdicts": verdicts,
-        "alignment": alignment_,
-        "claims": _lambda_p_claims(runs, systems, labels, lams),
-        "cached": [f"{v['system']}/p={v['p']}" for v in verdicts if v["cached"]],
-        "train_wall_time_s": sum(v["train_wall_time_s"] for v in verdicts),  # of the sweeps, when they were trained
-        "compile_time_s": sum(runs[s][l]["compile_time_s"] for s in systems for l in labels),  # in this call
-        "wall_time_s": None,  # of this call (small when the sweeps come from the cache)
-        "jax_version": jax.__version__,
+        "forces": {l: runs[FORCE_SYSTEM][l]["forces"] for l in labels},
     }
-    figs = {"fig5.png": plot_fig5, **({"fig5_forces.png": plot_fig5_forces} if alignment_ is not None else {})}
-    return write_results(outdir, result, figs, t0)
+
+
+def _study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas) -> dict:
+    """The "settings" entry of the study's result: everything the sweeps depended on."""
+    return {
+        "systems": list(systems),
+        "ps": labels,
+        "lambdas": list(lams),
+        "steps_per_lambda": steps,
+        "seed": seed,
+        "mode": "warm (paper appendix B: increasing λ, each from the previous λ's parameters)",
+        "n_train": n_train,
+        "n_test": n_test,
+        "data": "iid N(0,1) q, q̇, t (paper III.C)",
+        "standardize": True,
+        "learning_rates": list(TrainConfig().lrs),
+        "batch_size": TrainConfig().batch_size,
+        "force_system": FORCE_SYSTEM,
+        "force_lambdas": [x for x in force_lambdas if x in lams],
+        "jump_sharpness": JUMP_SHARPNESS,
+        "smooth_sharpness": SMOOTH_SHARPNESS,
+        "align_tol": ALIGN_TOL,
+        "verdict_min_ratio": MIN_RATIO,
+    }
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -207,114 +207,29 @@ def run_prediction(
     writes results.json, prediction.png (θ1(t) and E(t)) and energy_balance.png there.
     """
     say = Stages(progress, 2 + 2 * len(MODELS))
-    widths = tuple(int(w) for w in widths)
-    if not widths or any(w < 1 for w in widths):
-        raise ValueError(f"widths must be positive integers, got {widths}")
-    lam = float(lam)
-    if not (np.isfinite(lam) and lam > 0):
-        raise ValueError(f"λ must be > 0, got {lam:g}")
-    if isinstance(n_traj, bool) or int(n_traj) != n_traj:
-        raise ValueError(f"n_traj must be an integer, got {n_traj!r}")
-    n_traj = int(n_traj)
-    i_split = int(round(t_split / dt))
-    if not (1 <= i_split < n_traj) or abs(i_split * dt - t_split) > 1e-9 * max(1.0, t_split):
-        raise ValueError(
-            f"t_split must be a positive multiple of dt = {dt:g} inside the trajectory "
-            f"(0, {n_traj * dt:g}), got {t_split:g}"
-        )
+    widths, lam, n_traj, i_split = _checked_settings(widths, lam, n_traj, dt, t_split)
     tcfg = TrainConfig(steps=steps, p=p)  # validates steps and p
     outdir = ensure_writable_dir(out) if out is not None else None
     t_start = time.perf_counter()
 
     sysm = get_system("double-pendulum")
     say(f"data: RK4 trajectory, {n_traj} steps of {dt:g}")
-    data = trajectory_dataset(sysm, n_steps=n_traj, dt=dt)
-    train = data.subset(slice(0, i_split + 1))  # 0 ≤ t ≤ t_split
-    test = data.subset(slice(i_split, None))  # t_split ≤ t ≤ t_end (starts with the state the rollouts start from)
-    cfg = ModelConfig(n=sysm.n, lnn_widths=widths, uan_widths=widths)
-    if standardize:
-        cfg = cfg.standardized(train.q, train.qd, train.t)
-    arrays = tuple(jnp.asarray(a, jnp.float64) for a in (train.q, train.qd, train.t, train.qdd))
-    k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
-    lams = {"nnphd": lam, "lnn": 0.0, "blackbox": 0.0}
-
-    params, train_metrics, train_times = {}, {}, {}
-    for kind in MODELS:
-        say(f"training {LABELS[kind]} ({steps} steps)")
-        tm = time.perf_counter()
-        p0 = init_model(kind, k_init, cfg, uan_time)
-        params[kind], _ = _trainer(kind, cfg, tcfg, uan_time)(p0, arrays, jnp.float64(lams[kind]), k_train)
-        fc, fn = _batch_forces(kind, cfg, uan_time)(params[kind], *arrays[:3])
-        f = np.asarray(fc + fn)
-        train_metrics[kind] = {
-            "train_force_error": float(np.mean(np.abs(f - train.qdd))),  # L_e (p = 1) on the whole training set
-            "train_force_rel_error": float(np.sqrt(np.mean((f - train.qdd) ** 2) / np.mean(train.qdd**2))),
-        }
-        train_times[kind] = time.perf_counter() - tm
-
-    energy = _energy_fn(sysm)
-    n_roll = n_traj - i_split
-    e_true = np.asarray(energy(jnp.asarray(test.q), jnp.asarray(test.qd)))
-    rolls, metrics = {}, {}
-    for kind in MODELS:
-        say(f"rollout of {LABELS[kind]} from t = {t_split:g} to {n_traj * dt:g}")
-        ts, q, qd = rollout(_accel_fn(kind, cfg, uan_time), params[kind], test.q[0], test.qd[0], test.t[0], dt, n_roll)
-        with np.errstate(all="ignore"):
-            e = np.asarray(energy(jnp.asarray(q), jnp.asarray(qd)))
-        rolls[kind] = {"t": ts, "q": q, "qd": qd, "E": e}
-        err = q[:, 0] - test.q[:, 0]
-        short = ts <= t_split + 10.0 + 1e-9
-        finite = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qd), axis=1)
-        metrics[kind] = {
-            "theta1_rmse_30_40": _rmse(q[short, 0], test.q[short, 0]),
-            "theta1_rmse_30_200": _rmse(q[:, 0], test.q[:, 0]),
-            "energy_rmse_30_200": _rmse(e, e_true),
-            f"t_error_exceeds_{THETA_TOL:g}": _first_exceed(ts, err, THETA_TOL),
-            "diverged_at": None if finite.all() else float(ts[np.argmin(finite)]),
-            **train_metrics[kind],
-        }
+    data, train, test, cfg = _split_data(sysm, n_traj, dt, i_split, widths, standardize)
+    params, train_metrics, train_times = _train_models(train, cfg, tcfg, uan_time, seed, lam, steps, say)
+    e_true, rolls, metrics = _roll_out(
+        sysm, cfg, params, test, train_metrics, uan_time, dt, t_split, n_traj, i_split, say
+    )
 
     say("energy balance")
     balance, series = _energy_balance(sysm, cfg, params, rolls, test, uan_time, dt)
     lnn_const = _lnn_energy_constancy(cfg, params["lnn"], rolls["lnn"], test, e_true)
-    decomposition = {}
-    for name, d in (("train", train), ("test", test)):
-        _, fn = _batch_forces("nnphd", cfg, uan_time)(params["nnphd"], *(jnp.asarray(a) for a in (d.q, d.qd, d.t)))
-        fn = np.asarray(fn)
-        decomposition[f"fn_true_rms_{name}"] = float(np.sqrt(np.mean(d.fn**2)))
-        decomposition[f"fn_learned_rms_{name}"] = float(np.sqrt(np.mean(fn**2)))
-        decomposition[f"fn_rel_error_{name}"] = _rel_rms(fn, d.fn)
+    decomposition = _decomposition(cfg, params["nnphd"], train, test, uan_time)
     claims = _claims(metrics, lnn_const, e_true)
 
     results = {
         "experiment": f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
         f"extrapolate to t = {n_traj * dt:g} with RK4",
-        "settings": {
-            "seed": seed,
-            "steps": tcfg.steps,
-            "lambda": lam,
-            "p": tcfg.p,
-            "learning_rates": list(tcfg.lrs),
-            "batch_size": tcfg.batch_size,
-            "widths": list(widths),
-            "lnn_activation": cfg.lnn_activation,
-            "split_mass": cfg.split_mass,
-            "uan_activation": f"{cfg.uan_activation}({cfg.leaky_slope:g})",
-            "blackbox": f"MLP (q, q̇) → q̈, widths {list(widths)}, {cfg.uan_activation}({cfg.leaky_slope:g})",
-            "uan_inputs": "(q, q̇, t)" if uan_time else "(q, q̇)",
-            "uan_time": uan_time,
-            "standardize": standardize,
-            "system": sysm.name,
-            "system_params": dict(sysm.params),
-            "x0": list(sysm.x0),
-            "dt": dt,
-            "n_traj": n_traj,
-            "t_split": t_split,
-            "t_end": n_traj * dt,
-            "n_train": len(train),
-            "rollout": f"RK4, dt = {dt:g}, from the true state at t = {t_split:g}",
-            "theta_tolerance": THETA_TOL,
-        },
+        "settings": _settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_traj, t_split, train),
         "metrics": metrics,
         "truth": {
             "energy_t_split": float(e_true[0]),
@@ -339,6 +254,130 @@ def run_prediction(
         save_figure(plot_prediction(data, rolls, t_split), outdir / "prediction.png")
         save_figure(plot_energy_balance(series), outdir / "energy_balance.png")
     return results
+
+
+def _checked_settings(widths, lam, n_traj, dt: float, t_split: float) -> tuple[tuple[int, ...], float, int, int]:
+    """Check and normalise the settings of :func:`run_prediction`; returns (widths, λ, n_traj, index of t_split)."""
+    widths = tuple(int(w) for w in widths)
+    if not widths or any(w < 1 for w in widths):
+        raise ValueError(f"widths must be positive integers, got {widths}")
+    lam = float(lam)
+    if not (np.isfinite(lam) and lam > 0):
+        raise ValueError(f"λ must be > 0, got {lam:g}")
+    if isinstance(n_traj, bool) or int(n_traj) != n_traj:
+        raise ValueError(f"n_traj must be an integer, got {n_traj!r}")
+    n_traj = int(n_traj)
+    i_split = int(round(t_split / dt))
+    if not (1 <= i_split < n_traj) or abs(i_split * dt - t_split) > 1e-9 * max(1.0, t_split):
+        raise ValueError(
+            f"t_split must be a positive multiple of dt = {dt:g} inside the trajectory "
+            f"(0, {n_traj * dt:g}), got {t_split:g}"
+        )
+    return widths, lam, n_traj, i_split
+
+
+def _split_data(sysm, n_traj: int, dt: float, i_split: int, widths, standardize: bool) -> tuple:
+    """The true trajectory, split at ``i_split`` into training and test parts, and the models' configuration
+    (standardised on the training part). Returns (data, train, test, cfg)."""
+    data = trajectory_dataset(sysm, n_steps=n_traj, dt=dt)
+    train = data.subset(slice(0, i_split + 1))  # 0 ≤ t ≤ t_split
+    test = data.subset(slice(i_split, None))  # t_split ≤ t ≤ t_end (starts with the state the rollouts start from)
+    cfg = ModelConfig(n=sysm.n, lnn_widths=widths, uan_widths=widths)
+    if standardize:
+        cfg = cfg.standardized(train.q, train.qd, train.t)
+    return data, train, test, cfg
+
+
+def _train_models(train: Dataset, cfg, tcfg, uan_time: bool, seed: int, lam: float, steps, say) -> tuple:
+    """Train the three models on the training part, from the same keys (NNPhD at ``lam``, the others with λ = 0).
+    Returns (parameters, training metrics, training times), each by model."""
+    arrays = tuple(jnp.asarray(a, jnp.float64) for a in (train.q, train.qd, train.t, train.qdd))
+    k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
+    lams = {"nnphd": lam, "lnn": 0.0, "blackbox": 0.0}
+
+    params, train_metrics, train_times = {}, {}, {}
+    for kind in MODELS:
+        say(f"training {LABELS[kind]} ({steps} steps)")
+        tm = time.perf_counter()
+        p0 = init_model(kind, k_init, cfg, uan_time)
+        params[kind], _ = _trainer(kind, cfg, tcfg, uan_time)(p0, arrays, jnp.float64(lams[kind]), k_train)
+        fc, fn = _batch_forces(kind, cfg, uan_time)(params[kind], *arrays[:3])
+        f = np.asarray(fc + fn)
+        train_metrics[kind] = {
+            "train_force_error": float(np.mean(np.abs(f - train.qdd))),  # L_e (p = 1) on the whole training set
+            "train_force_rel_error": float(np.sqrt(np.mean((f - train.qdd) ** 2) / np.mean(train.qdd**2))),
+        }
+        train_times[kind] = time.perf_counter() - tm
+    return params, train_metrics, train_times
+
+
+def _roll_out(sysm, cfg, params, test: Dataset, train_metrics, uan_time, dt, t_split, n_traj, i_split, say) -> tuple:
+    """Integrate each trained model with RK4 from the true state at ``t_split`` and compare with the truth.
+    Returns (the true energy on the test part, the rollouts by model, the metrics by model)."""
+    energy = _energy_fn(sysm)
+    n_roll = n_traj - i_split
+    e_true = np.asarray(energy(jnp.asarray(test.q), jnp.asarray(test.qd)))
+    rolls, metrics = {}, {}
+    for kind in MODELS:
+        say(f"rollout of {LABELS[kind]} from t = {t_split:g} to {n_traj * dt:g}")
+        ts, q, qd = rollout(_accel_fn(kind, cfg, uan_time), params[kind], test.q[0], test.qd[0], test.t[0], dt, n_roll)
+        with np.errstate(all="ignore"):
+            e = np.asarray(energy(jnp.asarray(q), jnp.asarray(qd)))
+        rolls[kind] = {"t": ts, "q": q, "qd": qd, "E": e}
+        err = q[:, 0] - test.q[:, 0]
+        short = ts <= t_split + 10.0 + 1e-9
+        finite = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qd), axis=1)
+        metrics[kind] = {
+            "theta1_rmse_30_40": _rmse(q[short, 0], test.q[short, 0]),
+            "theta1_rmse_30_200": _rmse(q[:, 0], test.q[:, 0]),
+            "energy_rmse_30_200": _rmse(e, e_true),
+            f"t_error_exceeds_{THETA_TOL:g}": _first_exceed(ts, err, THETA_TOL),
+            "diverged_at": None if finite.all() else float(ts[np.argmin(finite)]),
+            **train_metrics[kind],
+        }
+    return e_true, rolls, metrics
+
+
+def _decomposition(cfg, nnphd_params, train: Dataset, test: Dataset, uan_time: bool) -> dict:
+    """NNPhD's learned f_n against the true friction on the training and the test states (rms values, rel. error)."""
+    decomposition = {}
+    for name, d in (("train", train), ("test", test)):
+        _, fn = _batch_forces("nnphd", cfg, uan_time)(nnphd_params, *(jnp.asarray(a) for a in (d.q, d.qd, d.t)))
+        fn = np.asarray(fn)
+        decomposition[f"fn_true_rms_{name}"] = float(np.sqrt(np.mean(d.fn**2)))
+        decomposition[f"fn_learned_rms_{name}"] = float(np.sqrt(np.mean(fn**2)))
+        decomposition[f"fn_rel_error_{name}"] = _rel_rms(fn, d.fn)
+    return decomposition
+
+
+def _settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_traj, t_split, train) -> dict:
+    """The "settings" entry of the results: everything the run depended on."""
+    return {
+        "seed": seed,
+        "steps": tcfg.steps,
+        "lambda": lam,
+        "p": tcfg.p,
+        "learning_rates": list(tcfg.lrs),
+        "batch_size": tcfg.batch_size,
+        "widths": list(widths),
+        "lnn_activation": cfg.lnn_activation,
+        "split_mass": cfg.split_mass,
+        "uan_activation": f"{cfg.uan_activation}({cfg.leaky_slope:g})",
+        "blackbox": f"MLP (q, q̇) → q̈, widths {list(widths)}, {cfg.uan_activation}({cfg.leaky_slope:g})",
+        "uan_inputs": "(q, q̇, t)" if uan_time else "(q, q̇)",
+        "uan_time": uan_time,
+        "standardize": standardize,
+        "system": sysm.name,
+        "system_params": dict(sysm.params),
+        "x0": list(sysm.x0),
+        "dt": dt,
+        "n_traj": n_traj,
+        "t_split": t_split,
+        "t_end": n_traj * dt,
+        "n_train": len(train),
+        "rollout": f"RK4, dt = {dt:g}, from the true state at t = {t_split:g}",
+        "theta_tolerance": THETA_TOL,
+    }
 
 
 def _ddt(h, dt):

@@ -99,6 +99,118 @@ def _check_declared_field(field: str, data, traj, ud, info) -> None:
         )
 
 
+def _check_settings(ud, laws: Sequence[str], law_fit: str, field: str) -> None:
+    """Refuse bad settings before any work: the law level, the field, and every ``laws`` entry (a --law) parsed on
+    the file's coordinates."""
+    from nnphd.explain.families import parse_law
+
+    _check_law_fit(law_fit)
+    check_field(field, law_fit)
+    for x in laws:  # fail on a bad --law before any work
+        parse_law(x, ud.coords)
+
+
+class _Say:
+    """The progress of :func:`detect_data`: the training rounds of the checks fill the bar (:meth:`training`); the
+    other stages are messages beside it (a call)."""
+
+    def __init__(self, progress: Progress | None) -> None:
+        self.progress = progress
+        self.done = [0, 1]  # the training rounds of the checks: the bar shows them; the other stages are messages
+
+    def __call__(self, message: str) -> None:
+        """Say ``message`` beside the bar as it stands."""
+        if self.progress is not None:
+            self.progress(self.done[0], self.done[1], message)
+
+    def training(self, d: int, total: int, message: str) -> None:
+        """A training round done: ``d`` of ``total``."""
+        self.done[:] = [d, total]
+        self(f"training: {message}")
+
+
+def _assessed(data, traj, ud, info, training, seed, steps, n_seeds, workers, scheduler, assess_kw: dict) -> dict:
+    """:func:`nnphd.user.assess.assess` on the data set, with the file's angles and the position noise and q̈ errors
+    of its derivative estimates; ``training``: the progress of the training rounds."""
+    from nnphd.user.assess import assess
+
+    pc = info["per_coordinate"]
+    return assess(
+        data,
+        traj,
+        seed=seed,
+        steps=steps,
+        n_seeds=n_seeds,
+        progress=training,
+        angles=[bool(a) for a in ud.is_angle],
+        position_noise=[pc[c]["noise"] for c in ud.coords],
+        derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
+        workers=workers,
+        scheduler=scheduler,
+        **assess_kw,
+    )
+
+
+def _declared_forces(law: dict, data, ud, fc, fn):
+    """The declared uniform field as the law table fitted it, popped from ``law``: (its entry, the field fitted —
+    with the law when there is one, else alone — or None, f_c, f_n); f_c and f_n as given without a declared field."""
+    declared = law.pop("_field", None) or {}
+    fitted = declared.get("with_law" if law.get("law") else "alone")
+    if fitted is not None:  # the declared field is the conservative force; f_n the remainder of q̈ beside it
+        fc = field_force(fitted, data.q, ud.is_angle)
+        fn = np.asarray(data.qdd, float) - fc
+    return declared, fitted, fc, fn
+
+
+def _field_entry(field: str, fitted: dict | None, declared: dict) -> dict:
+    """The report's ``field``: the conservative force declared, and a uniform field as fitted (its law, g and
+    standard error per coordinate; whether the law's force opposes the velocity)."""
+    return (
+        {"kind": field, "text": FIELDS[field]}
+        | ({k: fitted[k] for k in ("law", "g", "stderr")} if fitted else {})
+        | ({"against_velocity": declared["against_velocity"]} if "against_velocity" in declared else {})
+    )
+
+
+def _report(
+    ud, res: dict, info: dict, coords: list, law: dict, verdict, field: dict, blind: dict, settings: dict
+) -> dict:
+    """The report of :func:`detect_data` (without its timings): ``verdict`` = (status, new_physics, confidence,
+    reasons) of :func:`nnphd.user.rules.reconcile`; ``field``: :func:`_field_entry`'s; ``settings``: the run's own,
+    to which assess's are added."""
+    from nnphd.user.recording import suggest_angles
+
+    status, new_physics, confidence, reasons = verdict
+    return {
+        "file": str(ud.path),
+        "new_physics": new_physics,
+        "status": status,
+        "statistic": res["statistic"],
+        "effect": law.pop("_effect", None) or res["effect"],
+        "evidence": res["evidence"],
+        "confidence": confidence,
+        "confidence_basis": res["confidence_basis"] if status == res["status"] else RECONCILED_BASIS,
+        "reasons": reasons,
+        "quality": res["quality"],
+        "angles": [c for c, a in zip(coords, res["angles"]) if a],
+        "angle_suggestions": [list(x) for x in suggest_angles(ud)],
+        "warnings": _warnings(info, coords),
+        "clock": res["clock"],
+        "checks": res["checks"],
+        "table": res["table"],
+        "lambda_forces": res["lambda_forces"],
+        "noise": {c: info["per_coordinate"][c] for c in coords},
+        "data": {k: v for k, v in info.items() if k != "per_coordinate"},
+        "formula": _law_formula(law),
+        "law": law,
+        "field": field,
+        "blind": blind,
+        "hint": _best_formula(blind),
+        "settings": {**settings, **res.get("settings", {})},
+        "units": "forces in the file's units (coordinate units / time unit²)",
+    }
+
+
 def detect_data(
     ud,
     out: str | Path | None = None,
@@ -123,24 +235,8 @@ def detect_data(
     force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
     :func:`declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`)."""
-    from nnphd.explain.families import parse_law
-    from nnphd.user.assess import assess
-    from nnphd.user.recording import suggest_angles
-
-    done = [0, 1]  # the training rounds of the checks: the bar shows them; the other stages are messages
-
-    def say(message: str) -> None:
-        if progress is not None:
-            progress(done[0], done[1], message)
-
-    def training(d: int, total: int, message: str) -> None:
-        done[:] = [d, total]
-        say(f"training: {message}")
-
-    _check_law_fit(law_fit)
-    check_field(field, law_fit)
-    for x in laws:  # fail on a bad --law before any work
-        parse_law(x, ud.coords)
+    say = _Say(progress)
+    _check_settings(ud, laws, law_fit, field)
     timer = StageTimer()
     if read_s is not None:
         timer.add("reading the file", read_s)
@@ -149,77 +245,31 @@ def detect_data(
             data, info, trim, row_err, traj = _prepared(ud, trim)
             _check_declared_field(field, data, traj, ud, info)
         say("λ-sweep and trust checks")
-        pc = info["per_coordinate"]
         with timer.stage("training and trust checks"):
-            res = assess(
-                data,
-                traj,
-                seed=seed,
-                steps=steps,
-                n_seeds=n_seeds,
-                progress=training,
-                angles=[bool(a) for a in ud.is_angle],
-                position_noise=[pc[c]["noise"] for c in ud.coords],
-                derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
-                workers=workers,
-                scheduler=scheduler,
-                **assess_kw,
-            )
+            res = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler, assess_kw)
         coords = list(ud.coords)
         fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
         law, law_row = _law_table(
             res, data, traj, coords, ud, info, row_err, laws, law_fit, seed, lambda d, t, m: say(m), field, timer
         )
         status, new_physics, confidence, reasons = reconcile(res, law, field)
-        declared = law.pop("_field", None) or {}
-        fitted = declared.get("with_law" if law.get("law") else "alone")
-        if fitted is not None:  # the declared field is the conservative force; f_n the remainder of q̈ beside it
-            fc = field_force(fitted, data.q, ud.is_angle)
-            fn = np.asarray(data.qdd, float) - fc
+        declared, fitted, fc, fn = _declared_forces(law, data, ud, fc, fn)
         blind = {}
         if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
             with timer.stage("blind formula"):
                 blind = _blind(data, coords, fn, sr_time, seed, say, reasons)
-        report = {
-            "file": str(ud.path),
-            "new_physics": new_physics,
-            "status": status,
-            "statistic": res["statistic"],
-            "effect": law.pop("_effect", None) or res["effect"],
-            "evidence": res["evidence"],
-            "confidence": confidence,
-            "confidence_basis": res["confidence_basis"] if status == res["status"] else RECONCILED_BASIS,
-            "reasons": reasons,
-            "quality": res["quality"],
-            "angles": [c for c, a in zip(coords, res["angles"]) if a],
-            "angle_suggestions": [list(x) for x in suggest_angles(ud)],
-            "warnings": _warnings(info, coords),
-            "clock": res["clock"],
-            "checks": res["checks"],
-            "table": res["table"],
-            "lambda_forces": res["lambda_forces"],
-            "noise": {c: info["per_coordinate"][c] for c in coords},
-            "data": {k: v for k, v in info.items() if k != "per_coordinate"},
-            "formula": _law_formula(law),
-            "law": law,
-            "field": {"kind": field, "text": FIELDS[field]}
-            | ({k: fitted[k] for k in ("law", "g", "stderr")} if fitted else {})
-            | ({"against_velocity": declared["against_velocity"]} if "against_velocity" in declared else {}),
-            "blind": blind,
-            "hint": _best_formula(blind),
-            "settings": {
-                "seed": seed,
-                "steps": steps,
-                "n_seeds": n_seeds,
-                "law_fit": law_fit,
-                "sr_time_per_component_s": sr_time,
-                "trim": trim,
-                "field": field,
-                **assess_kw,
-                **res.get("settings", {}),
-            },
-            "units": "forces in the file's units (coordinate units / time unit²)",
+        settings = {
+            "seed": seed,
+            "steps": steps,
+            "n_seeds": n_seeds,
+            "law_fit": law_fit,
+            "sr_time_per_component_s": sr_time,
+            "trim": trim,
+            "field": field,
+            **assess_kw,
         }
+        verdict = (status, new_physics, confidence, reasons)
+        report = _report(ud, res, info, coords, law, verdict, _field_entry(field, fitted, declared), blind, settings)
 
         def stamp() -> None:  # the times so far: every stage but the writing of report.json/html itself
             report["timings"] = _with_workers(timer.to_dict(), res.get("timings_per_seed", []))

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import functools
 import time
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -201,62 +202,125 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
     return pts, evals, table, check
 
 
-def one_seed(ctx: dict, seed: int, tick=None) -> dict:
-    tick = tick or (lambda: None)
-    q, qd, tp, qdd, segs = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"]
-    steps, lambdas, width, long_factor, sc = ctx["steps"], ctx["lambdas"], ctx["width"], ctx["long_factor"], ctx["sc"]
-    feats = ctx["feats"]
+class _Split(NamedTuple):
+    """One seed's held-out split of the rows, the data as JAX arrays and the force scales (original units)."""
+
+    tr_segs: list  # the training trajectories (row indices of each)
+    te_segs: list  # the held-out trajectories
+    tr: np.ndarray  # the training rows
+    te: np.ndarray  # the held-out rows
+    arrays: tuple  # (q, q̇, time features, q̈) on all rows, as JAX arrays
+    A_tr: tuple  # the same on the training rows
+    fnorm: float  # ‖f‖ over all data
+    fnorm_te: float  # ‖f‖ over the held-out rows (the whole record's where these are at rest)
+    fnorm_tr: float  # ‖f‖ over the training rows
+
+
+def _holdout_split(ctx: dict, seed: int, back) -> _Split:
+    """The held-out trajectories of seed ``seed`` (:func:`nnphd.user.scaling.holdout`), the arrays the networks
+    train on and the force scales the errors are divided by."""
+    q, qd, qdd, segs, feats = ctx["q"], ctx["qd"], ctx["qdd"], ctx["segs"], ctx["feats"]
     rng = np.random.default_rng(seed)
     tr_segs, te_segs = holdout(segs, ctx["holdout_frac"], rng)
     tr, te = np.concatenate(tr_segs), np.concatenate(te_segs)
-    cfg = ctx["cfg"]
-    tcfg = TrainConfig(steps=steps)
     arrays = tuple(jnp.asarray(a) for a in (q, qd, feats, qdd))
     A_tr = tuple(a[tr] for a in arrays)
-    back = lambda r: sc.force_back(r)  # noqa: E731
     fnorm = _l1(back(qdd))  # ‖f‖ over all data, original units
     fnorm_te = _l1(back(qdd[te]))
     if not fnorm_te > 0:  # a held-out stretch at rest (a recording that ends stuck): scale by the whole record's
         fnorm_te = fnorm  # force instead of dividing by zero (the relative held-out errors are then of that scale)
     fnorm_tr = _l1(back(qdd[tr]))
-    key = jax.random.PRNGKey(seed)
-    k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
-    per_lambda: dict[float, float] = {}
-    clock = [time.perf_counter()]
-    times: dict[str, float] = {}
+    return _Split(tr_segs, te_segs, tr, te, arrays, A_tr, fnorm, fnorm_te, fnorm_tr)
 
-    def done(stage: str) -> None:  # the wall seconds since the last stage ended (its results are numbers by now)
+
+class _Stopwatch:
+    """The wall seconds of each stage of one seed, by stage name in the order the stages end."""
+
+    def __init__(self) -> None:
+        self.times: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def done(self, stage: str) -> None:
+        """The wall seconds since the last stage ended (its results are numbers by now)."""
         now = time.perf_counter()
-        times[stage] = now - clock[0]
-        clock[0] = now
+        self.times[stage] = now - self._last
+        self._last = now
 
-    # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
-    params = {"lnn": init_lnn(k_lnn, cfg), "uan": init_free(k_uan, cfg, n_time=feats.shape[1], widths=(width, width))}
-    train = _trainer("nnphd", cfg, tcfg)
-    pts, evals, table, opt_check = _sweep(
-        params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick, per_lambda
-    )
-    lams = sorted(lambdas)
-    lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
-    fc_rep, _, power_rep, kin_rep, _, fn_rep = evals[lam_rep]
-    rep = (lam_rep, back(fc_rep), fn_rep, power_rep, kin_rep)
-    params = pts[lams[-1]]
+
+def _naive(table: list[dict], fnorm_te: float) -> dict:
+    """The naive verdict of :func:`nnphd.engine.verdict.verdict` on the λ-sweep's table."""
     points = [SweepPoint(r["lam"], r["L_e"], r["L_b"], r["L_e_train"], r["L_b_train"]) for r in table]
     try:
         nv = naive_verdict(points, fnorm_te)
         naive = {"new_physics": nv.new_physics, "ratio": nv.ratio, "reason": nv.reason}
     except ValueError as e:  # no λ on one side of 1
         naive = {"new_physics": None, "ratio": None, "reason": str(e)}
-    done("lambda_sweep_s")
+    return naive
 
-    # (b) the LNN alone, continued from the largest λ; the conservative model is the round with the lowest
-    # *training* error (a round that diverges is not used; the held-out data play no part in the choice)
+
+def _lambda_stage(ctx: dict, tcfg: TrainConfig, d: _Split, k_lnn, k_uan, k_sweep, back, tick, per_lambda):
+    """(a) NNPhD's λ-sweep with warm starts and the optimisation check (:func:`_sweep`). Returns (the largest λ's
+    parameters, the representative λ's (λ, f_c in original units, f_n, power, kinetic term), the sweep's table,
+    the optimisation check, the naive verdict)."""
+    cfg, width, lambdas = ctx["cfg"], ctx["width"], ctx["lambdas"]
+    params = {
+        "lnn": init_lnn(k_lnn, cfg),
+        "uan": init_free(k_uan, cfg, n_time=ctx["feats"].shape[1], widths=(width, width)),
+    }
+    train = _trainer("nnphd", cfg, tcfg)
+    pts, evals, table, opt_check = _sweep(
+        params,
+        train,
+        d.arrays,
+        d.A_tr,
+        lambdas,
+        k_sweep,
+        cfg,
+        back,
+        ctx["qdd"],
+        d.tr,
+        d.te,
+        d.fnorm_te,
+        tick,
+        per_lambda,
+    )
+    lams = sorted(lambdas)
+    lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
+    fc_rep, _, power_rep, kin_rep, _, fn_rep = evals[lam_rep]
+    rep = (lam_rep, back(fc_rep), fn_rep, power_rep, kin_rep)
+    params = pts[lams[-1]]
+    return params, rep, table, opt_check, _naive(table, d.fnorm_te)
+
+
+class _Rounds(NamedTuple):
+    """The conservative model: the LNN's round with the lowest training error (b), and what it gives on the rows."""
+
+    chosen: int  # the chosen round (0: the largest λ's LNN as it was)
+    hist: list  # each round's held-out error (original units)
+    hist_tr: list  # each round's training error (inf where it diverged)
+    lnn: dict  # the chosen round's parameters
+    fc: object  # f_c on every row (standardised units)
+    power: object  # the power of the residual q̈ − f_c
+    kin: object  # |the kinetic term|
+    E: object  # the learned energy
+    E_rest: object  # the learned energy at q̇ = 0
+    orient: float  # ±1: the sign that makes the kinetic term positive
+    train_err: float  # the chosen round's training error
+    test_err: float  # the chosen round's held-out error
+
+
+def _conservative_rounds(ctx: dict, tcfg: TrainConfig, d: _Split, lnn, k_long, back, tick) -> _Rounds:
+    """(b) The LNN alone, continued from the largest λ's ``lnn`` for ``long_factor`` rounds: the round chosen."""
+    # the conservative model is the round with the lowest *training* error (a round that diverges is not used; the
+    # held-out data play no part in the choice)
+    cfg, long_factor, qdd = ctx["cfg"], ctx["long_factor"], ctx["qdd"]
+    arrays, tr, te = d.arrays, d.tr, d.te
     lnn_train = _trainer("lnn", cfg, tcfg)
-    lp = {"lnn": params["lnn"]}
+    lp = {"lnn": lnn}
     hist, hist_tr, best = [], [], None
     for i, k in enumerate([None, *jax.random.split(k_long, long_factor)]):
         if k is not None:
-            lp, _ = lnn_train(lp, A_tr, jnp.asarray(0.0, jnp.float64), k)
+            lp, _ = lnn_train(lp, d.A_tr, jnp.asarray(0.0, jnp.float64), k)
             tick()
         ev = by_rows(_lnn_eval, lp["lnn"], *arrays[:2], arrays[3], cfg=cfg)
         r = back(ev[0] - qdd)
@@ -268,22 +332,31 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
     # L and −L give the same motion: orient the learned Lagrangian so that its kinetic term is positive (else its
     # "energy" is −E and a decay reads as growth)
     orient = -1.0 if np.median(kin_signed) < 0 else 1.0
-    lnn_best = best[2]
-    cons_tr, cons_te = hist_tr[best[0]], hist[best[0]]
-    done("conservative_rounds_s")
+    return _Rounds(
+        best[0], hist, hist_tr, best[2], fc_l, power_l, kin_l, E_l, E_rest, orient, hist_tr[best[0]], hist[best[0]]
+    )
 
-    # (c) the free model of (q, q̇)
+
+def _free_model(ctx: dict, tcfg: TrainConfig, d: _Split, k_free, back, tick) -> tuple[float, float]:
+    """(c) The free model of (q, q̇): its (training, held-out) errors, original units."""
+    cfg, width, long_factor, qdd = ctx["cfg"], ctx["width"], ctx["long_factor"], ctx["qdd"]
     fp = {"mlp": init_free(k_free, cfg, n_time=0, widths=(width, width))}
     ft = _trainer("free", cfg, tcfg)
     for k in jax.random.split(k_free, 1 + long_factor):
-        fp, _ = ft(fp, A_tr, jnp.asarray(0.0, jnp.float64), k)
+        fp, _ = ft(fp, d.A_tr, jnp.asarray(0.0, jnp.float64), k)
         tick()
-    r_free = back(by_rows(_free_eval, fp, *arrays[:2], cfg=cfg) - qdd)
-    free_tr, free_te = _l1(r_free[tr]), _l1(r_free[te])
-    done("free_model_s")
+    r_free = back(by_rows(_free_eval, fp, *d.arrays[:2], cfg=cfg) - qdd)
+    return _l1(r_free[d.tr]), _l1(r_free[d.te])
 
-    # (d) time dependence of the conservative residual: ridge regressions on state monomials, without and with time
-    # features, each trajectory predicted by a fit to the others (leave-one-trajectory-out; linear, so cheap)
+
+def _clock_test(ctx: dict, d: _Split, fc_l, back) -> tuple[float, float, float]:
+    """(d) The time dependence of the conservative residual q̈ − f_c: (the weighted held-out error of the state
+    regression, that of the regression with time features, the fraction of trajectories the time features
+    improve)."""
+    q, qd, tp, qdd, segs, cfg = ctx["q"], ctx["qd"], ctx["tp"], ctx["qdd"], ctx["segs"], ctx["cfg"]
+    tr, te = d.tr, d.te
+    # ridge regressions on state monomials, without and with time features, each trajectory predicted by a fit to
+    # the others (leave-one-trajectory-out; linear, so cheap)
     # the design has hundreds of columns: beyond RIDGE_ROWS rows it is built on rows thinned evenly (memory bounded)
     sel, sub = _thin(len(q), RIDGE_ROWS)
     resid = (qdd - fc_l)[sel]
@@ -304,30 +377,54 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
     w = np.asarray([len(x) for x in (segs_s if len(segs) > 1 else [te_s])], float)
     e_state, e_timed = (float(np.average(errs[k], weights=w)) for k in ("state", "timed"))
     improved = float(np.mean(np.asarray(errs["timed"]) < np.asarray(errs["state"])))
-    done("clock_test_s")
+    return e_state, e_timed, improved
 
-    # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
-    # the multiple-shooting fit of the positions with a damping probe (nnphd.engine.evidence)
-    # blocks of one period; motion that does not oscillate (a throw, a fall) has no period: blocks of a fraction of
-    # the record (nnphd.engine.evidence.evidence_block), and the trend then reads "per block", not "per period"
-    oscillating = bool(np.isfinite(ctx["period"]))
-    block = evidence_block(ctx["period"], tp, segs)
-    trend = energy_trend(orient * E_l, float(np.min(orient * E_rest)), tp, segs, block, seed=seed, kinetic=kin_l)
-    trend["orientation"] = orient
-    done("energy_trend_s")
-    if np.all(np.isfinite(power_l)):
-        shoot = shooting_fit(lnn_accel_fn(cfg), lnn_best, ctx["q_pos"], qd, tp, segs, ctx["sigma"], block, seed=seed)
-    else:
-        shoot = {"valid": False, "reason": "the conservative model diverged"}
-    done("shooting_probe_s")
-    trend = trend_units(trend, sc)
-    shoot = shoot_units(shoot, sc)
-    trend["oscillating"] = shoot["oscillating"] = oscillating
 
-    # checks
-    osc = oscillations(np.concatenate([ctx["q_pos"], qd], axis=1), segs)
-    drift = drift_check(power_l, tp, segs, _seg_mean(kin_l, segs), osc, seed=seed)
-    drift["rho_from_energy"] = energy_net_fraction(E_l, segs).tolist()
+def _energy_trend(ctx: dict, seed: int, cons: _Rounds, block) -> dict:
+    """(e) The trend of the conservative model's energy over the record (:func:`nnphd.engine.evidence.energy_trend`),
+    in standardised units."""
+    trend = energy_trend(
+        cons.orient * cons.E,
+        float(np.min(cons.orient * cons.E_rest)),
+        ctx["tp"],
+        ctx["segs"],
+        block,
+        seed=seed,
+        kinetic=cons.kin,
+    )
+    trend["orientation"] = cons.orient
+    return trend
+
+
+def _shooting_probe(ctx: dict, seed: int, cons: _Rounds, block) -> dict:
+    """(e) The multiple-shooting fit of the positions with the conservative model and a damping probe
+    (:func:`nnphd.engine.shooting.shooting_fit`), in standardised units; invalid where the model diverged."""
+    if np.all(np.isfinite(cons.power)):
+        return shooting_fit(
+            lnn_accel_fn(ctx["cfg"]),
+            cons.lnn,
+            ctx["q_pos"],
+            ctx["qd"],
+            ctx["tp"],
+            ctx["segs"],
+            ctx["sigma"],
+            block,
+            seed=seed,
+        )
+    return {"valid": False, "reason": "the conservative model diverged"}
+
+
+def _checks(ctx: dict, seed: int, d: _Split, cons: _Rounds, rep, free_err, clock_errs, trend, shoot) -> dict:
+    """The checks of :mod:`nnphd.user.checks` on the seed's stages: the seed's report entries drift, uan_power, time,
+    gap, capacity and trajectory_evidence. ``free_err``: (training, held-out) errors of the free model;
+    ``clock_errs``: :func:`_clock_test`'s."""
+    tp, segs = ctx["tp"], ctx["segs"]
+    fnorm, fnorm_tr, fnorm_te = d.fnorm, d.fnorm_tr, d.fnorm_te
+    e_state, e_timed, improved = clock_errs
+    free_tr, free_te = free_err
+    osc = oscillations(np.concatenate([ctx["q_pos"], ctx["qd"]], axis=1), segs)
+    drift = drift_check(cons.power, tp, segs, _seg_mean(cons.kin, segs), osc, seed=seed)
+    drift["rho_from_energy"] = energy_net_fraction(cons.E, segs).tolist()
     uan_drift = drift_check(rep[3], tp, segs, _seg_mean(rep[4], segs), osc, seed=seed)
     tchk = time_check(e_state, e_timed, fnorm, improved if len(segs) > 2 else None)
     tchk.update(
@@ -338,32 +435,103 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
         testable=ctx["clock"][1],
         n_trajectories=len(segs),
     )
-    gap = gap_check(cons_tr, free_tr, cons_te, free_te)
+    gap = gap_check(cons.train_err, free_tr, cons.test_err, free_te)
     gap.update(
-        conservative_train=cons_tr / fnorm_tr,
-        conservative_test=cons_te / fnorm_te,
+        conservative_train=cons.train_err / fnorm_tr,
+        conservative_test=cons.test_err / fnorm_te,
         free_train=free_tr / fnorm_tr,
         free_test=free_te / fnorm_te,
     )
-    cap = capacity_check(hist)
+    cap = capacity_check(cons.hist)
     cap.update(
-        errors_rel=(np.asarray(hist) / fnorm_te).tolist(),
-        train_errors_rel=(np.asarray(hist_tr) / fnorm_tr).tolist(),
-        chosen_round=best[0],
+        errors_rel=(np.asarray(cons.hist) / fnorm_te).tolist(),
+        train_errors_rel=(np.asarray(cons.hist_tr) / fnorm_tr).tolist(),
+        chosen_round=cons.chosen,
     )
     traj = trajectory_evidence(trend, shoot)
     traj["effect"] = effect_text(traj, trend, shoot)
+    uan_power = {k: uan_drift[k] for k in ("rho_median", "magnitude_median", "significant", "bootstrap_fraction")}
+    return {
+        "drift": drift,
+        "uan_power": uan_power | {"lam": rep[0]},
+        "time": tchk,
+        "gap": gap,
+        "capacity": cap,
+        "trajectory_evidence": traj,
+    }
 
-    if np.all(np.isfinite(power_l)) and np.isfinite(cons_tr):
-        status, reason, boot_agree = seed_status(drift, tchk, gap, cap, traj, ctx["quality"], len(segs))
-    else:
-        status, reason, boot_agree = (
-            "inconclusive",
-            "the conservative model diverged (non-finite forces): "
-            "lower the learning rates or standardise the data differently",
-            1.0,
+
+def _seed_status(ctx: dict, cons: _Rounds, chk: dict) -> tuple[str, str, float]:
+    """The seed's (status, reason, bootstrap agreement) from its checks (:func:`nnphd.user.checks.seed_status`);
+    inconclusive where the conservative model diverged."""
+    if np.all(np.isfinite(cons.power)) and np.isfinite(cons.train_err):
+        return seed_status(
+            chk["drift"],
+            chk["time"],
+            chk["gap"],
+            chk["capacity"],
+            chk["trajectory_evidence"],
+            ctx["quality"],
+            len(ctx["segs"]),
         )
-    done("checks_s")
+    return (
+        "inconclusive",
+        "the conservative model diverged (non-finite forces): "
+        "lower the learning rates or standardise the data differently",
+        1.0,
+    )
+
+
+def one_seed(ctx: dict, seed: int, tick=None) -> dict:
+    """One seed of :func:`nnphd.user.assess.assess` on its context ``ctx``: the held-out split, (a) the λ-sweep,
+    (b) the conservative rounds, (c) the free model, (d) the clock test, (e) the whole-record evidence, then the
+    checks. ``tick`` is called after each training round. Module-level (and so are its stages): it runs on worker
+    processes too."""
+    tick = tick or (lambda: None)
+    cfg, sc = ctx["cfg"], ctx["sc"]
+    tcfg = TrainConfig(steps=ctx["steps"])
+    back = lambda r: sc.force_back(r)  # noqa: E731
+    d = _holdout_split(ctx, seed, back)
+    key = jax.random.PRNGKey(seed)
+    k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
+    per_lambda: dict[float, float] = {}
+    watch = _Stopwatch()
+
+    # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
+    params, rep, table, opt_check, naive = _lambda_stage(ctx, tcfg, d, k_lnn, k_uan, k_sweep, back, tick, per_lambda)
+    watch.done("lambda_sweep_s")
+
+    # (b) the LNN alone, continued from the largest λ: the conservative model
+    cons = _conservative_rounds(ctx, tcfg, d, params["lnn"], k_long, back, tick)
+    watch.done("conservative_rounds_s")
+
+    # (c) the free model of (q, q̇)
+    free_err = _free_model(ctx, tcfg, d, k_free, back, tick)
+    watch.done("free_model_s")
+
+    # (d) time dependence of the conservative residual
+    clock_errs = _clock_test(ctx, d, cons.fc, back)
+    watch.done("clock_test_s")
+
+    # (e) evidence over whole trajectories from the conservative model: the trend of its energy over the record and
+    # the multiple-shooting fit of the positions with a damping probe (nnphd.engine.evidence)
+    # blocks of one period; motion that does not oscillate (a throw, a fall) has no period: blocks of a fraction of
+    # the record (nnphd.engine.evidence.evidence_block), and the trend then reads "per block", not "per period"
+    oscillating = bool(np.isfinite(ctx["period"]))
+    block = evidence_block(ctx["period"], ctx["tp"], ctx["segs"])
+    trend = _energy_trend(ctx, seed, cons, block)
+    watch.done("energy_trend_s")
+    shoot = _shooting_probe(ctx, seed, cons, block)
+    watch.done("shooting_probe_s")
+    trend = trend_units(trend, sc)
+    shoot = shoot_units(shoot, sc)
+    trend["oscillating"] = shoot["oscillating"] = oscillating
+
+    # checks
+    chk = _checks(ctx, seed, d, cons, rep, free_err, clock_errs, trend, shoot)
+    status, reason, boot_agree = _seed_status(ctx, cons, chk)
+    watch.done("checks_s")
+    times = watch.times
     times["per_lambda_s"] = {f"{lam:g}": sec for lam, sec in sorted(per_lambda.items())}
     return {
         "seed": seed,
@@ -371,20 +539,19 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
         "status": status,
         "reason": reason,
         "agreement": boot_agree,
-        "drift": drift,
-        "uan_power": {k: uan_drift[k] for k in ("rho_median", "magnitude_median", "significant", "bootstrap_fraction")}
-        | {"lam": rep[0]},
-        "time": tchk,
-        "gap": gap,
-        "capacity": cap,
+        "drift": chk["drift"],
+        "uan_power": chk["uan_power"],
+        "time": chk["time"],
+        "gap": chk["gap"],
+        "capacity": chk["capacity"],
         "optimisation": opt_check,
         "energy_trend": trend,
         "shooting": shoot,
-        "trajectory_evidence": traj,
+        "trajectory_evidence": chk["trajectory_evidence"],
         "naive": naive,
         "table": table,
         "forces": (rep[0], rep[1], rep[2]),
-        "holdout": [int(len(s)) for s in te_segs],
-        "force_norm": fnorm,
-        "_conservative": {"lnn": lnn_best, "cfg": cfg, "fc": back(fc_l)},
+        "holdout": [int(len(s)) for s in d.te_segs],
+        "force_norm": d.fnorm,
+        "_conservative": {"lnn": cons.lnn, "cfg": cfg, "fc": back(cons.fc)},
     }

@@ -88,3 +88,40 @@ def _use_compile_cache(cache: Path) -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
     jax.config.update("jax_compilation_cache_max_size", COMPILE_CACHE_MAX_BYTES)
     os.environ[COMPILE_CACHE_ENV] = str(cache)  # the Dask workers started from this process use it too
+
+
+# Every XLA:CPU executable JAX keeps in memory holds memory mappings, and one process may have at most
+# vm.max_map_count of them (65530 by default). nnphd compiles programs per fit (closures over each record's shapes
+# and settings), so one process fitting many records ran out: ~2400 mappings per small `detect` run kept for good,
+# and after ~15 default runs XLA failed with "LLVM compilation error: Cannot allocate memory" and the process
+# crashed (segfault) — a batch, a benchmark or a notebook fitting file after file. Above this share of the limit
+# the in-memory compiled programs are dropped (the persistent compilation cache keeps them on disk).
+MAP_SHARE_MAX = 0.5
+
+
+def mapped_regions() -> tuple[int, int] | None:
+    """(memory mappings of this process, the system's limit vm.max_map_count), or None where /proc has neither."""
+    try:
+        with open("/proc/sys/vm/max_map_count") as f:
+            limit = int(f.read().strip())
+        with open("/proc/self/maps", "rb") as f:
+            used = sum(1 for _ in f)
+    except (OSError, ValueError):
+        return None
+    return used, limit
+
+
+def release_compiled_if_crowded(share: float | None = None) -> bool:
+    """Drop JAX's in-memory compiled programs (``jax.clear_caches``) when this process holds more than ``share``
+    (default :data:`MAP_SHARE_MAX`) of the memory mappings it may hold; True if it did. Called before each fit and each seed, it keeps a long-lived
+    process from crashing; it costs the next fit its in-memory cache (your own jitted functions recompile once)."""
+    counts = mapped_regions()
+    if counts is None or counts[0] <= (MAP_SHARE_MAX if share is None else share) * counts[1]:
+        return False
+    import gc
+
+    import jax
+
+    jax.clear_caches()
+    gc.collect()
+    return True

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nnphd._config import release_compiled_if_crowded
 from nnphd.io.errors import DataError
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.timing import StageTimer
@@ -237,6 +238,7 @@ def detect_data(
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`)."""
     say = _Say(progress)
     _check_settings(ud, laws, law_fit, field)
+    release_compiled_if_crowded()  # a process fitting record after record must not run out of memory mappings
     timer = StageTimer()
     if read_s is not None:
         timer.add("reading the file", read_s)

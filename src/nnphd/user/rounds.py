@@ -12,6 +12,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from nnphd._config import release_compiled_if_crowded
 from nnphd.engine.batching import by_rows
 from nnphd.engine.evidence import energy_trend, evidence_block
 from nnphd.engine.models import (
@@ -487,6 +488,7 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
     (b) the conservative rounds, (c) the free model, (d) the clock test, (e) the whole-record evidence, then the
     checks. ``tick`` is called after each training round. Module-level (and so are its stages): it runs on worker
     processes too."""
+    release_compiled_if_crowded()  # a worker process training seed after seed (nnphd._config.MAP_SHARE_MAX)
     tick = tick or (lambda: None)
     cfg, sc = ctx["cfg"], ctx["sc"]
     tcfg = TrainConfig(steps=ctx["steps"])

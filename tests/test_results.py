@@ -6,6 +6,7 @@ path."""
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 from hypothesis import given, settings
@@ -61,6 +62,7 @@ def test_a_report_dict_becomes_typed_and_back():
     d["status"] = "none"
     assert r.to_dict()["status"] == "detected"
     # no law claimed: law None, the table's status and reason kept
+    assert math.isnan(DetectResult.from_dict(dict(REPORT, confidence=float("nan"))).verdict.confidence)  # not known
     none = dict(REPORT, status="none", new_physics=False, law={"law": None, "status": "none", "reason": "no law"})
     r = DetectResult.from_dict(none)
     assert r.law is None and r.law_status == "none" and r.law_reason == "no law" and r.status is Status.NONE

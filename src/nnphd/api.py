@@ -167,8 +167,8 @@ def _verdict_of(report: dict, where: str = "report") -> Verdict:
             where, f"status must be one of {', '.join(repr(s.value) for s in Status)}, got {report.get('status')!r:.60}"
         ) from None
     conf = report.get("confidence")
-    if isinstance(conf, bool) or not isinstance(conf, (int, float)) or not 0.0 <= conf <= 1.0:
-        raise _report_error(where, f"confidence must be a number in [0, 1], got {conf!r:.60}")
+    if isinstance(conf, bool) or not isinstance(conf, (int, float)) or not (0.0 <= conf <= 1.0 or conf != conf):
+        raise _report_error(where, f"confidence must be a number in [0, 1], got {conf!r:.60}")  # (NaN: not known)
     reasons = report.get("reasons", [])
     if not isinstance(reasons, list) or not all(isinstance(r, str) for r in reasons):
         raise _report_error(where, "reasons must be a list of strings")

@@ -36,10 +36,12 @@ Method (per seed; ``n_seeds`` repeats with other initialisations, minibatches an
   time features × (1, q, q̇) (the frequency grid twice as fine as above), leave-one-trajectory-out.
 
 The checks on the fitted models, the status per seed and how the thresholds were set: :mod:`nnphd.user.checks`;
-standardised units, time features and hold-out: :mod:`nnphd.user.scaling`. Over seeds: the common status, or
-``inconclusive`` ("seeds disagree"). ``confidence`` = mean over seeds of [seed status = final status] × the share of
-window/block bootstrap replicas of that seed's trajectory-level evidence (trajectories, for the net-power check) that
-reproduce its call — how often a similar record would give the same call, not a probability that the call is right.
+standardised units, time features and hold-out: :mod:`nnphd.user.scaling`. Over seeds
+(:func:`nnphd.user.rules.combine_seeds`): the common status; where they differ, a seed whose "inconclusive" is an
+optimisation failure (its LNN under-fits where another seed's fits as well as a free model) is discounted and the
+others decide if they agree; else ``inconclusive`` ("seeds disagree"). ``confidence`` = mean over seeds of [seed
+status = final status] × the share of window/block bootstrap replicas of that seed's trajectory-level evidence
+(trajectories, for the net-power check) that reproduce its call — how often a similar record would give the same call, not a probability that the call is right.
 ``new_physics`` (best call): the status, or when inconclusive, the majority of seeds.
 """
 
@@ -80,6 +82,7 @@ from nnphd.user.rounds import (
     lnn_accel_fn,
     one_seed,
 )
+from nnphd.user.rules import combine_seeds
 from nnphd.user.scaling import (
     Scaling,
     fit_scaling,
@@ -163,7 +166,8 @@ def assess(
       the first seed (file units);
     * ``confidence``: in [0, 1]: mean over seeds of [seed agrees with the status] × the share of window/block
       bootstrap replicas of that seed's evidence that reproduce its call;
-    * ``reasons``: human-readable, one per seed (first: "seeds disagree" if they do);
+    * ``reasons``: human-readable, one per seed (first: "seeds disagree" if they do, or which seed was discounted
+      and why);
     * ``quality``: whether the data can decide (noise, sampling, derivative error);
     * ``checks``: every check's numbers per seed, ``per_seed`` with everything, the scaling and the thresholds;
     * ``table``: per λ, L_e and L_b on held-out data (original units; ``_rel``: over ‖f‖) and on the training data,
@@ -279,24 +283,7 @@ def _unusable(quality: dict, sc: Scaling, data: Dataset, is_angle, clock, wall: 
 
 
 def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict:
-    statuses = [s["status"] for s in seeds]
-    if len(set(statuses)) == 1:
-        status = statuses[0]
-        reasons = [f"seed {s['seed']}: {s['reason']}" for s in seeds]
-    else:
-        status = "inconclusive"
-        reasons = [f"seeds disagree ({', '.join(statuses)})"] + [f"seed {s['seed']}: {s['reason']}" for s in seeds]
-    conf = float(np.mean([(s["status"] == status) * s["agreement"] for s in seeds]))
-    if status == "inconclusive" and len(set(statuses)) > 1:
-        conf = float(np.mean([s["status"] == "detected" for s in seeds]))
-        conf = max(conf, 1 - conf)
-    det = float(np.mean([s["status"] == "detected" for s in seeds]))
-    if status == "detected":
-        new = True
-    elif status == "none":
-        new = False
-    else:  # best call when inconclusive
-        new = bool(det > 0.5)
+    status, new, conf, reasons = combine_seeds(seeds)
     lams = [r["lam"] for r in seeds[0]["table"]]
     table = []
     for j, lam in enumerate(lams):

@@ -1,0 +1,78 @@
+"""How the seeds' statuses combine (:func:`nnphd.user.rules.combine_seeds`): agreement, a disagreement of well-fitted
+models ("inconclusive"), and an "inconclusive" that is an optimisation failure another seed shows the data do not
+cause (discounted) — the rules on hand-made per-seed results."""
+
+import pytest
+
+from nnphd.user.rules import UNDERFIT_RATIO, combine_seeds, underfit_against
+
+
+def _seed(k, status, cons, free=0.12, z=(0.1, 0.0), agreement=0.9):
+    return {
+        "seed": k,
+        "status": status,
+        "reason": f"reason {k}",
+        "agreement": agreement,
+        "gap": {"conservative_train": cons, "free_train": free, "gap_train": cons / free, "large": cons / free >= 2},
+        "trajectory_evidence": {"z_energy": z[0], "z_shooting": z[1]},
+    }
+
+
+def test_agreeing_seeds_keep_their_status_and_bootstrap_confidence():
+    status, new, conf, reasons = combine_seeds([_seed(0, "none", 0.07, agreement=0.8), _seed(1, "none", 0.08)])
+    assert (status, new) == ("none", False)
+    assert conf == pytest.approx(0.85)
+    assert reasons == ["seed 0: reason 0", "seed 1: reason 1"]
+
+
+def test_an_underfit_inconclusive_seed_is_discounted_when_another_fits():
+    # the numbers of the eccentric Kepler case (seed_robustness): 0.070 (×0.58 the free model) vs 0.295 (×2.4)
+    good, bad = _seed(1, "none", 0.070, free=0.121), _seed(2, "inconclusive", 0.295, free=0.122)
+    status, new, conf, reasons = combine_seeds([good, bad])
+    assert (status, new) == ("none", False)
+    assert conf == pytest.approx(0.45)  # the discounted seed counts against the confidence: 0.9 / 2
+    assert reasons[0].startswith("seed 2 is discounted") and "x4.2 seed 1's" in reasons[0]
+    assert reasons[1:] == ["seed 1: reason 1", "seed 2: reason 2"]
+    # the order of the seeds does not matter
+    assert combine_seeds([bad, good])[:2] == ("none", False)
+
+
+def test_a_detection_by_the_well_fitted_seed_stands_against_an_underfit_one():
+    status, new, _, reasons = combine_seeds([_seed(0, "detected", 0.05, z=(9.0, 7.0)), _seed(1, "inconclusive", 0.3)])
+    assert (status, new) == ("detected", True)
+    assert reasons[0].startswith("seed 1 is discounted")
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        _seed(2, "inconclusive", 0.295, z=(3.5, 0.0)),  # the under-fit seed holds evidence of its own (z ≥ Z_BOTH)
+        _seed(2, "inconclusive", 0.13, free=0.06),  # under-fits (×2.2 the free model) but < UNDERFIT_RATIO × 0.070
+        _seed(2, "detected", 0.295),  # a detection is never discounted, however poor the fit
+        _seed(2, "inconclusive", 0.2, free=0.5),  # it does not under-fit (gap < 2): a disagreement of the evidence
+    ],
+)
+def test_a_disagreement_of_well_fitted_models_or_of_evidence_stays_inconclusive(bad):
+    good = _seed(1, "none", 0.070, free=0.121)
+    assert 0.13 < UNDERFIT_RATIO * 0.070 < 0.295  # the cases above sit on either side of the threshold
+    assert underfit_against(bad, [good, bad]) is None
+    status, new, conf, reasons = combine_seeds([good, bad])
+    assert status == "inconclusive"
+    assert reasons[0].startswith("seeds disagree")
+    # the larger share of seeds on one side of detected / not detected; the best call is the majority
+    assert (conf, new) == ((0.5, False) if bad["status"] == "detected" else (1.0, False))
+
+
+def test_no_seed_is_discounted_when_none_fits_as_well_as_a_free_model():
+    a, b = _seed(0, "none", 0.20, free=0.09), _seed(1, "inconclusive", 0.9, free=0.1)  # both gaps ≥ 2
+    assert underfit_against(b, [a, b]) is None
+    assert combine_seeds([a, b])[0] == "inconclusive"
+
+
+def test_three_seeds_one_discounted_two_agree_and_two_disagreeing_stay_inconclusive():
+    seeds = [_seed(0, "none", 0.07), _seed(1, "none", 0.06), _seed(2, "inconclusive", 0.3)]
+    status, _, conf, reasons = combine_seeds(seeds)
+    assert status == "none" and conf == pytest.approx(0.6)
+    assert sum(r.startswith("seed 2 is discounted") for r in reasons) == 1
+    seeds[1] = _seed(1, "detected", 0.06, z=(8.0, 6.0))
+    assert combine_seeds(seeds)[0] == "inconclusive"

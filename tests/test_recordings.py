@@ -208,3 +208,30 @@ def test_csv_round_trip(recs, tmp_path, name):
     if name in ("cart", "carts-coupled"):
         row = path.read_text().splitlines()[1].split(",")
         assert all(c.lstrip("-").isdigit() for c in row[1:])  # integer pixels written as integers
+
+
+@pytest.mark.parametrize("name", ["double-pendulum-camera", "double-pendulum-camera-free"])
+def test_double_pendulum_camera_takes(recs, name):
+    """Two takes at 200 fps from rest, whole turns of the lower rod, dropped frames, angles of pixel-tracked bobs."""
+    r = recs[name]
+    assert r.traj is not None and set(np.unique(r.traj)) == {0, 1}
+    for j in (0, 1):
+        t = r.t[r.traj == j]
+        assert t[0] == 0.0 and t[-1] == 10.0 and np.all(np.diff(t) > 0)
+        assert np.isclose(np.median(np.diff(t)), 0.005) and np.sum(np.diff(t) > 0.0075) == 3  # 3 runs dropped
+        q = r.q[r.traj == j]
+        assert np.ptp(q[:, 1]) > 3 * np.pi  # the lower rod sweeps more than one and a half turns in each take
+        assert np.max(np.abs(np.diff(q, axis=0))) < np.pi  # unwrapped: no 2π jumps
+    err = r.q - r.truth["q_true"]  # the tracker's error: ~0.4 px of 150 px (upper rod), both bobs' (lower)
+    assert 0.002 < err[:, 0].std() < 0.0035 and 0.003 < err[:, 1].std() < 0.005
+    assert np.abs(err).max() < 0.02
+    E = energy("double-pendulum", r.truth["q_true"], r.truth["qd_true"])
+    for j in (0, 1):
+        Ej = E[r.traj == j]
+        if r.conservative:
+            assert np.ptp(Ej) / (Ej[0] - r.truth["E_min"]) < 1e-8
+        else:
+            assert Ej[-1] < Ej[0] - 0.3 * (Ej[0] - r.truth["E_min"])  # loses over 30 % of its energy per take
+    assert r.expected == ("not-detected" if r.conservative else "detected")
+    if not r.conservative:
+        assert 0.03 < r.energy_decay_rate < 0.07

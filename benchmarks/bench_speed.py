@@ -152,7 +152,7 @@ def bench_sweeps() -> dict:
         t0 = time.perf_counter()
         res = run_sweep(system, steps=2000, seed=0, mode=mode)
         total = time.perf_counter() - t0
-        out[label] = {"total_s": total, "sweep_only_s": res["wall_time_s"], "goal_met": total <= GOAL_SWEEP}
+        out[label] = {"total_s": total, "sweep_only_s": res.wall_time_s, "goal_met": total <= GOAL_SWEEP}
     return out
 
 

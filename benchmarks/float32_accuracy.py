@@ -58,15 +58,15 @@ def main() -> None:
     print(f"{'system':16s} {'float64':>22s} {'float32':>22s} {'max rel. diff of L_e':>22s}")
     for s in systems:
         r64, r32 = outs[f"{s}/float64"].value, outs[f"{s}/float32"].value
-        le64 = [x["L_e"] for x in r64["table"]]
-        le32 = [x["L_e"] for x in r32["table"]]
+        le64 = [x.L_e for x in r64.table]
+        le32 = [x.L_e for x in r32.table]
         diff = max(abs(x - y) / abs(x) for x, y in zip(le64, le32))
         row = {
             "system": s,
-            "truth_conservative": r64["truth_conservative"],
-            "float64": {"new_physics": r64["new_physics"], "ratio": r64["statistic"]["value"]},
-            "float32": {"new_physics": r32["new_physics"], "ratio": r32["statistic"]["value"]},
-            "same_verdict": r64["new_physics"] == r32["new_physics"],
+            "truth_conservative": r64.truth_conservative,
+            "float64": {"new_physics": r64.new_physics, "ratio": r64.le_ratio},
+            "float32": {"new_physics": r32.new_physics, "ratio": r32.le_ratio},
+            "same_verdict": r64.new_physics == r32.new_physics,
             "max_rel_diff_L_e": diff,
             "wall_s": {"float64": outs[f"{s}/float64"].wall_time_s, "float32": outs[f"{s}/float32"].wall_time_s},
         }

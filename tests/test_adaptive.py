@@ -187,9 +187,9 @@ def test_fast_mode_does_not_report_an_unlearned_lagrangian_as_a_jump():
     rate's share of 150 steps still ran as two chunks of 100; at 600 now the chain's L_e above λ = 1 disagrees ×166
     and sends it to the paper protocol for that reason.)"""
     res = run_sweep("ho+mf", seed=0, mode="fast", n_train=300, n_test=300, steps=800)
-    pr = res["protocol"]
+    pr = res.protocol
     assert pr["ran_paper_protocol"] and any("UAN" in w for w in pr["doubts"]), pr
-    assert not res["verdict"]["new_physics"] and res["verdict"]["ratio"] < 2, res["verdict"]
+    assert not res.new_physics and res.le_ratio < 2, res.verdict
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
@@ -201,11 +201,11 @@ def test_fast_mode_verdicts(name):
     # test above), at 1000 too (its UAN below λ = 1 unsettled, so the paper protocol runs and says none) — this test
     # ran at 1000 before the chunk fix, when 1000 meant 1200 steps at the first λ and up to 300 per learning rate
     res = run_sweep(name, seed=0, mode="fast", n_train=300, n_test=300, steps=1200)
-    v = res["verdict"]
+    v = res.verdict
     conservative = name == "ho+mf"
-    assert v["new_physics"] == (not conservative), v
-    assert (v["ratio"] < 2) if conservative else (v["ratio"] > 6 and v["L_above"] > 0.1), v
-    pr = res["protocol"]
+    assert v.new_physics == (not conservative), v
+    assert (res.le_ratio < 2) if conservative else (res.le_ratio > 6 and v.L_above > 0.1), v
+    pr = res.protocol
     assert pr["first_lambdas"] == [0.1, 0.5, 2.0, 10.0]
     assert not pr["ran_paper_protocol"] and pr["steps_total"] < 1200 * len(PAPER_LAMBDAS) / 3, pr
-    assert [r["lam"] for r in res["table"]] == [float(k) for k in pr["steps_by_lambda"]]
+    assert [r.lam for r in res.table] == [float(k) for k in pr["steps_by_lambda"]]

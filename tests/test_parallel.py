@@ -21,7 +21,7 @@ def _units():
 
 
 def _numbers(outs: dict[str, Outcome]) -> dict[str, list[float]]:
-    return {k: [(r["L_e"], r["L_b"]) for r in o.value["table"]] for k, o in outs.items()}
+    return {k: [(r.L_e, r.L_b) for r in o.value.table] for k, o in outs.items()}
 
 
 @pytest.fixture(scope="module")

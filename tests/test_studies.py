@@ -106,8 +106,8 @@ def test_lambda_p_subrun_is_nnphd_sweep(lp):
     """Same seed → same numbers: a sub-run reproduces `nnphd sweep` (run_sweep) exactly."""
     _, res, _ = lp
     ref = run_sweep("ho+ld", p=1, steps=LP["steps"], seed=LP["seed"], lambdas=LP["lambdas"])
-    assert [r["L_e"] for r in res["curves"]["ho+ld"]["1"]] == [r["L_e"] for r in ref["table"]]
-    assert [r["m_c"] for r in res["curves"]["ho+ld"]["1"]] == [r["m_c"] for r in ref["table"]]
+    assert [r["L_e"] for r in res["curves"]["ho+ld"]["1"]] == [r.L_e for r in ref.table]
+    assert [r["m_c"] for r in res["curves"]["ho+ld"]["1"]] == [r.m_c for r in ref.table]
 
 
 @pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)

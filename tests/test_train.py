@@ -114,8 +114,8 @@ def test_sweep_resumes_after_interruption(tmp_path):
         run_mod._save_checkpoint = orig
     assert not (tmp_path / "results.json").exists()  # nothing half-written
     resumed = run_sweep("ho+ld", out=tmp_path, **kw)
-    assert resumed["resumed_lambdas"] == [0.1, 0.5]
-    np.testing.assert_allclose([r["L_e"] for r in resumed["table"]], [r["L_e"] for r in full["table"]], rtol=1e-9)
+    assert resumed.resumed_lambdas == (0.1, 0.5)
+    np.testing.assert_allclose([r.L_e for r in resumed.table], [r.L_e for r in full.table], rtol=1e-9)
     assert (tmp_path / "results.json").exists() and (tmp_path / "loss_vs_lambda.png").exists()
     assert not (tmp_path / ".checkpoint.npz").exists()
 
@@ -157,13 +157,13 @@ REDUCED_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
 def test_phase_transition_reduced(name):
     s = get_system(name)
     res = run_sweep(s, p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000)
-    v = res["verdict"]
-    assert v["new_physics"] == (not s.conservative), v
+    v = res.verdict
+    assert v.new_physics == (not s.conservative), v
     if not s.conservative:
-        assert v["ratio"] > 3
-        assert v["L_above"] > 0.1  # the non-conservative forces are ~0.3–0.5 in L1
+        assert res.le_ratio > 3
+        assert v.L_above > 0.1  # the non-conservative forces are ~0.3–0.5 in L1
     else:
-        assert v["ratio"] < 2
+        assert res.le_ratio < 2
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
@@ -173,13 +173,13 @@ def test_phase_transition_reduced_float32(name):
     s = get_system(name)
     cfg = ModelConfig(n=s.n, dtype="float32")
     res = run_sweep(s, p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000, model_cfg=cfg)
-    assert res["settings"]["model"]["dtype"] == "float32"
-    v = res["verdict"]
-    assert v["new_physics"] == (not s.conservative), v
+    assert res.settings["model"]["dtype"] == "float32"
+    v = res.verdict
+    assert v.new_physics == (not s.conservative), v
     if not s.conservative:
-        assert v["ratio"] > 3 and v["L_above"] > 0.1
+        assert res.le_ratio > 3 and v.L_above > 0.1
     else:
-        assert v["ratio"] < 2
+        assert res.le_ratio < 2
 
 
 def test_verdict_exact_fit_below_one():

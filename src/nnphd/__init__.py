@@ -30,6 +30,7 @@ __all__ = [
     "Law",
     "NNPhD",
     "Status",
+    "SweepResult",
     "Trajectories",
     "Verdict",
     "__version__",
@@ -45,6 +46,10 @@ def __getattr__(name: str):  # the API loads on first use, so `import nnphd` sta
         from nnphd import api
 
         return getattr(api, name)
+    if name == "SweepResult":  # the paper's λ-sweep result (nnphd.paper.sweep.run_sweep)
+        from nnphd.paper.sweep_result import SweepResult
+
+        return SweepResult
     raise AttributeError(f"module 'nnphd' has no attribute {name!r}")
 
 

@@ -119,25 +119,25 @@ def sweep(
             model_cfg=ModelConfig(n=sysm.n, dtype=dtype.value),
         )
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
-    has_m = res["table"][0]["m_c"] is not None
+    has_m = res.table[0].m_c is not None
     for col in ("λ", "L_e", "L_b") + (("m_c", "m_n") if has_m else ()):
         t.add_column(col, justify="right")
-    for r in res["table"]:
-        row = [f"{r['lam']:g}", f"{r['L_e']:.4g}", f"{r['L_b']:.4g}"]
+    for r in res.table:
+        row = [f"{r.lam:g}", f"{r.L_e:.4g}", f"{r.L_b:.4g}"]
         if has_m:
-            row += [f"{r['m_c']:.4f}", f"{r['m_n']:.4f}"]
+            row += [f"{r.m_c:.4f}", f"{r.m_n:.4f}"]
         t.add_row(*row)
     console.print(t)
-    v = res["verdict"]
-    tag = "[bold red]NEW PHYSICS[/]" if v["new_physics"] else "[bold green]no new physics[/]"
-    console.print(f"verdict: {tag} — {v['reason']}")
+    v = res.verdict
+    tag = "[bold red]NEW PHYSICS[/]" if v.new_physics else "[bold green]no new physics[/]"
+    console.print(f"verdict: {tag} — {v.reason}")
     console.print(
-        f"statistic: L_e ratio across λ=1 = {v['ratio']:.3g} (threshold {v['min_ratio']:g}); "
-        f"|f_n| ≈ {v['fn_size_from_jump']:.3g} (jump) / {v['fn_size_from_uan']:.3g} (UAN)"
+        f"statistic: L_e ratio across λ=1 = {res.le_ratio:.3g} (threshold {v.min_ratio:g}); "
+        f"|f_n| ≈ {v.fn_size_from_jump:.3g} (jump) / {v.fn_size_from_uan:.3g} (UAN)"
     )
-    pr = res["protocol"]
+    pr = res.protocol
     if pr is not None:
-        paper_steps = steps * len(res["settings"]["lambdas"])
+        paper_steps = steps * len(res.settings["lambdas"])
         if pr["ran_paper_protocol"]:
             console.print(f"fast mode: the first verdict was close ({'; '.join(pr['doubts'])}): ran the paper protocol")
         else:
@@ -145,9 +145,9 @@ def sweep(
                 f"fast mode: {len(pr['first_lambdas'])} λ, {pr['steps_total']} training steps "
                 f"(the paper protocol: {paper_steps})"
             )
-    if res["resumed_lambdas"]:
-        console.print(f"resumed {len(res['resumed_lambdas'])} finished λ from a checkpoint")
-    console.print(_r(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res['wall_time_s']:.1f} s)"))
+    if res.resumed_lambdas:
+        console.print(f"resumed {len(res.resumed_lambdas)} finished λ from a checkpoint")
+    console.print(_r(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res.wall_time_s:.1f} s)"))
 
 
 @app.command()

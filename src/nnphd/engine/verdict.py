@@ -30,7 +30,7 @@ MIN_RATIO = 3.0
 MIN_RELATIVE_SIZE = 1e-4
 
 
-@dataclass
+@dataclass(frozen=True)
 class PhaseTransition:
     """The paper's verdict from a λ-sweep: does the held-out error L_e jump across λ = 1 (``ratio`` of the medians
     above and below, at least ``min_ratio``), by a remainder large enough to matter (``relative_size``)? The user's

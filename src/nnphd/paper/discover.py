@@ -44,7 +44,8 @@ from nnphd.explain.sparse import sparse_formula
 from nnphd.explain.symbolic import genetic_formula
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
-from nnphd.paper.sweep import plan_sweep, run_sweep
+from nnphd.paper.sweep import SweepPlan, plan_sweep, run_sweep
+from nnphd.paper.sweep_result import SweepResult
 
 # the systems with a Table II row; each names its feature Lagrangian, hypothesis family, truth, goals and default
 # trajectory length in the catalogue (nnphd.engine.systems.System)
@@ -146,9 +147,9 @@ def discover(
     return {
         "system": system,
         "description": sysm.description,
-        "new_physics": sw["new_physics"],
-        "verdict": sw["verdict"],
-        "sweep_table": sw["table"],
+        "new_physics": sw.new_physics,
+        "verdict": sw.verdict.to_dict(),
+        "sweep_table": [r.to_dict() for r in sw.table],
         "constrained_lagrangian": {
             "terms": list(fl.names),
             "coefficients": cf.coefs.tolist(),
@@ -177,7 +178,9 @@ def discover(
     }
 
 
-def _detection_sweep(sysm, sweep_steps: int, seed: int, standardize: bool, sweep_lambdas, dtype: str) -> tuple:
+def _detection_sweep(
+    sysm, sweep_steps: int, seed: int, standardize: bool, sweep_lambdas, dtype: str
+) -> tuple[SweepPlan, SweepResult]:
     """The λ-sweep with a free LNN and its verdict. Returns (the sweep's plan, whose trajectory and standardised
     configuration the later stages reuse, and the sweep's result)."""
     # the trajectory and its standardisation are made once, for the sweep and the constrained fit
@@ -204,7 +207,7 @@ def _settings(sysm, paper_n_steps, sw, steps, sweep_steps, lam, seed, standardiz
     return {
         "steps": steps,
         "sweep_steps": sweep_steps,
-        "sweep_lambdas": sorted(sw["settings"]["lambdas"]),
+        "sweep_lambdas": sorted(sw.settings["lambdas"]),
         "lambda": lam,
         "seed": seed,
         "standardize": standardize,

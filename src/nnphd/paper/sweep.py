@@ -5,6 +5,7 @@ This is what ``nnphd sweep`` calls; a notebook can call it the same way.
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from collections.abc import Sequence
@@ -22,6 +23,7 @@ from nnphd.engine.verdict import PhaseTransition, force_norm, verdict
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
+from nnphd.paper.sweep_result import SweepResult, SweepRow
 
 _POINT_NUMBERS = ("L_e", "L_b", "L_e_train", "L_b_train")  # a checkpointed λ's metadata: these, and m_c, m_n
 
@@ -143,8 +145,9 @@ def run_sweep(
     resume: bool = True,
     plan: SweepPlan | None = None,
     **plan_kw,
-) -> dict:
-    """Run a λ-sweep on a catalogue system and return the results dict (also written to ``out`` if given).
+) -> SweepResult:
+    """Run a λ-sweep on a catalogue system and return its :class:`SweepResult` (``.to_dict()``, results.json's
+    content, is also written to ``out`` if given, with the L_e(λ) plot).
 
     ``plan_kw`` (p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize) as :func:`plan_sweep`, or
     ``plan``: one made already (a caller that also needs its data and model settings makes them once). With
@@ -157,33 +160,23 @@ def run_sweep(
     elif plan_kw or outdir is not None:
         raise ValueError("run_sweep: give either plan or the plan's settings (and out), not both")
     r = plan.run(progress)
-    sysm, v, points = plan.system, r.verdict, r.points
-    table = [pt.row() for pt in points]
-    aligned = [r for r in table if 0.1 <= r["lam"] <= 0.5 and r["m_c"] is not None]
-    results = {
-        "system": sysm.name,
-        "description": sysm.description,
-        "new_physics": v.new_physics,
-        "truth_conservative": sysm.conservative,
-        "statistic": {"name": "ratio of median L_e above λ=1 to median L_e below λ=1", "value": v.ratio},
-        "verdict": v.to_dict(),
-        "table": table,
-        "alignment_lambda_0.1_to_0.5": {
-            "max_m_c": max(r["m_c"] for r in aligned) if aligned else None,
-            "max_m_n": max(r["m_n"] for r in aligned) if aligned else None,
-        },
-        "settings": plan.settings,
-        "evaluated_on": "test set" if plan.test is not None else "training trajectory (as the paper)",
-        "wall_time_s": r.wall_time_s,
-        "resumed_lambdas": r.resumed,
-        "protocol": r.protocol,
-        "jax_version": jax.__version__,
-    }
+    res = SweepResult(
+        system=plan.system.name,
+        description=plan.system.description,
+        truth_conservative=plan.system.conservative,
+        verdict=r.verdict,
+        table=tuple(SweepRow(**pt.row()) for pt in r.points),
+        settings=copy.deepcopy(plan.settings),
+        evaluated_on="test set" if plan.test is not None else "training trajectory (as the paper)",
+        wall_time_s=r.wall_time_s,
+        resumed_lambdas=tuple(r.resumed),
+        protocol=r.protocol,
+        jax_version=jax.__version__,
+    )
     if outdir is not None:
+        results = res.to_dict()
         write_json(outdir / "results.json", results)
-        save_figure(
-            plot_sweep({sysm.name: table}, f"{sysm.name}, p={plan.tcfg.p}: new physics = {v.new_physics}"),
-            outdir / "loss_vs_lambda.png",
-        )
+        title = f"{res.system}, p={plan.tcfg.p}: new physics = {res.new_physics}"
+        save_figure(plot_sweep({res.system: results["table"]}, title), outdir / "loss_vs_lambda.png")
         plan.cache.clear_checkpoint()
-    return results
+    return res

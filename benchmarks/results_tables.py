@@ -155,11 +155,600 @@ def seed_robustness() -> str:
     return "\n".join(out) + "\n"
 
 
+# ---- shared formatting ---------------------------------------------------------------------------------------------
+def _neg(s: str) -> str:
+    """A formatted number with the typographic minus the hand-written tables use (exponents keep '-')."""
+    return "−" + s[1:] if s.startswith("-") else s
+
+
+def _compact(s: str) -> str:
+    """A formatted number with its exponent unpadded ('5e-9', not '5e-09') and a typographic leading minus."""
+    return _neg(re.sub(r"e([+-])0*(\d)", lambda m: "e" + m[1].replace("+", "") + m[2], s))
+
+
+def _g(x: float, digits: int, zeros: bool = False) -> str:
+    """``x`` to ``digits`` significant digits; with ``zeros`` trailing zeros kept (0.620, not 0.62)."""
+    return _compact(f"{x:#.{digits}g}".rstrip(".") if zeros else f"{x:.{digits}g}")
+
+
+def _f(x: float, decimals: int) -> str:
+    return _neg(f"{x:.{decimals}f}")
+
+
+def _signed(x: float, fmt: str) -> str:
+    """' + 3' / ' − 3': a term after the first."""
+    return (" − " if x < 0 else " + ") + format(abs(x), fmt)
+
+
+# ---- the real chaotic double pendulum ------------------------------------------------------------------------------
+DP_FAMILIES = {
+    "linear": "linear",
+    "linear-diag": "linear per joint",
+    "quadratic": "quadratic",
+    "quadratic-diag": "quadratic per joint",
+    "coulomb": "Coulomb",
+    "coulomb-diag": "Coulomb per joint",
+    "power": "power",
+}
+
+
+def _dp_best(title: str) -> str:
+    """'linear friction −γ q̇ (isotropic)' -> 'linear'; a per-coordinate family ('−c_i …') -> '… per joint'."""
+    return title.split()[0] + (" per joint" if "_i" in title else "")
+
+
+def _dp_law(r) -> str:
+    """The law column, from the report's law_status and law_reason: a tie's families in its order, or why no law."""
+    why = r.get("law_reason") or ""
+    if r["law_status"] == "tie":
+        fams = re.findall(r"(?:— |; )([a-z+-]+): \w+ =", why)
+        return "tie: " + " / ".join(DP_FAMILIES.get(f, f) for f in fams)
+    if r["law_status"] != "none":
+        return r["law_status"]
+    m = re.search(r"the best, (.+?) \(ΔIC = ([-+\d.]+)\), is not eligible", why)
+    if m:
+        return f"none ({_dp_best(m[1])} ΔIC {_neg(m[2])}, not eligible)"
+    m = re.search(r"the best, (.+?), changes the held-out error by ([-+\d.]+)%.*\(ΔIC = ([-+\d.]+)\)", why)
+    if m:
+        return f"none ({_dp_best(m[1])} {_f(float(m[2]), 1)} %, ΔIC {_neg(m[3])})"
+    return "none"
+
+
+def _dp_mark(r) -> str:
+    """'*': a run its JSON says ran beside the test suite ('beside': 'runs 11 and 12 beside …'); '†': a run of the
+    round after (its JSON names no older code), measured beside that round's development; '' : ran alone."""
+    named = re.match(r"runs? ([\d, and]+?) beside", r.get("beside", ""))
+    if named and r["run"] in {int(n) for n in re.findall(r"\d+", named[1])}:
+        return "*"
+    return "" if "code" in r else "†"
+
+
+def _dp_probe(s, i: int) -> str:
+    if not s["valid"][i]:
+        return "invalid"
+    return f"{_f(s['d_mean'][i], 3)} ± {s['se_d_mean'][i]:.3f} ({_f(s['z'][i], 1)})"
+
+
+def real_double_pendulum() -> str:
+    """results/real_double_pendulum.json (benchmarks/real_double_pendulum.py --seconds 0): whole runs, the rounds
+    in the order they were measured (runs with an older 'code' first)."""
+    rows = sorted(_load("real_double_pendulum.json"), key=lambda r: ("code" not in r, r["run"]))
+    out = [
+        "| run | verdict (confidence) | energy z (seeds 0, 1) | shooting probe d ± se (z), seeds 0, 1 | law | s |",
+        "|---" * 6 + "|",
+    ]
+    for r in rows:
+        z = ", ".join(_f(x, 1) for x in r["energy_trend"]["z"])
+        probe = "; ".join(_dp_probe(r["shooting"], i) for i in range(len(r["shooting"]["z"])))
+        out.append(
+            f"| {r['run']} | {r['status']} ({r['confidence']:.2f}) | {z} | {probe} | {_dp_law(r)} | "
+            f"{r['wall_s']:.0f}{_dp_mark(r)} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+# ---- time to a verdict, float32 ------------------------------------------------------------------------------------
+def _verdict(new_physics: bool) -> str:
+    return "new physics" if new_physics else "none"
+
+
+def time_to_verdict() -> str:
+    """results/time_to_verdict.json (benchmarks/time_to_verdict.py): the paper protocol against --mode fast."""
+    out = [
+        "| system | paper: verdict | ratio | s | fast: verdict | ratio | s | steps | what fast ran |",
+        "|---" * 9 + "|",
+    ]
+    for r in _load("time_to_verdict.json")["rows"]:
+        p, f = r["paper"], r["fast"]
+        ran = f"{len(f['lambdas'])} λ"
+        if f["ran_paper_protocol"]:
+            ran = "the paper protocol (" + "; ".join(f["doubts"]) + ")"
+        out.append(
+            f"| {r['system']} | {_verdict(p['new_physics'])} | {_g(p['ratio'], 3, True)} | {p['wall_s']:.1f} | "
+            f"{_verdict(f['new_physics'])} | {_g(f['ratio'], 3, True)} | {f['wall_s']:.1f} | {f['steps']} | {ran} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def single_precision() -> str:
+    """results/float32.json (benchmarks/float32_accuracy.py): the 13-λ sweeps in float64 and float32."""
+    out = [
+        "| system | float64: verdict, ratio | float32: verdict, ratio | largest relative difference of L_e over the "
+        "13 λ | s (float64 / float32, one-thread worker) |",
+        "|---" * 5 + "|",
+    ]
+    for r in _load("float32.json")["rows"]:
+        runs = (r["float64"], r["float32"])
+        cells = " | ".join(f"{'new' if x['new_physics'] else 'none'} ×{_g(x['ratio'], 3, True)}" for x in runs)
+        out.append(
+            f"| {r['system']} | {cells} | {_g(r['max_rel_diff_L_e'], 3, True)} | "
+            f"{r['wall_s']['float64']:.1f} / {r['wall_s']['float32']:.1f} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+# label, then the formats of the joint fits and of the post-hoc fits (as the table had them by hand)
+TABLE2_ROWS = {
+    "Gamma_11": ("Γ11", "d7", "d6"),
+    "Gamma_12": ("Γ12", "e1", "e2"),
+    "Gamma_21": ("Γ21", "e2", "e2"),
+    "Gamma_22": ("Γ22", "d7", "d6"),
+    "GM": ("GM", "d8", "d6"),
+    "R": ("R", "d7", "d4"),
+    "omega": ("ω", "d8", "d6"),
+    "k": ("k", "d8", "d7"),
+    "m": ("m", "d6", "d3"),
+}
+
+
+def _num(spec: str, x: float) -> str:
+    """``spec``: 'dN' N decimals; 'eN' N significant digits in scientific notation (5e-9, 6.5e-6)."""
+    n = int(spec[1:])
+    return _f(x, n) if spec[0] == "d" else _compact(f"{x:.{n - 1}e}")
+
+
+def single_precision_laws() -> str:
+    """results/float32_table2.json (benchmarks/float32_accuracy.py --table2): Table II in float64 and float32."""
+    out = [
+        "| system | quantity | truth | float64 (joint) | float32 (joint) | goal | met 64 / 32 | post hoc, of the UAN's "
+        "output: float64 / float32 |",
+        "|---" * 8 + "|",
+    ]
+    for r in _load("float32_table2.json")["rows"]:
+        label, ours, post = TABLE2_ROWS.get(r["quantity"], (r["quantity"], "e4", "e4"))
+        a, b = r["float64"], r["float32"]
+        goal = re.sub(r"(\d)%", r"\1 %", r["goal"].replace("|·| ", ""))
+        met = " / ".join("yes" if x["goal_met"] else "no" for x in (a, b))
+        out.append(
+            f"| {r['system']} | {label} | {_g(r['truth'], 5)} | {_num(ours, a['ours'])} | {_num(ours, b['ours'])} | "
+            f"{goal} | {met} | {_num(post, a['posthoc'])} / {_num(post, b['posthoc'])} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+# ---- a throw with its field declared -------------------------------------------------------------------------------
+LAW_NAMES = {"power": "power law"}
+GREEK = {"gamma": "γ", "mu": "μ", "omega": "ω"}
+
+
+def _throw_law(r) -> str:
+    """The law column: the tie's members, the true family in bold, the first one's coefficient when it is not the
+    true family (it is the one used for predictions); or the claimed law."""
+    truth = r["truth_law"]
+    bold = lambda f: f"**{f}**" if f == truth else f
+    if r["law_status"] != "tie":
+        return f"{bold(r['winner'])}, {r['law_status']}"
+    first = bold(r["winner"])
+    if r["winner"] != truth:
+        first += "".join(f" {GREEK.get(k, k)} = {_g(v, 3)}" for k, v in r["winner_params"].items())
+    return "tie: " + " / ".join([first, *(bold(f) for f in r["ties"])])
+
+
+def throw_declared() -> str:
+    """results/throw_declared.json (benchmarks/friction_laws.py throw-2d --seeds 0,1,2, field declared uniform)."""
+    rows = _load("throw_declared.json")
+    truth = rows[0]["truth_coefficients"]["c"]
+    out = [f"| seed | verdict | law | ΔIC to runner-up | c (truth {truth:g}) | err |", "|---" * 6 + "|"]
+    for r in rows:
+        fit = next(c for c in r["candidates"] if c["law"] == r["truth_law"])["params"]["c"]
+        dic = f"{r['delta_ic']:.1f}"
+        if r["runner_up"] not in r["ties"]:
+            dic += f" ({LAW_NAMES.get(r['runner_up'], r['runner_up'])})"
+        err = f"{_g(100 * r['err_moving'], 2)} %"
+        if r["winner"] != r["truth_law"]:
+            err += f" ({r['winner']}, the tie's first)" if r["law_status"] == "tie" else f" ({r['winner']})"
+        out.append(
+            f"| {r['seed']} | {r['status']} ({r['confidence']:.2f}) | {_throw_law(r)} | {dic} | "
+            f"{_g(fit, 3)} ({_neg(f'{100 * (fit / truth - 1):+.0f}')} %) | {err} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+# ---- the law of real friction --------------------------------------------------------------------------------------
+FRICTION_NAMES = {  # nnphd's family keys as the friction tables name them
+    "linear": "viscous",
+    "coulomb": "dry",
+    "quadratic": "quadratic",
+    "linear+coulomb": "viscous + dry",
+    "linear+quadratic": "viscous + quadratic",
+    "coulomb+quadratic": "dry + quadratic",
+    "linear+coulomb+quadratic": "viscous + dry + quadratic",
+    "power": "power law",
+    "rayleigh": "Rayleigh",
+    "vanderpol": "van der Pol",
+    "drive": "drive",
+}
+REF_TERMS = {"c": "viscous", "d": "dry", "e": "quadratic"}  # benchmarks/friction_reference.py's friction terms
+FAMILY_TERMS = {"linear": "c", "coulomb": "d", "quadratic": "e"}  # the reference's term each family part is
+SEEDS = (0, 1, 2)
+REAL_SEED_FILES = {0: "real_friction.json", 1: "real_friction_seed1.json", 2: "real_friction_seed2.json"}
+LOOK_SEED_FILES = {0: "friction_laws.json", 1: "friction_laws_seed1.json", 2: "friction_laws_seed2.json"}
+REAL_SOURCES = {  # the recording column's source, as data/real/README.md describes it
+    "servo_sts3250_drop": "Rhoban/bam, 66 Hz, one drop, ends stuck",
+    "encoder_pendulum_free_swing": "1 kHz, 0.09°, 3 runs from up to 157°",
+    "seismometer_blow": "PASCO, 10 Hz, magnet",
+    "video_string_pendulum_lab1": "phone video, 20 Hz",
+    "video_string_pendulum_lab2": "29.6 Hz",
+}
+LOOK_CASES = {  # the case column: what each look-alike of tests/fixtures/friction.py is
+    "viscous-dry": "servo-like, 3 drops ending stuck",
+    "ends-at-rest": "dry, last 30 % stuck",
+    "linear-quadratic": "string pendulum, 20 Hz, 120 s",
+    "jitter-clock": "k/100 s written, 2 ms jitter",
+    "heavy-damping": "ratio 0.13, 4 s",
+    "sensor-20hz": "torsion, whole degrees",
+    "offset-rest": "θ₀ = 0.05, stuck in the dead band",
+    "throw-2d": "60 fps, 1.2 s",
+    "pendulum-free": "control",
+}
+
+
+def _fam(key: str) -> str:
+    return FRICTION_NAMES.get(key, key)
+
+
+def _params(p: dict, digits: int, zeros: bool = True) -> str:
+    return ", ".join(f"{GREEK.get(k, k)} = {_g(v, digits, zeros)}" for k, v in p.items())
+
+
+def _pct(x: float) -> str:
+    return f"{100 * x:.0f} %"
+
+
+def _lacks(law: dict, necessary: list[str]) -> str:
+    """', lacks dry': the reference's necessary terms a law without them (``necessary_in`` false) does not have."""
+    if law["necessary_in"]:
+        return ""
+    has = {FAMILY_TERMS[p] for p in law["law"].split("+") if p in FAMILY_TERMS}
+    return ", lacks " + " and ".join(REF_TERMS[t] for t in necessary if t not in has)
+
+
+def _real_law(r: dict, necessary: list[str], params: str = "all") -> str:
+    """A real recording's law: claimed, a tie (each member), a candidate the verdict does not claim, or why none;
+    each with its error against the reference's force, in bold where it is within 25 % and has every necessary
+    term. ``params``: 'all' members' coefficients, or 'first' (the claimed law's, or a tie's first)."""
+
+    def one(i, law):
+        txt = _fam(law["law"])
+        if params == "all" or i == 0:
+            txt += " " + _params(law["params"], 3)
+        txt += f" ({_pct(law['err'])}{_lacks(law, necessary)})"
+        return f"**{txt}**" if law["err"] <= 0.25 and law["necessary_in"] else txt
+
+    laws = [one(i, x) for i, x in enumerate(r["laws"])]
+    if r["law_status"] == "tie":
+        return "tie: " + " / ".join(laws)
+    if r["law_status"].startswith("candidate"):
+        return "candidate " + laws[0]
+    if laws:
+        return laws[0]
+    why = r.get("reason") or ""
+    blocked = re.findall(r"(?:library|LNN): ([\w+]+) \(blocked\)", why)
+    dist = re.search(r"distance² ([\d.]+)", why)
+    if blocked and dist and len(set(blocked)) == 1:
+        bases = "both bases" if len(blocked) == 2 else "its base"
+        return (
+            f"no law: {_fam(blocked[0])}, the envelope's choice, bars the weaker candidates, but its windows and "
+            f"envelope disagree on its coefficients (distance² {dist[1]}), with {bases}"
+        )
+    return "no law"
+
+
+def _real_seed_rows() -> dict[int, dict[str, dict]]:
+    return {s: {r["file"].removesuffix(".csv"): r for r in _load(f)} for s, f in REAL_SEED_FILES.items()}
+
+
+def _verdict_prefix(r: dict) -> str:
+    return "" if r["status"] == "detected" else f"{r['status']}: "
+
+
+def real_friction() -> str:
+    """results/real_friction.json (benchmarks/real_friction.py, seed 0) against results/friction_reference.json
+    (benchmarks/friction_reference.py): per recording the reference's necessary terms and best model, the verdict,
+    the law with its error against the reference's force, the seconds of the whole detect."""
+    refs = {os.path.basename(x["file"]).removesuffix(".csv"): x for x in _load("friction_reference.json")["recordings"]}
+    out = [
+        "| recording (source) | reference: necessary; best model | verdict | nnphd's law (error vs the reference's "
+        "force) | s |",
+        "|---" * 5 + "|",
+    ]
+    for r in _load("real_friction.json"):
+        name = r["file"].removesuffix(".csv")
+        ref = refs[name]
+        nec = [REF_TERMS[t] for t in ref["necessary"]]
+        best = " + ".join(REF_TERMS[t] for t in ref["best_subset"])
+        coefs = ", ".join(f"{t} = {_g(ref['best_params'][t], 3)}" for t in ref["best_subset"])
+        if ref["necessary"] == ref["best_subset"]:
+            cell = f"{best}; {coefs}"
+        else:
+            cell = f"{' + '.join(nec) or 'none'}{'' if nec else ' necessary'}; best {best} {coefs}"
+        src = REAL_SOURCES.get(name)
+        label = f"{name} ({src})" if src else name
+        out.append(f"| {label} | {cell} | {r['status']} | {_real_law(r, ref['necessary'])} | {r['wall_s']:.0f} |")
+    return "\n".join(out) + "\n"
+
+
+def _families_of(r: dict) -> tuple[str, frozenset]:
+    """What seeds are compared on (as benchmarks/seed_agreement.py): a claimed family, or a tie's set of families."""
+    if r["law_status"] in ("claimed", "tie"):
+        return r["law_status"], frozenset(x["law"] for x in r["laws"])
+    return "none", frozenset()
+
+
+def real_friction_seeds() -> str:
+    """results/real_friction.json, real_friction_seed1.json, real_friction_seed2.json (benchmarks/real_friction.py
+    --seed 0/1/2): each seed's verdict (when not "detected") and law, with its error against the reference's force."""
+    runs = _real_seed_rows()
+    refs = {n: r["reference"]["necessary"] for n, r in runs[0].items()}
+    out = ["| recording | " + " | ".join(f"seed {s}" for s in SEEDS) + " |", "|---" * (1 + len(SEEDS)) + "|"]
+    same_verdict = same_law = wrong = 0
+    for name in runs[0]:
+        rs = [runs[s][name] for s in SEEDS]
+        cells = [_verdict_prefix(r) + _real_law(r, refs[name], params="first") for r in rs]
+        shown = [cells[0], *("the same" if c == cells[0] else c for c in cells[1:])]
+        out.append(f"| {name} | {' | '.join(shown)} |")
+        same_verdict += len({r["status"] for r in rs}) == 1
+        same_law += len({_families_of(r) for r in rs}) == 1
+        wrong += any(r["law_status"] == "claimed" and not r["right"] for r in rs)
+    n = len(runs[0])
+    out.append("")
+    out.append(
+        f"The same verdict on every seed: {same_verdict} of {n} recordings; the same law (a claimed family, or a tie's "
+        f"set of families): {same_law} of {n}; a claimed law more than 25 % from the reference's force or lacking a "
+        f"term it needs, on any seed: {wrong} of {n}. Seconds for the {n}: "
+        + ", ".join(f"{sum(r['wall_s'] for r in runs[s].values()):.0f}" for s in SEEDS)
+        + f" on seeds {', '.join(map(str, SEEDS[:-1]))} and {SEEDS[-1]}. (In brackets each law's error against the "
+        "reference's force; in bold within 25 % with every term the reference needs.)"
+    )
+    return "\n".join(out) + "\n"
+
+
+def _look_law(r: dict, first: bool = True) -> str:
+    """A look-alike's law: claimed, a tie (the true family in bold), a candidate the verdict does not claim, or none;
+    with the coefficients of the claimed law, the candidate, the tie's true family and (``first``) its first."""
+    truth = r["truth_law"]
+    cands = {c["law"]: c["params"] for c in r["candidates"]}
+
+    def one(fam, p, show):
+        txt = _fam(fam) + (" " + _params(p, 4) if show and p else "")
+        return f"**{txt}**" if fam == truth and r["law_status"] == "tie" else txt
+
+    if r["law_status"] == "claimed":
+        return one(r["winner"], r["winner_params"], True)
+    if r["law_status"] == "tie":
+        head = one(r["winner"], r["winner_params"], first or r["winner"] == truth)
+        return "tie: " + " / ".join([head, *(one(f, cands.get(f), f == truth) for f in r["ties"])])
+    if r["candidate"]:
+        return "candidate " + one(r["candidate"], r["candidate_params"], True)
+    return "no law" if truth == "none" else "no candidate beats no law"
+
+
+def _look_err(r: dict) -> str | None:
+    """The error of the law (a tie: its first member) or of the candidate on the true moving states."""
+    if r["truth_law"] == "none":
+        return None
+    if r["law_status"] in ("claimed", "tie"):
+        return f"{100 * r['err_moving']:.1f} %"
+    if r["err_candidate_moving"] is not None:
+        return f"{100 * r['err_candidate_moving']:.1f} %"
+    return None
+
+
+def _look_seed(r: dict) -> str:
+    err = _look_err(r)
+    return f"{r['status']}: {_look_law(r, first=False)}" + (f" (err {err})" if err else "")
+
+
+def _look_family(r: dict) -> str:
+    if r["family_right"]:
+        return "yes"
+    if r["law_status"] == "tie" and r["truth_law"] in (r["winner"], *r["ties"]):
+        return "tie holds it"
+    return "**no**" if r["law_status"] == "claimed" else "—"
+
+
+def friction_lookalikes() -> str:
+    """results/friction_laws.json (benchmarks/friction_laws.py, seed 0; DECLARED fields declared) and
+    friction_laws_seed1.json, friction_laws_seed2.json (--seeds 1, 2): the look-alikes of real friction."""
+    runs = {s: {r["name"]: r for r in _load(f)} for s, f in LOOK_SEED_FILES.items()}
+    out = [
+        "| case | truth | seed 0: verdict (confidence) | law | ΔIC to runner-up | err (floor) | family | s | "
+        "seed 1: verdict: law (err) | seed 2: verdict: law (err) |",
+        "|---" * 10 + "|",
+    ]
+    right = ties = inconclusive = wrong = 0
+    for name, r in runs[0].items():
+        desc = LOOK_CASES.get(name, "")
+        field = (r.get("declared") or {}).get("field")
+        if field:
+            desc += ("; " if desc else "") + f"**field declared {field}**"
+        truth = _params(r["truth_coefficients"], 4, zeros=False) if r["truth_coefficients"] else r["truth_law"]
+        dic = f"{r['delta_ic']:.1f}"
+        if r["runner_up"] not in (r["ties"] or []):
+            dic += f" ({'no law' if r['runner_up'] == 'none' else _fam(r['runner_up'])})"
+        err = _look_err(r) or "—"
+        floor = r["err_floor_moving"]
+        if floor and floor >= 0.001 and r["law_status"] in ("claimed", "tie"):
+            err += f" ({100 * floor:.1f} %)"
+        if r["law_status"] == "tie" and r["winner"] != r["truth_law"]:
+            err += f" ({_fam(r['winner'])}, the tie's first)"
+        elif r["law_status"] not in ("claimed", "tie") and r["candidate"]:
+            err += " (the candidate)"
+        seeds = " | ".join(_look_seed(runs[s][name]) for s in SEEDS[1:])
+        out.append(
+            f"| {name} ({desc}) | {truth} | {r['status']} ({r['confidence']:.2f}) | {_look_law(r)} | {dic} | {err} | "
+            f"{_look_family(r)} | {r['wall_s']:.0f} | {seeds} |"
+        )
+        fam = _look_family(r)
+        right += fam == "yes"
+        ties += fam == "tie holds it"
+        inconclusive += r["status"] == "inconclusive"
+        wrong += fam == "**no**"
+    n = len(runs[0])
+    same = sum(len({runs[s][x]["status"] for s in SEEDS}) == 1 for x in runs[0])
+    out.append("")
+    out.append(
+        f"Seed 0: {right} of {n} right with the family, {ties} ties holding the truth, {inconclusive} "
+        f'"inconclusive", {wrong} wrong family. The same verdict on seeds 0, 1 and 2: {same} of {n}. Seconds for '
+        f"the {n}: "
+        + ", ".join(f"{sum(r['wall_s'] for r in runs[s].values()):.0f}" for s in SEEDS)
+        + " on seeds 0, 1 and 2. (err: the law's, or the tie's first member's, on the true moving states; in "
+        "brackets the floor, the true law in nnphd's smoothed form.)"
+    )
+    return "\n".join(out) + "\n"
+
+
+# ---- the law table of the constructed cases ------------------------------------------------------------------------
+LAW_CASES = {  # the case column: what each case of tests/fixtures/laws.py is (its truth is in the JSON too)
+    "dry-friction": "dry friction −0.02 sign(ẋ)",
+    "rayleigh": "Rayleigh (0.05 − 0.05ẋ²)ẋ",
+    "van-der-pol": "van der Pol 0.1(1 − x²)ẋ",
+    "quadratic-drag-2d": "quadratic drag −0.05 \\|q̇\\|q̇, 2-D",
+    "anisotropic-damping": "anisotropic damping −0.04ẋ, −0.01ẏ (coupled springs)",
+    "drive": "drive 0.2 cos(0.7t) (Duffing)",
+    "linear-noisy": "damped pendulum −0.03θ̇, 0.5 % noise",
+    "damped-double-well": "damped double well −0.05ẋ",
+    "henon-heiles": "Hénon–Heiles (control)",
+    "gyroscopic": "gyroscopic 0.8 ẑ×q̇ (control)",
+}
+SYMBOLS = (("theta_dot", "θ̇"), ("x_dot", "ẋ"), ("y_dot", "ẏ"), ("theta", "θ"), ("**2", "²"), ("**3", "³"), ("*", ""))
+
+
+def _sym(name: str) -> str:
+    for a, b in SYMBOLS:
+        name = name.replace(a, b)
+    return name
+
+
+def _law_text(law) -> str:
+    """nnphd's law in the table's notation, from its family and coefficients (4 significant digits, ω 5)."""
+    p, name = law["params"], law["law"]
+    x = _sym(next(iter(law["formula"])).removesuffix("_ddot"))
+    v = _sym(next(iter(law["formula"])).replace("_ddot", "_dot"))
+    c = lambda k: f"{abs(p[k]):.4g}"
+    if name == "coulomb":
+        return f"−{c('mu')} sign({v})"
+    if name == "linear":
+        return f"−{c('gamma')}{v}"
+    if name == "quadratic":
+        return f"−{c('c')} \\|q̇\\|q̇"
+    if name == "rayleigh":
+        return f"({_g(p['a'], 4)}{_signed(p['c'], '.4g')}{v}²){v}"
+    if name == "vanderpol":
+        return f"({_g(p['a'], 4)}{_signed(p['b'], '.4g')}{x}²){v}"
+    if name == "linear-diag":
+        return ", ".join(f"−{c(k)}{_sym(k.split('_')[1] + '_dot')}" for k in p)
+    if name == "drive":
+        w = f"{p['omega']:.5g}"
+        return f"{_g(p['A_cos'], 4)} cos({w}t){_signed(p['A_sin'], '.4g')} sin({w}t)"
+    return "; ".join(_peer_component(e) for e in law["formula"].values())
+
+
+def _law_se(law) -> str:
+    """'(± se, se)', '(± se each)', and the drive's '; ω ± se'."""
+    se = {k: _g(s, 2) for k, s in law["stderr"].items()}
+    w = se.pop("omega", None)
+    out = "± " + (
+        f"{next(iter(se.values()))} each" if len(se) > 1 and len(set(se.values())) == 1 else ", ".join(se.values())
+    )
+    return f"({out}" + (f"; ω ± {w})" if w else ")")
+
+
+def _peer_terms(expr: str) -> list[tuple[float, str, int]]:
+    """'0.003466*x_dot**3 - 0.02333*x_dot' -> [(0.003466, 'x_dot**3', 3), (-0.02333, 'x_dot', 1)]."""
+    parts = re.split(r" ([+-]) ", expr.strip())
+    signs, terms = ["+", *parts[1::2]], parts[0::2]
+    out = []
+    for sign, t in zip(signs, terms):
+        neg = (sign == "-") != t.startswith("-")
+        m = re.match(r"-?([\d.]+(?:e-?\d+)?)?\*?(.*)", t)
+        coef = float(m[1]) if m[1] else 1.0
+        deg = sum(int(f.split("^")[1]) if "^" in f else 1 for f in m[2].replace("**", "^").split("*"))
+        out.append((-coef if neg else coef, m[2], deg))
+    return out
+
+
+def _peer_component(expr: str) -> str:
+    """One component of the peer's law, lowest degree first, 3 significant digits: '−0.0233ẋ + 0.00347ẋ³'."""
+    terms = sorted(_peer_terms(expr), key=lambda t: t[2])
+    c = lambda x: "" if abs(x) == 1 else f"{abs(x):.3g}"
+    head = ("−" if terms[0][0] < 0 else "") + c(terms[0][0]) + _sym(terms[0][1])
+    return head + "".join((" − " if x < 0 else " + ") + c(x) + _sym(s) for x, s, _ in terms[1:])
+
+
+def _peer_law(r) -> str:
+    """The PySINDy peer's law ('x_ddot = …; y_ddot = …'): its components, or how many terms when they are many."""
+    if r["baseline"] == "—":
+        return "no law" if r["baseline_right"] else "—"
+    comps = [c.split(" = ", 1)[1] for c in r["baseline"].split("; ")]
+    terms = [_peer_terms(e) for e in comps]
+    if max(map(len, terms)) > 4:
+        degs = {d for ts in terms for _, _, d in ts}
+        word = {1: "linear ", 2: "quadratic ", 3: "cubic "}.get(next(iter(degs)), "") if len(degs) == 1 else ""
+        n = sorted({len(ts) for ts in terms})
+        return f"{'/'.join(map(str, n))} {word}terms per component"
+    return ", ".join(_peer_component(e) for e in comps)
+
+
+def _law_err(err: float, has_law: bool) -> str:
+    if not has_law and err == 0:
+        return "—"
+    return f"{err:.3f}" if err < 1 else f"{err:.1f}"
+
+
+def laws_table() -> str:
+    """results/laws_table.json (benchmarks/laws_table.py): nnphd's law beside the PySINDy peer's, on the true states."""
+    out = [
+        "| case | nnphd law (± 1 se) | err | right | s | PySINDy peer | err | right | s |",
+        "|---" * 9 + "|",
+    ]
+    yes = lambda b: "yes" if b else "no"
+    for r in _load("laws_table.json"):
+        law = r["law"]
+        ours = f"{_law_text(law)} {_law_se(law)}" if law else "no law"
+        peer_has = r["baseline"] != "—"
+        out.append(
+            f"| {LAW_CASES.get(r['case'], r['truth'])} | {ours} | {_law_err(r['error'], law is not None)} | "
+            f"{yes(r['right'])} | {r['seconds']:.0f} | {_peer_law(r)} | {_law_err(r['baseline_error'], peer_has)} | "
+            f"{yes(r['baseline_right'])} | {r['baseline_seconds']:.1f} |"
+        )
+    return "\n".join(out) + "\n"
+
+
 TABLES = {
     "stage_times": stage_times,
     "cluster_scaling": cluster_scaling,
     "declared_field_guard": declared_field_guard,
     "seed_robustness": seed_robustness,
+    "real_double_pendulum": real_double_pendulum,
+    "time_to_verdict": time_to_verdict,
+    "single_precision": single_precision,
+    "single_precision_laws": single_precision_laws,
+    "throw_declared": throw_declared,
+    "laws_table": laws_table,
+    "friction_lookalikes": friction_lookalikes,
+    "real_friction": real_friction,
+    "real_friction_seeds": real_friction_seeds,
 }
 
 

@@ -90,8 +90,22 @@ def detect(
     scheduler: str | None = scheduler_option(),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
+    ang, extra, trim_v, paths = _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, width)
+    settings = _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra)
+    if paths is not None:
+        return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
+    ud, t_read = _read_file(files[0], ang, max_rows, law, out)
+    rep = _detect_one(ud, out, workers, scheduler, t_read, settings)
+    _print_report(rep)
+    console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
+
+
+def _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, width):
+    """The options checked before any file is read: (angle names, extra settings (width, λ), the trim setting, the
+    batch's paths or None for one file). A batch's --law texts are checked and its output folder claimed here. A bad
+    value is an :class:`InputError`."""
     from nnphd.cli.common import claim_out as claim_out_dir  # notes the folders it creates (removed on a failure)
-    from nnphd.user.recording import DataError, load_trajectories
+    from nnphd.user.recording import DataError
 
     try:
         extra = {"width": width}
@@ -115,10 +129,14 @@ def detect(
             claim_out_dir(out)
         else:
             paths = None
-            file = files[0]
     except (ValueError, DataError) as e:
         raise InputError(str(e)) from None
-    settings = dict(
+    return ang, extra, trim_v, paths
+
+
+def _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra) -> dict:
+    """The settings of :func:`nnphd.user.detect.detect_data` (and of each file of a batch)."""
+    return dict(
         seed=seed,
         steps=steps,
         n_seeds=n_seeds,
@@ -129,8 +147,14 @@ def detect(
         trim=trim_v,
         **extra,
     )
-    if paths is not None:
-        return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
+
+
+def _read_file(file, ang, max_rows, law, out):
+    """One file read and checked (its --law texts parsed on its coordinates) before anything is created, then its
+    output folder claimed: (the trajectories, the seconds the read took). A bad file is an :class:`InputError`."""
+    from nnphd.cli.common import claim_out as claim_out_dir
+    from nnphd.user.recording import DataError, load_trajectories
+
     try:
         t_read = time.perf_counter()
         ud = load_trajectories(file, ang, max_rows=max_rows)  # validate the file before anything is created
@@ -142,15 +166,18 @@ def detect(
         claim_out_dir(out)
     except (ValueError, DataError) as e:
         raise InputError(str(e)) from None
+    return ud, t_read
 
+
+def _detect_one(ud, out, workers, scheduler, t_read, settings) -> dict:
+    """The detection on one file's trajectories, under a progress bar: its report."""
     from nnphd.user.detect import detect_data
 
     with progress_bar("detect: starting") as status:
         rep, _ = detect_data(
             ud, out=out, progress=status, workers=workers, scheduler=scheduler, read_s=t_read, **settings
         )
-    _print_report(rep)
-    console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
+    return rep
 
 
 def _print_report(rep: dict) -> None:

@@ -83,82 +83,124 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
     v_all = float(np.sqrt(np.sum(np.square(v_rms))))
     eps_all = COULOMB_EPS * v_all if v_all > 0 else 1.0
     nm = list(names)
-    out: list[Family] = []
+    out: list[Family] = [
+        *_linear_families(n, nm),
+        *_quadratic_families(n, nm),
+        *_coulomb_families(n, nm, eps, eps_all),
+        *_mixed_families(n, nm, eps),
+        _power_family(n),
+        *_rayleigh_vdp_families(n, nm),
+        _drive_family(n, nm),
+    ]
+    spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)]}
+    return [replace(f, spec={**spec, "key": f.key}) for f in out]
+
+
+def _linear_families(n: int, nm: list[str]) -> list[Family]:
+    """Linear friction: −γ q̇ (isotropic, n > 1), −γ_i q̇_i (per coordinate), −Γ q̇ (full Γ, n > 1)."""
     one = n == 1
-
-    def add(*a, **kw):
-        out.append(Family(*a, **kw))
-
-    # linear friction
+    out: list[Family] = []
     if not one:
-        add(
-            "linear",
-            "linear friction −γ q̇ (isotropic)",
-            ("gamma",),
-            lambda xp, th, q, v, t: -v[:, :, None],
-            lambda th, Q, V, T: [[-V[i]] for i in range(n)],
-            terms=("q̇",),
+        out.append(
+            Family(
+                "linear",
+                "linear friction −γ q̇ (isotropic)",
+                ("gamma",),
+                lambda xp, th, q, v, t: -v[:, :, None],
+                lambda th, Q, V, T: [[-V[i]] for i in range(n)],
+                terms=("q̇",),
+            )
         )
-    add(
-        "linear-diag" if not one else "linear",
-        "linear friction −γ_i q̇_i" if not one else "linear friction −γ q̇",
-        tuple(f"gamma_{c}" for c in nm) if not one else ("gamma",),
-        lambda xp, th, q, v, t: eye_columns(xp, -v),
-        lambda th, Q, V, T: _sym_diag(n, [-x for x in V]),
-        terms=("q̇_i",) if not one else ("q̇",),
+    out.append(
+        Family(
+            "linear-diag" if not one else "linear",
+            "linear friction −γ_i q̇_i" if not one else "linear friction −γ q̇",
+            tuple(f"gamma_{c}" for c in nm) if not one else ("gamma",),
+            lambda xp, th, q, v, t: eye_columns(xp, -v),
+            lambda th, Q, V, T: _sym_diag(n, [-x for x in V]),
+            terms=("q̇_i",) if not one else ("q̇",),
+        )
     )
     if not one:
-        add(
-            "linear-full",
-            "linear friction −Γ q̇ (full Γ)",
-            tuple(f"Gamma_{a}{b}" for a in nm for b in nm),
-            lambda xp, th, q, v, t: (
-                -(v[:, None, None, :] * xp.eye(n, dtype=v.dtype)[None, :, :, None]).reshape(v.shape[0], n, n * n)
-            ),
-            lambda th, Q, V, T: [
-                [(-V[j] if a == i else sp.Integer(0)) for a in range(n) for j in range(n)] for i in range(n)
-            ],
-            terms=("Γq̇",),
+        out.append(
+            Family(
+                "linear-full",
+                "linear friction −Γ q̇ (full Γ)",
+                tuple(f"Gamma_{a}{b}" for a in nm for b in nm),
+                lambda xp, th, q, v, t: (
+                    -(v[:, None, None, :] * xp.eye(n, dtype=v.dtype)[None, :, :, None]).reshape(v.shape[0], n, n * n)
+                ),
+                lambda th, Q, V, T: [
+                    [(-V[j] if a == i else sp.Integer(0)) for a in range(n) for j in range(n)] for i in range(n)
+                ],
+                terms=("Γq̇",),
+            )
         )
-    # quadratic drag
-    if not one:
-        add(
-            "quadratic",
-            "quadratic drag −c |q̇| q̇",
-            ("c",),
-            lambda xp, th, q, v, t: -(xp.sqrt(xp.sum(v * v, axis=1))[:, None] * v)[:, :, None],
-            lambda th, Q, V, T: [[-sp.sqrt(sum(x**2 for x in V)) * V[i]] for i in range(n)],
-            terms=("|q̇|q̇",),
-        )
-    add(
-        "quadratic-diag" if not one else "quadratic",
-        "quadratic drag −c_i |q̇_i| q̇_i" if not one else "quadratic drag −c |q̇| q̇",
-        tuple(f"c_{c}" for c in nm) if not one else ("c",),
-        lambda xp, th, q, v, t: eye_columns(xp, -xp.abs(v) * v),
-        lambda th, Q, V, T: _sym_diag(n, [-sp.Abs(x) * x for x in V]),
-        terms=("|q̇_i|q̇_i",) if not one else ("|q̇|q̇",),
-    )
-    # Coulomb (dry) friction, smoothed sign
-    if not one:
-        add(
-            "coulomb",
-            "Coulomb friction −μ q̇/|q̇|",
-            ("mu",),
-            lambda xp, th, q, v, t: -(v / xp.sqrt(xp.sum(v * v, axis=1) + eps_all**2)[:, None])[:, :, None],
-            lambda th, Q, V, T: [[-V[i] / sp.sqrt(sum(x**2 for x in V))] for i in range(n)],
-            terms=("q̇/|q̇|",),
-        )
-    add(
-        "coulomb-diag" if not one else "coulomb",
-        "Coulomb friction −μ_i sign(q̇_i)" if not one else "Coulomb friction −μ sign(q̇)",
-        tuple(f"mu_{c}" for c in nm) if not one else ("mu",),
-        lambda xp, th, q, v, t: eye_columns(xp, -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2)),
-        lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]),
-        terms=("sign(q̇_i)",) if not one else ("sign(q̇)",),
-    )
+    return out
 
-    # mixed friction: sums of the textbook terms per coordinate (real friction is rarely one family: gearboxes and
-    # bearings are viscous + dry, air is linear + quadratic drag); each term must be significant on its own
+
+def _quadratic_families(n: int, nm: list[str]) -> list[Family]:
+    """Quadratic drag: −c |q̇| q̇ (on the speed, n > 1) and −c_i |q̇_i| q̇_i (per coordinate)."""
+    one = n == 1
+    out: list[Family] = []
+    if not one:
+        out.append(
+            Family(
+                "quadratic",
+                "quadratic drag −c |q̇| q̇",
+                ("c",),
+                lambda xp, th, q, v, t: -(xp.sqrt(xp.sum(v * v, axis=1))[:, None] * v)[:, :, None],
+                lambda th, Q, V, T: [[-sp.sqrt(sum(x**2 for x in V)) * V[i]] for i in range(n)],
+                terms=("|q̇|q̇",),
+            )
+        )
+    out.append(
+        Family(
+            "quadratic-diag" if not one else "quadratic",
+            "quadratic drag −c_i |q̇_i| q̇_i" if not one else "quadratic drag −c |q̇| q̇",
+            tuple(f"c_{c}" for c in nm) if not one else ("c",),
+            lambda xp, th, q, v, t: eye_columns(xp, -xp.abs(v) * v),
+            lambda th, Q, V, T: _sym_diag(n, [-sp.Abs(x) * x for x in V]),
+            terms=("|q̇_i|q̇_i",) if not one else ("|q̇|q̇",),
+        )
+    )
+    return out
+
+
+def _coulomb_families(n: int, nm: list[str], eps: np.ndarray, eps_all: float) -> list[Family]:
+    """Coulomb (dry) friction with a smoothed sign: −μ q̇/|q̇| (on the velocity, n > 1; smoothing eps_all) and
+    −μ_i sign(q̇_i) (per coordinate; smoothing eps (n,))."""
+    one = n == 1
+    out: list[Family] = []
+    if not one:
+        out.append(
+            Family(
+                "coulomb",
+                "Coulomb friction −μ q̇/|q̇|",
+                ("mu",),
+                lambda xp, th, q, v, t: -(v / xp.sqrt(xp.sum(v * v, axis=1) + eps_all**2)[:, None])[:, :, None],
+                lambda th, Q, V, T: [[-V[i] / sp.sqrt(sum(x**2 for x in V))] for i in range(n)],
+                terms=("q̇/|q̇|",),
+            )
+        )
+    out.append(
+        Family(
+            "coulomb-diag" if not one else "coulomb",
+            "Coulomb friction −μ_i sign(q̇_i)" if not one else "Coulomb friction −μ sign(q̇)",
+            tuple(f"mu_{c}" for c in nm) if not one else ("mu",),
+            lambda xp, th, q, v, t: eye_columns(xp, -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2)),
+            lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]),
+            terms=("sign(q̇_i)",) if not one else ("sign(q̇)",),
+        )
+    )
+    return out
+
+
+def _mixed_families(n: int, nm: list[str], eps: np.ndarray) -> list[Family]:
+    """Mixed friction: sums of the textbook terms per coordinate (real friction is rarely one family: gearboxes and
+    bearings are viscous + dry, air is linear + quadratic drag); each term must be significant on its own."""
+    one = n == 1
+    out: list[Family] = []
     term = {
         "linear": ("gamma", lambda xp, v: -v, lambda x: -x, "q̇"),
         "coulomb": ("mu", lambda xp, v: -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2), lambda x: -sp.sign(x),
@@ -176,23 +218,29 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
             rows = [_sym_diag(n, [s(x) for x in V]) for _, _, s, _ in parts]
             return [sum((r[i] for r in rows), []) for i in range(n)]
 
-        add(
-            "+".join(combo),
-            " + ".join(TERM_TITLES[c] for c in combo) + ("" if one else " (per coordinate)"),
-            tuple(f"{p}{'' if one else '_' + c}" for p, _, _, _ in parts for c in nm),
-            _mixed_basis,
-            _mixed_sym,
-            terms=tuple(lbl for _, _, _, lbl in parts),
-            dissipative=True,
+        out.append(
+            Family(
+                "+".join(combo),
+                " + ".join(TERM_TITLES[c] for c in combo) + ("" if one else " (per coordinate)"),
+                tuple(f"{p}{'' if one else '_' + c}" for p, _, _, _ in parts for c in nm),
+                _mixed_basis,
+                _mixed_sym,
+                terms=tuple(lbl for _, _, _, lbl in parts),
+                dissipative=True,
+            )
         )
+    return out
 
-    # power law with m free
+
+def _power_family(n: int) -> Family:
+    """The power law −k (|q̇|²)^m q̇ with the exponent m free."""
+
     def _pow_basis(xp, th, q, v, t):
         s = xp.sum(v * v, axis=1)
         sm = xp.where(s > 0, xp.where(s > 0, s, 1.0) ** th[0], 0.0)
         return -(sm[:, None] * v)[:, :, None]
 
-    add(
+    return Family(
         "power",
         "power-law drag −k (|q̇|²)^m q̇",
         ("k",),
@@ -204,49 +252,64 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         terms=("(|q̇|²)^m q̇",),
         per_term=False,
     )
-    # Rayleigh / van der Pol, per coordinate
-    sfx = (lambda c: f"_{c}") if not one else (lambda c: "")
-    add(
-        "rayleigh",
-        "Rayleigh (a + c q̇²) q̇",
-        tuple(f"{p}{sfx(c)}" for p in ("a", "c") for c in nm),
-        lambda xp, th, q, v, t: xp.concatenate([eye_columns(xp, v), eye_columns(xp, v**3)], axis=2),
-        lambda th, Q, V, T: [r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**3 for x in V]))],
-        terms=("q̇", "q̇³"),
-    )
-    add(
-        "vanderpol",
-        "van der Pol (a + b q²) q̇",
-        tuple(f"{p}{sfx(c)}" for p in ("a", "b") for c in nm),
-        lambda xp, th, q, v, t: xp.concatenate([eye_columns(xp, v), eye_columns(xp, q * q * v)], axis=2),
-        lambda th, Q, V, T: [
-            r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]))
-        ],
-        terms=("q̇", "q²q̇"),
-    )
-    add(
-        "rayleigh-vdp",
-        "Rayleigh–van der Pol (a + b q² + c q̇²) q̇",
-        tuple(f"{p}{sfx(c)}" for p in ("a", "b", "c") for c in nm),
-        lambda xp, th, q, v, t: xp.concatenate(
-            [eye_columns(xp, v), eye_columns(xp, q * q * v), eye_columns(xp, v**3)], axis=2
-        ),
-        lambda th, Q, V, T: [
-            r1 + r2 + r3
-            for r1, r2, r3 in zip(
-                _sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]), _sym_diag(n, [x**3 for x in V])
-            )
-        ],
-        terms=("q̇", "q²q̇", "q̇³"),
-    )
 
-    # drive of unknown frequency
+
+def _suffix(n: int) -> Callable[[str], str]:
+    """A coefficient's suffix for coordinate c: "_c", or nothing for one coordinate."""
+    return (lambda c: f"_{c}") if n != 1 else (lambda c: "")
+
+
+def _rayleigh_vdp_families(n: int, nm: list[str]) -> list[Family]:
+    """Rayleigh (a + c q̇²) q̇, van der Pol (a + b q²) q̇ and both together, per coordinate."""
+    sfx = _suffix(n)
+    return [
+        Family(
+            "rayleigh",
+            "Rayleigh (a + c q̇²) q̇",
+            tuple(f"{p}{sfx(c)}" for p in ("a", "c") for c in nm),
+            lambda xp, th, q, v, t: xp.concatenate([eye_columns(xp, v), eye_columns(xp, v**3)], axis=2),
+            lambda th, Q, V, T: [r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**3 for x in V]))],
+            terms=("q̇", "q̇³"),
+        ),
+        Family(
+            "vanderpol",
+            "van der Pol (a + b q²) q̇",
+            tuple(f"{p}{sfx(c)}" for p in ("a", "b") for c in nm),
+            lambda xp, th, q, v, t: xp.concatenate([eye_columns(xp, v), eye_columns(xp, q * q * v)], axis=2),
+            lambda th, Q, V, T: [
+                r1 + r2 for r1, r2 in zip(_sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]))
+            ],
+            terms=("q̇", "q²q̇"),
+        ),
+        Family(
+            "rayleigh-vdp",
+            "Rayleigh–van der Pol (a + b q² + c q̇²) q̇",
+            tuple(f"{p}{sfx(c)}" for p in ("a", "b", "c") for c in nm),
+            lambda xp, th, q, v, t: xp.concatenate(
+                [eye_columns(xp, v), eye_columns(xp, q * q * v), eye_columns(xp, v**3)], axis=2
+            ),
+            lambda th, Q, V, T: [
+                r1 + r2 + r3
+                for r1, r2, r3 in zip(
+                    _sym_diag(n, V), _sym_diag(n, [x**2 * y for x, y in zip(Q, V)]), _sym_diag(n, [x**3 for x in V])
+                )
+            ],
+            terms=("q̇", "q²q̇", "q̇³"),
+        ),
+    ]
+
+
+def _drive_family(n: int, nm: list[str]) -> Family:
+    """A drive A cos(ω t + φ) of unknown frequency ω, started from the residual's spectral peaks
+    (``ctx["drive_omegas"]``)."""
+    sfx = _suffix(n)
+
     def _drive_basis(xp, th, q, v, t):
         c, s = xp.cos(th[0] * t), xp.sin(th[0] * t)
         ones = xp.ones_like(q)
         return xp.concatenate([eye_columns(xp, c[:, None] * ones), eye_columns(xp, s[:, None] * ones)], axis=2)
 
-    add(
+    return Family(
         "drive",
         "drive A cos(ω t + φ)",
         tuple(f"{p}{sfx(c)}" for p in ("A_cos", "A_sin") for c in nm),
@@ -263,8 +326,6 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
         terms=("cos(ωt)",),
         per_term=False,
     )
-    spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)]}
-    return [replace(f, spec={**spec, "key": f.key}) for f in out]
 
 
 def family_from_spec(spec: dict, names: Sequence[str]) -> Family:

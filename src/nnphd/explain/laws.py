@@ -143,6 +143,38 @@ def rank_laws(
     names = list(names or [f"q{i + 1}" for i in range(n)])
     angles = np.zeros(n, bool) if angles is None else np.asarray(angles, bool)
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
+    w = _row_weights(qdd, qdd_err)
+    if N > max_rows:
+        q, qd, qdd, t, w, traj, fc, conservative_cols = _thin_rows(
+            max_rows, q, qd, qdd, t, w, traj, fc, conservative_cols
+        )
+        N = len(q)
+    segs = trajectory_segments(traj)
+    C, center, n_extra = _conservative_design(q, qd, angles, fc, library, conservative_cols)
+    prob = JointProblem(q, qd, qdd, t, w, C, angles)
+    folds, fold_desc = heldout_folds(segs)
+    v_rms = np.sqrt(np.mean(qd**2, axis=0))
+
+    zero = prob.fit(None, {})
+    fams, ctx = _candidates(prob, zero, q, t, w, segs, names, v_rms, include, perturber, user_laws)
+    fits = _fit_candidates(prob, fams, ctx, zero)
+    # τ from the residuals of the best in-sample fit (the most signal removed), then held-out errors
+    best_in = min(fits, key=lambda x: float(np.sum(x[1]["r"] ** 2)))
+    tau = autocorrelation_time(best_in[1]["r"].reshape(N, n), segs)
+    n_eff = N * n / tau
+    rows, stats, alphas = _score_fits(prob, fits, folds, segs, tau, n_boot, seed, names, q, qd, t)
+    n_eff, tau = _information_criteria(rows, stats, n_eff, tau)
+    y_rms = float(np.sqrt(np.mean(qdd**2)))
+    relative_to_zero(rows, y_rms)
+    rows = _best_sparse_only(rows)
+    settings = _table_settings(n_boot, seed, N, C, prob, fc, names, library, n_extra, alphas, center, y_rms)
+    return select_law(rows, n_eff, tau, fold_desc, settings)
+
+
+def _row_weights(qdd, qdd_err) -> np.ndarray:
+    """The rows' weights (N, n): 1 / the per-row q̈ errors (a missing or non-positive one: the component's median
+    error, else its q̈ scatter), or without errors 1 / each component's rms q̈."""
+    N, n = qdd.shape
     if qdd_err is not None:
         qdd_err = np.asarray(qdd_err, float)
         ok = np.isfinite(qdd_err) & (qdd_err > 0)
@@ -150,16 +182,23 @@ def rank_laws(
             [np.median(qdd_err[ok[:, j], j]) if ok[:, j].any() else np.std(qdd[:, j]) or 1.0 for j in range(n)]
         )
         qdd_err = np.where(ok, qdd_err, fill[None])
-        w = 1.0 / qdd_err
-    else:
-        w = np.broadcast_to(1.0 / np.maximum(np.sqrt(np.mean(qdd**2, axis=0)), 1e-300), (N, n)).copy()
-    if N > max_rows:
-        keep = np.unique(np.linspace(0, N - 1, max_rows).round().astype(int))
-        q, qd, qdd, t, w, traj = q[keep], qd[keep], qdd[keep], t[keep], w[keep], traj[keep]
-        fc = None if fc is None else np.asarray(fc, float)[keep]
-        conservative_cols = None if conservative_cols is None else np.asarray(conservative_cols, float)[keep]
-        N = len(keep)
-    segs = trajectory_segments(traj)
+        return 1.0 / qdd_err
+    return np.broadcast_to(1.0 / np.maximum(np.sqrt(np.mean(qdd**2, axis=0)), 1e-300), (N, n)).copy()
+
+
+def _thin_rows(max_rows, q, qd, qdd, t, w, traj, fc, conservative_cols):
+    """The rows thinned evenly to at most ``max_rows`` (fc and conservative_cols too, where given)."""
+    keep = np.unique(np.linspace(0, len(q) - 1, max_rows).round().astype(int))
+    q, qd, qdd, t, w, traj = q[keep], qd[keep], qdd[keep], t[keep], w[keep], traj[keep]
+    fc = None if fc is None else np.asarray(fc, float)[keep]
+    conservative_cols = None if conservative_cols is None else np.asarray(conservative_cols, float)[keep]
+    return q, qd, qdd, t, w, traj, fc, conservative_cols
+
+
+def _conservative_design(q, qd, angles, fc, library, conservative_cols):
+    """The conservative columns C (N, n, K) of the joint fit — the library on standardised positions, then any given
+    columns — with the standardisation (mean, sd) and the number of given columns."""
+    N, n = q.shape
     sd = q.std(axis=0)
     center = (q.mean(axis=0), np.where(sd > 0, sd, 1.0))  # positions enter the conservative library standardised
     C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float), center, library)
@@ -169,11 +208,13 @@ def rank_laws(
         if X.ndim != 3 or X.shape[:2] != (N, n) or not np.all(np.isfinite(X)):
             raise ValueError(f"conservative_cols must be finite and (N, n, K) = ({N}, {n}, K); got {X.shape}")
         C, n_extra = np.concatenate([C, X], axis=2), X.shape[2]
-    prob = JointProblem(q, qd, qdd, t, w, C, angles)
-    folds, fold_desc = heldout_folds(segs)
-    v_rms = np.sqrt(np.mean(qd**2, axis=0))
+    return C, center, n_extra
 
-    zero = prob.fit(None, {})
+
+def _candidates(prob: JointProblem, zero, q, t, w, segs, names, v_rms, include, perturber, user_laws):
+    """The candidate families (built-in ones in ``include``, the perturber, the sparse supports, the user's laws) and
+    the context of their fits (the drive's start frequencies from the zero law's residual)."""
+    N, n = q.shape
     r0 = zero["r"].reshape(N, n) / w
     ctx = {"drive_omegas": _drive_omegas(t, r0, segs), "q": q, "t": t, "residual": r0}
     fams = [f for f in families(n, names, v_rms) if include is None or f.key in include]
@@ -183,16 +224,24 @@ def rank_laws(
         for sup in _sparse_supports(prob, len(odd_monomials(n)), n):
             fams.append(sparse_family(n, names, sup))
     fams += [parse_law(u, names) for u in user_laws]
+    return fams, ctx
 
+
+def _fit_candidates(prob: JointProblem, fams, ctx, zero) -> list:
+    """(family, joint fit) pairs: the zero law (family None) first, then each candidate whose fit succeeded with
+    finite residuals."""
     fits = [(None, zero)]
     for f in fams:
         fit = prob.fit(f, ctx)
         if fit and np.all(np.isfinite(fit["r"])):
             fits.append((f, fit))
-    # τ from the residuals of the best in-sample fit (the most signal removed), then held-out errors
-    best_in = min(fits, key=lambda x: float(np.sum(x[1]["r"] ** 2)))
-    tau = autocorrelation_time(best_in[1]["r"].reshape(N, n), segs)
-    n_eff = N * n / tau
+    return fits
+
+
+def _score_fits(prob: JointProblem, fits, folds, segs, tau, n_boot, seed, names, q, qd, t):
+    """Held-out errors and bootstrap uncertainties of every fit: its table row, its (held-out mse, k, overdispersion
+    ratio) and its conservative coefficients (by ``id(row)``)."""
+    N = len(q)
     rows: list[LawFit] = []
     stats: list = []
     alphas: dict[int, np.ndarray] = {}
@@ -215,21 +264,32 @@ def rank_laws(
             row.on_rows(q, qd, t)
         rows.append(row)
         alphas[id(row)] = fit["alpha"]
+    return rows, stats, alphas
+
+
+def _information_criteria(rows: list[LawFit], stats: list, n_eff: float, tau: float) -> tuple[float, float]:
+    """Each row's IC once the overdispersion ĉ is known (from the stats of :func:`_score_fits`): n_eff / ĉ and τ·ĉ."""
     c_hat = overdispersion_c_hat([x[2] for x in stats], [x[0] for x in stats])  # IC once the overdispersion is known
     n_eff = n_eff / c_hat
     tau = tau * c_hat
     for r, (mse, k, _) in zip(rows, stats):
         r.ic = n_eff * math.log(max(mse, 1e-300)) + k * math.log(max(n_eff, 2.0))
-    y_rms = float(np.sqrt(np.mean(qdd**2)))
-    relative_to_zero(rows, y_rms)
-    # the sparse family keeps only its best support
+    return n_eff, tau
+
+
+def _best_sparse_only(rows: list[LawFit]) -> list[LawFit]:
+    """The sparse family keeps only its best support, and not when a named family has the same formula."""
     sparse = [r for r in rows if r.key == "sparse"]
     if len(sparse) > 1:
         keep_s = min(sparse, key=lambda r: r.ic)
         rows = [r for r in rows if r.key != "sparse" or r is keep_s]
     named = {tuple(r.formula.values()) for r in rows if r.key != "sparse"}
-    rows = [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
-    settings = {
+    return [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
+
+
+def _table_settings(n_boot, seed, N, C, prob: JointProblem, fc, names, library, n_extra, alphas, center, y_rms):
+    """The table's settings (those starting with "_" are for the code, not the report)."""
+    return {
         "mu": MU,
         "ic_tie": IC_TIE,
         "n_boot": n_boot,
@@ -237,7 +297,7 @@ def rank_laws(
         "rows": int(N),
         "method": "pointwise",
         "conservative_columns": int(C.shape[2]),
-        "conservative_rank": int(Kc),
+        "conservative_rank": int(prob.Z.shape[1]),
         "conservative_base": fc is not None,
         "names": names,
         "library": library if library in ("minimal", "short") else bool(library),
@@ -246,4 +306,3 @@ def rank_laws(
         "_center": center,
         "_y_rms": y_rms,
     }
-    return select_law(rows, n_eff, tau, fold_desc, settings)

@@ -40,9 +40,7 @@ def _lambda_p(workers: int, steps: int, out: Path) -> tuple[float, dict]:
 
     t0 = time.perf_counter()
     r = lambda_p_study(steps=steps, seed=0, out=out, workers=workers)
-    return time.perf_counter() - t0, {
-        f"{v['system']} p={v['p']}": [v["ratio"], v["new_physics"]] for v in r["verdicts"]
-    }
+    return time.perf_counter() - t0, {f"{v.system} p={v.p}": [v.ratio, v.new_physics] for v in r.verdicts}
 
 
 def _reproduce(workers: int, quick: bool, out: Path) -> tuple[float, dict]:

@@ -12,6 +12,7 @@ from nnphd.engine.data import trajectory_dataset
 from nnphd.engine.models import ModelConfig, lnn_accel
 from nnphd.engine.systems import get_system
 from nnphd.paper.predict import MODELS, _claims, init_model, learned_power, model_forces, rollout, run_prediction
+from nnphd.paper.study_results import PredictionResult
 
 SMALL = dict(steps=200, widths=(32, 32), n_traj=600)  # train t ≤ 30, extrapolate to t = 60
 
@@ -73,30 +74,32 @@ def test_models_forces_and_learned_power():
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_small_run_numbers(small):
     res = small
-    assert res["settings"]["seed"] == 1 and res["settings"]["steps"] == 200 and res["settings"]["lambda"] == 0.2
-    assert res["settings"]["widths"] == [32, 32] and res["settings"]["t_split"] == 30.0
+    assert isinstance(res, PredictionResult)
+    assert res.settings["seed"] == 1 and res.settings["steps"] == 200 and res.settings["lambda"] == 0.2
+    assert res.settings["widths"] == [32, 32] and res.settings["t_split"] == 30.0
+    assert list(res.metrics) == list(MODELS) == list(res.train_time_s)
     for kind in MODELS:
-        m = res["metrics"][kind]
+        m = res.metrics[kind]
         for key in ("theta1_rmse_30_40", "theta1_rmse_30_200", "energy_rmse_30_200", "train_force_error"):
-            assert np.isfinite(m[key]) and m[key] > 0, (kind, key, m[key])
-        assert m["diverged_at"] is None
-        tx = m["t_error_exceeds_0.1"]
-        assert tx is None or 30.0 < tx <= 60.0 + 1e-9
-        assert m["theta1_rmse_30_40"] <= m["theta1_rmse_30_200"] * np.sqrt(301 / 101) + 1e-12  # subset of the window
+            assert np.isfinite(getattr(m, key)) and getattr(m, key) > 0, (kind, key, m)
+        assert m.diverged_at is None
+        tx = m.t_error_exceeds
+        assert tx == m.to_dict()["t_error_exceeds_0.1"] and (tx is None or 30.0 < tx <= 60.0 + 1e-9)
+        assert m.theta1_rmse_30_40 <= m.theta1_rmse_30_200 * np.sqrt(301 / 101) + 1e-12  # subset of the window
     # the truth loses energy over [30, 60]
-    assert res["truth"]["energy_loss"] > 0.1
+    assert res.truth.energy_loss > 0.1
     # an LNN cannot dissipate: its own learned energy is conserved along its rollout (up to RK4 error: far less than
     # it varies along the true, damped trajectory), and the true energy of its rollout drifts much less than the truth's
-    c = res["lnn_energy_constancy"]
-    assert c["lnn_learned_energy_range_ratio"] < 0.05
-    assert c["lnn_true_energy_drift_over_truth_drift"] < 0.5
+    assert res.lnn_energy_constancy.lnn_learned_energy_range_ratio < 0.05
+    assert res.lnn_energy_constancy.lnn_true_energy_drift_over_truth_drift < 0.5
     # energy balance of the learned energy along the NNPhD rollout: dH/dt = q̇ᵀ H_vv f_n (an identity for the
     # model's own motion; the difference is the finite-difference and RK4 error)
-    b = res["energy_balance"]
-    assert b["rollout_finite"] and b["dHdt_vs_power_corr"] > 0.99 and b["dHdt_vs_power_rel_rms"] < 0.1
+    b = res.energy_balance
+    assert b.rollout_finite and b.dHdt_vs_power_corr > 0.99 and b.dHdt_vs_power_rel_rms < 0.1
     # each claim's verdict is its threshold applied to the numbers reported above: NNPhD's energy RMSE against ½ × the
     # black box's and against the LNN's, the LNN's true-energy drift against 0.1 × the truth's, the training errors
-    m = res["metrics"]
+    d = res.to_dict()
+    m, c = d["metrics"], d["lnn_energy_constancy"]
     e = {k: m[k]["energy_rmse_30_200"] for k in MODELS}
     expected = [
         e["nnphd"] <= 0.5 * e["blackbox"],
@@ -104,7 +107,7 @@ def test_small_run_numbers(small):
         c["lnn_true_energy_drift_over_truth_drift"] < 0.1,
         m["lnn"]["train_force_error"] > m["nnphd"]["train_force_error"],
     ]
-    assert [cl["met"] for cl in res["claims"]] == expected, res["claims"]
+    assert [cl.met for cl in res.claims] == expected, res.claims
     # and each one turns with its numbers: an NNPhD with no energy or training error, beside an LNN whose energy does
     # not drift, meets all four; one with a huge error meets none that compare it (the drift claim is the LNN's)
     perfect = {**m, "nnphd": {**m["nnphd"], "energy_rmse_30_200": 0.0, "train_force_error": 0.0}}
@@ -112,14 +115,14 @@ def test_small_run_numbers(small):
     assert [cl["met"] for cl in _claims(perfect, still, None)] == [True, True, True, True]
     awful = {**m, "nnphd": {**m["nnphd"], "energy_rmse_30_200": 1e300, "train_force_error": 1e300}}
     assert [cl["met"] for cl in _claims(awful, still, None)] == [False, False, True, False]
-    json.dumps(res)  # JSON-able
+    assert PredictionResult.from_dict(json.loads(json.dumps(d))).to_dict() == d  # JSON-able, and reads back
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_same_seed_same_numbers(small):
     again = run_prediction(seed=1, **SMALL)
-    assert again["metrics"] == small["metrics"]
-    assert again["energy_balance"] == small["energy_balance"] and again["claims"] == small["claims"]
+    assert again.metrics == small.metrics
+    assert again.energy_balance == small.energy_balance and again.claims == small.claims
 
 
 def test_bad_settings_raise():

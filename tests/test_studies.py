@@ -8,6 +8,7 @@ import pytest
 from nnphd.cli import main
 from nnphd.paper.data_quality import data_quality_study
 from nnphd.paper.lambda_p import lambda_p_study, transition_sharpness
+from nnphd.paper.study_results import DataQualityResult, LambdaPResult
 from nnphd.paper.sweep import run_sweep
 
 LP = dict(steps=200, seed=0, lambdas=(0.1, 0.5, 2.0, 10.0, 50.0), ps=(1, "mse"), systems=("ho+ld", "ho+mf"))
@@ -54,69 +55,72 @@ def lp(tmp_path_factory):
 @pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_p_verdicts_and_files(lp):
     out, res, calls = lp
-    v = {(r["system"], r["p"]): r for r in res["verdicts"]}
+    assert isinstance(res, LambdaPResult)
+    v = {(r.system, r.p): r for r in res.verdicts}
     assert set(v) == {("ho+ld", "1"), ("ho+ld", "mse"), ("ho+mf", "1"), ("ho+mf", "mse")}
     for p in ("1", "mse"):
-        assert v[("ho+ld", p)]["new_physics"] and v[("ho+ld", p)]["ratio"] > 3
-        assert not v[("ho+mf", p)]["new_physics"] and v[("ho+mf", p)]["ratio"] < 1.5
-    assert all(r["correct"] for r in res["verdicts"])
+        assert v[("ho+ld", p)].new_physics and v[("ho+ld", p)].ratio > 3
+        assert not v[("ho+mf", p)].new_physics and v[("ho+mf", p)].ratio < 1.5
+    assert all(r.correct for r in res.verdicts) and res.verdict("ho+ld", 1) is v[("ho+ld", "1")]
     # curves: one row per λ, L_e from the test set
     for s in ("ho+ld", "ho+mf"):
         for p in ("1", "mse"):
-            rows = res["curves"][s][p]
-            assert [r["lam"] for r in rows] == list(LP["lambdas"])
-            assert all(r["L_e"] > 0 and math.isfinite(r["m_c"]) for r in rows)
+            rows = res.curves[s][p]
+            assert [r.lam for r in rows] == list(LP["lambdas"])
+            assert all(r.L_e > 0 and math.isfinite(r.m_c) for r in rows)
     # HO+LD: above λ=1 the UAN is switched off
-    for r in res["alignment"]["by_p"]["1"]:
-        if r["lam"] > 1:
-            assert r["fn_rms"] < 0.05 * res["alignment"]["fn_true_rms"]
-    f = res["alignment"]["forces"]["1"]
-    assert sorted(f["by_lambda"]) == ["0.1", "0.5", "10", "2"] and len(f["q"]) == len(f["by_lambda"]["2"]["fn"]) == 400
-    for c in res["claims"]:
-        assert set(c) == {"claim", "ours", "met"} and isinstance(c["met"], bool)
-    assert any("MSE" in c["claim"] for c in res["claims"]) and any("no jump" in c["claim"] for c in res["claims"])
+    for r in res.alignment.by_p["1"]:
+        if r.lam > 1:
+            assert r.fn_rms < 0.05 * res.alignment.fn_true_rms
+    f = res.alignment.forces["1"]
+    assert [a.lam for a in f.by_lambda] == [0.1, 0.5, 2.0, 10.0] and len(f.q) == len(f.by_lambda[2].fn) == 400
+    assert sorted(f.to_dict()["by_lambda"]) == ["0.1", "0.5", "10", "2"]
+    for c in res.claims:
+        assert set(c.to_dict()) == {"claim", "ours", "met"} and isinstance(c.met, bool)
+    assert any("MSE" in c.claim for c in res.claims) and any("no jump" in c.claim for c in res.claims)
     # each claim's verdict, from the numbers asserted above or recomputed from the curves and verdicts it quotes
-    curves, by_p1 = res["curves"]["ho+ld"], res["alignment"]["by_p"]["1"]
+    curves, by_p1 = res.curves["ho+ld"], res.alignment.by_p["1"]
 
     def aligned(p):  # m_c, m_n ≤ 0.05 at every λ of 0.05 ≤ λ < 1
-        return max(max(r["m_c"], r["m_n"]) for r in curves[p] if 0.05 <= r["lam"] < 1) <= 0.05
+        return max(max(r.m_c, r.m_n) for r in curves[p] if 0.05 <= r.lam < 1) <= 0.05
 
     expected = [
         True,  # HO+LD, p = 1: new physics (asserted above)
-        v[("ho+ld", "1")]["transition"] == "jump",
+        v[("ho+ld", "1")].transition == "jump",
         True,  # HO+MF, p = 1: no new physics (asserted above)
-        v[("ho+mf", "1")]["ratio"] < 1,
-        v[("ho+ld", "mse")]["transition"] == "smooth",
+        v[("ho+mf", "1")].ratio < 1,
+        v[("ho+ld", "mse")].transition == "smooth",
         aligned("1"),
         aligned("mse"),
         True,  # HO+LD, p = 1, λ > 1: f_n rms ≤ 0.1 × the truth's (asserted above with 0.05 ×)
-        all(r["m_c"] <= 0.05 for r in by_p1 if r["lam"] > 1),
+        all(r.m_c <= 0.05 for r in by_p1 if r.lam > 1),
     ]
-    assert [c["met"] for c in res["claims"]] == expected, res["claims"]
-    assert not res["cached"]
+    assert [c.met for c in res.claims] == expected, res.claims
+    assert not res.cached
     assert calls[-1] == (20, 20) and [d for d, _ in calls] == sorted(d for d, _ in calls)
     for name in ("results.json", "fig5.png", "fig5_forces.png"):
         assert (out / name).stat().st_size > 1000
     assert (out / "runs" / "ho+ld_pmse" / "results.json").exists()
     saved = json.loads((out / "results.json").read_text())
-    assert saved["curves"] == res["curves"] and saved["settings"]["steps_per_lambda"] == 200
+    assert saved == res.to_dict() and saved["settings"]["steps_per_lambda"] == 200
+    assert LambdaPResult.from_dict(saved) == res  # results.json reads back as the result returned
 
 
 def test_lambda_p_subrun_is_nnphd_sweep(lp):
     """Same seed → same numbers: a sub-run reproduces `nnphd sweep` (run_sweep) exactly."""
     _, res, _ = lp
     ref = run_sweep("ho+ld", p=1, steps=LP["steps"], seed=LP["seed"], lambdas=LP["lambdas"])
-    assert [r["L_e"] for r in res["curves"]["ho+ld"]["1"]] == [r.L_e for r in ref.table]
-    assert [r["m_c"] for r in res["curves"]["ho+ld"]["1"]] == [r.m_c for r in ref.table]
+    assert [r.L_e for r in res.curves["ho+ld"]["1"]] == [r.L_e for r in ref.table]
+    assert [r.m_c for r in res.curves["ho+ld"]["1"]] == [r.m_c for r in ref.table]
 
 
 @pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_p_cached_rerun_and_cli(lp, capsys):
     out, res, _ = lp
     again = lambda_p_study(out=out, **LP)
-    assert sorted(again["cached"]) == ["ho+ld/p=1", "ho+ld/p=mse", "ho+mf/p=1", "ho+mf/p=mse"]
-    assert again["curves"] == res["curves"] and again["claims"] == res["claims"]
-    assert [v["ratio"] for v in again["verdicts"]] == [v["ratio"] for v in res["verdicts"]]
+    assert sorted(again.cached) == ["ho+ld/p=1", "ho+ld/p=mse", "ho+mf/p=1", "ho+mf/p=mse"]
+    assert again.curves == res.curves and again.claims == res.claims
+    assert [v.ratio for v in again.verdicts] == [v.ratio for v in res.verdicts]
     (out / "results.json").unlink()
     rc = main(
         [
@@ -139,7 +143,7 @@ def test_lambda_p_cached_rerun_and_cli(lp, capsys):
     assert rc == 0
     text = capsys.readouterr().out
     assert "loaded 4 of 4 sweeps from the cache" in text and "verdicts" in text and ("met" in text)
-    assert json.loads((out / "results.json").read_text())["curves"] == res["curves"]
+    assert json.loads((out / "results.json").read_text())["curves"] == res.to_dict()["curves"]
 
 
 # ---- data-quality study ---------------------------------------------------------------------------------------
@@ -151,44 +155,51 @@ def dq(tmp_path_factory):
 
 def test_data_quality_coverage_and_imbalance(dq):
     out, res = dq
-    a = {r["alpha"]: r for r in res["alpha"]["table"]}
+    assert isinstance(res, DataQualityResult)
+    a = {r.alpha: r for r in res.alpha.table}
     # q̇ ≥ 0 only (α = 0.25): constant damping looks conservative → L_e ≈ 0; full plane: L_e ≈ ‖f_n‖₁ = 0.5
-    assert a[0.25]["L_e"] < 0.05 and a[1.0]["L_e"] > 0.25
-    assert a[1.0]["L_e"] > 10 * a[0.25]["L_e"]
+    assert a[0.25].L_e < 0.05 and a[1.0].L_e > 0.25
+    assert a[1.0].L_e > 10 * a[0.25].L_e
     # …but only on the data's own distribution: on the full plane the half-plane model is wrong
-    assert a[0.25]["L_e_full"] > 5 * a[0.25]["L_e"]
-    b = {r["beta"]: r for r in res["beta"]["table"]}
-    assert b[0.5]["frac_qd_pos"] == 0.5 and b[1.0]["frac_qd_pos"] == 1.0
-    assert all(math.isfinite(r[k]) and r[k] >= 0 for r in b.values() for k in ("m_c", "m_n", "m_c_full", "m_n_full"))
+    assert a[0.25].L_e_full > 5 * a[0.25].L_e
+    b = {r.beta: r for r in res.beta.table}
+    assert b[0.5].frac_qd_pos == 0.5 and b[1.0].frac_qd_pos == 1.0
+    assert all(
+        math.isfinite(getattr(r, k)) and getattr(r, k) >= 0
+        for r in b.values()
+        for k in ("m_c", "m_n", "m_c_full", "m_n_full")
+    )
     # λ = 10 > 1 switches the UAN off (Theorem 1): f_n^NN ≈ 0, so m_n = rms(f_n^PHY) = ½ exactly for HO+CD, whose
     # f_n = −½ sgn q̇ has size ½ at every sample (measured 0.50004, 0.49985; the UAN's output L_b is ~1e-3)
-    assert all(r["m_n"] == pytest.approx(0.5, abs=0.01) for r in a.values())
+    assert all(r.m_n == pytest.approx(0.5, abs=0.01) for r in a.values())
     # imbalance: with every q̇ > 0 (β = 1) the split is not pinned down (a Lagrangian can absorb part of the damping
     # on one side of q̇ = 0), balanced data (β = 0.5) pins it (paper Fig. 6b; measured m_c, m_n 0.055 at β = 0.5,
     # 0.33 at β = 1)
-    assert all(3 * b[0.5][k] < b[1.0][k] for k in ("m_c", "m_n"))
+    assert all(3 * getattr(b[0.5], k) < getattr(b[1.0], k) for k in ("m_c", "m_n"))
     # …and the one-sided model's f_n is wrong on the half it never saw: worse on the full plane than on its own data
     # (measured 0.62 vs 0.33), while β = 0.5 draws from the full plane's own distribution (measured 0.0548 vs 0.0547)
-    assert b[1.0]["m_n_full"] > 1.5 * b[1.0]["m_n"]
-    assert all(b[0.5][f"{k}_full"] == pytest.approx(b[0.5][k], rel=0.2) for k in ("m_c", "m_n"))
-    for c in res["claims"]:
-        assert set(c) == {"claim", "ours", "met"} and isinstance(c["met"], bool)
-    assert len(res["claims"]) == 5  # α: nearly zero, median jump, strict jump; β: minimum at 0.5, nearly zero there
+    assert b[1.0].m_n_full > 1.5 * b[1.0].m_n
+    assert all(getattr(b[0.5], f"{k}_full") == pytest.approx(getattr(b[0.5], k), rel=0.2) for k in ("m_c", "m_n"))
+    for c in res.claims:
+        assert set(c.to_dict()) == {"claim", "ours", "met"} and isinstance(c.met, bool)
+    assert len(res.claims) == 5  # α: nearly zero, median jump, strict jump; β: minimum at 0.5, nearly zero there
     # the first four follow from the assertions above (L_e(0.25) < 0.05 = 0.1 × ‖f_n‖₁; L_e(1) > 10 × L_e(0.25) ≥ 3 ×,
     # median and strict; m_c, m_n smallest at β = 0.5); the fifth is m_c, m_n ≤ 0.05 at β = 0.5, read off the table
-    near_zero = max(b[0.5]["m_c"], b[0.5]["m_n"]) <= 0.05
-    assert [c["met"] for c in res["claims"]] == [True, True, True, True, near_zero], res["claims"]
+    near_zero = max(b[0.5].m_c, b[0.5].m_n) <= 0.05
+    assert [c.met for c in res.claims] == [True, True, True, True, near_zero], res.claims
     for name in ("results.json", "fig6.png", "alpha.json", "beta.json"):
         assert (out / name).stat().st_size > 500
-    assert not res["cached"]
+    assert not res.cached
+    saved = json.loads((out / "results.json").read_text())
+    assert saved == res.to_dict() and DataQualityResult.from_dict(saved) == res
 
 
 def test_data_quality_cached_rerun(dq):
     out, res = dq
     again = data_quality_study(out=out, **DQ)
-    assert again["cached"] == ["alpha", "beta"]
-    assert again["alpha"]["table"] == res["alpha"]["table"] and again["beta"]["table"] == res["beta"]["table"]
-    assert again["claims"] == res["claims"]
+    assert again.cached == ("alpha", "beta")
+    assert again.alpha.table == res.alpha.table and again.beta.table == res.beta.table
+    assert again.claims == res.claims
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
@@ -215,7 +226,8 @@ def test_data_quality_cli_same_seed_same_numbers(dq, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "pie coverage" in text and "imbalance" in text and "wrote" in text
     got = json.loads((out / "results.json").read_text())
-    assert got["alpha"]["table"] == res["alpha"]["table"] and got["beta"]["table"] == res["beta"]["table"]
+    d = res.to_dict()
+    assert got["alpha"]["table"] == d["alpha"]["table"] and got["beta"]["table"] == d["beta"]["table"]
     assert (out / "fig6.png").stat().st_size > 1000
 
 

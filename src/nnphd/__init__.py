@@ -26,9 +26,12 @@ from nnphd._config import default_compile_cache as default_compile_cache
 __version__ = "0.1.0"
 
 __all__ = [
+    "DataQualityResult",
     "DetectResult",
+    "LambdaPResult",
     "Law",
     "NNPhD",
+    "PredictionResult",
     "Status",
     "SweepResult",
     "Trajectories",
@@ -39,6 +42,7 @@ __all__ = [
     "read_report",
 ]
 _API = ("DetectResult", "Law", "NNPhD", "Status", "Trajectories", "Verdict", "load", "read_report")
+_STUDY_RESULTS = ("DataQualityResult", "LambdaPResult", "PredictionResult")  # the paper's studies' typed results
 
 
 def __getattr__(name: str):  # the API loads on first use, so `import nnphd` stays light and inert
@@ -50,6 +54,10 @@ def __getattr__(name: str):  # the API loads on first use, so `import nnphd` sta
         from nnphd.paper.sweep_result import SweepResult
 
         return SweepResult
+    if name in _STUDY_RESULTS:  # what lambda_p_study, data_quality_study, run_prediction return (no JAX)
+        from nnphd.paper import study_results
+
+        return getattr(study_results, name)
     raise AttributeError(f"module 'nnphd' has no attribute {name!r}")
 
 

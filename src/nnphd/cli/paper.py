@@ -253,9 +253,10 @@ def discover(
 
 
 def _print_claims(claims) -> None:
+    """A study's judged claims (:class:`nnphd.paper.study_results.Claim`), one line each."""
     for c in claims:
-        tag = "[bold green]met[/]" if c["met"] else "[bold red]not met[/]"
-        console.print(f"{tag}: {c['claim']} — {c['ours']}", highlight=False)
+        tag = "[bold green]met[/]" if c.met else "[bold red]not met[/]"
+        console.print(f"{tag}: {c.claim} — {c.ours}", highlight=False)
 
 
 @app.command()
@@ -281,7 +282,6 @@ def predict(
 
     with progress_bar("starting") as bar:
         res = run_prediction(seed=seed, steps=steps, out=out, uan_time=uan_time, progress=bar)
-    tkey = f"t_error_exceeds_{THETA_TOL:g}"
     t = Table(title=f"prediction from t = 30 (train t ≤ 30), {steps} training steps, seed {seed}")
     for col in (
         "model",
@@ -293,25 +293,25 @@ def predict(
     ):
         t.add_column(col, justify="right")
     for kind in MODELS:
-        m = res["metrics"][kind]
+        m = res.metrics[kind]
         t.add_row(
             LABELS[kind],
-            f"{m['theta1_rmse_30_40']:.4g}",
-            f"{m['theta1_rmse_30_200']:.4g}",
-            f"{m['energy_rmse_30_200']:.4g}",
-            "never" if m[tkey] is None else f"{m[tkey]:.1f}",
-            f"{m['train_force_error']:.3g}",
+            f"{m.theta1_rmse_30_40:.4g}",
+            f"{m.theta1_rmse_30_200:.4g}",
+            f"{m.energy_rmse_30_200:.4g}",
+            "never" if m.t_error_exceeds is None else f"{m.t_error_exceeds:.1f}",
+            f"{m.train_force_error:.3g}",
         )
     console.print(t)
-    b = res["energy_balance"]
+    b = res.energy_balance
     console.print(
         f"energy balance (NNPhD rollout): dH/dt vs q̇ᵀ(∂²L/∂q̇²)f_n: rel. rms difference "
-        f"{b['dHdt_vs_power_rel_rms']:.3g}, correlation {b['dHdt_vs_power_corr']:.4f}; learned vs true "
-        f"dissipation: correlation {b['learned_vs_true_power_corr']:.3f}",
+        f"{b.dHdt_vs_power_rel_rms:.3g}, correlation {b.dHdt_vs_power_corr:.4f}; learned vs true "
+        f"dissipation: correlation {b.learned_vs_true_power_corr:.3f}",
         highlight=False,
     )
-    _print_claims(res["claims"])
-    console.print(_r(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res['wall_time_s']:.1f} s)"))
+    _print_claims(res.claims)
+    console.print(_r(f"wrote {out}/results.json, prediction.png, energy_balance.png ({res.wall_time_s:.1f} s)"))
 
 
 @study_app.command("lambda-p")
@@ -367,36 +367,33 @@ def study_lambda_p(
     t = Table(title=f"verdicts — {steps} steps per λ, seed {seed}, L_e on the test set")
     for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
         t.add_column(col, justify="right")
-    for v in res["verdicts"]:
-        verd = "new" if v["new_physics"] else "none"
+    for v in res.verdicts:
+        verd = "new" if v.new_physics else "none"
         t.add_row(
-            v["system"],
-            "MSE" if v["p"] == "mse" else f"p={v['p']}",
-            f"{v['L_below']:.3g}",
-            f"{v['L_above']:.3g}",
-            f"{v['ratio']:.3g}",
-            verd if v["correct"] else f"[red]{verd} ✗[/]",
-            ("—" if v["sharpness"] is None else f"{v['sharpness']:.2f}") + f" {v['transition']}",
-            "—" if v["rise_fraction"] is None else f"{v['rise_fraction']:.2f}",
+            v.system,
+            "MSE" if v.p == "mse" else f"p={v.p}",
+            f"{v.L_below:.3g}",
+            f"{v.L_above:.3g}",
+            f"{v.ratio:.3g}",
+            verd if v.correct else f"[red]{verd} ✗[/]",
+            ("—" if v.sharpness is None else f"{v.sharpness:.2f}") + f" {v.transition}",
+            "—" if v.rise_fraction is None else f"{v.rise_fraction:.2f}",
         )
     console.print(t)
-    al = res["alignment"]
+    al = res.alignment
     if al is not None:
         t = Table(title="HO+LD misalignment m_c / m_n (test set)")
         t.add_column("λ", justify="right")
-        for l in res["settings"]["ps"]:
+        for l in al.by_p:
             t.add_column("MSE" if l == "mse" else f"p={l}", justify="right")
-        for i, lam in enumerate(res["settings"]["lambdas"]):
-            t.add_row(
-                f"{lam:g}",
-                *[f"{al['by_p'][l][i]['m_c']:.3f} / {al['by_p'][l][i]['m_n']:.3f}" for l in res["settings"]["ps"]],
-            )
+        for rows in zip(*al.by_p.values()):  # one row per λ, a column per loss
+            t.add_row(f"{rows[0].lam:g}", *[f"{r.m_c:.3f} / {r.m_n:.3f}" for r in rows])
         console.print(t)
-    _print_claims(res["claims"])
-    if res["cached"]:
-        console.print(_r(f"loaded {len(res['cached'])} of {len(res['verdicts'])} sweeps from the cache in {out}/runs"))
+    _print_claims(res.claims)
+    if res.cached:
+        console.print(_r(f"loaded {len(res.cached)} of {len(res.verdicts)} sweeps from the cache in {out}/runs"))
     figs = "fig5.png" + (", fig5_forces.png" if al is not None else "")
-    console.print(_r(f"wrote {out}/results.json, {figs} ({res['wall_time_s']:.1f} s)"))
+    console.print(_r(f"wrote {out}/results.json, {figs} ({res.wall_time_s:.1f} s)"))
 
 
 @study_app.command("data-quality")
@@ -431,32 +428,25 @@ def study_data_quality(
         res = data_quality_study(
             steps=steps, seed=seed, alphas=al, betas=be, out=out, progress=bar, workers=workers, scheduler=scheduler
         )
-    s = res["settings"]
+    s = res.settings
     t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {steps} steps)")
     for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
         t.add_column(col, justify="right")
-    for r in res["alpha"]["table"]:
-        t.add_row(
-            f"{r['alpha']:g}", f"{r['L_e']:.4g}", f"{r['L_e_train']:.4g}", f"{r['L_e_full']:.4g}", f"{r['L_b']:.3g}"
-        )
+    for r in res.alpha.table:
+        t.add_row(f"{r.alpha:g}", f"{r.L_e:.4g}", f"{r.L_e_train:.4g}", f"{r.L_e_full:.4g}", f"{r.L_b:.3g}")
     console.print(t)
     t = Table(title=f"HO+LD, λ={s['lam_beta']:g}: misalignment vs imbalance β")
     for col in ("β", "m_c (test, same β)", "m_n (test, same β)", "m_c (balanced)", "m_n (balanced)", "L_e"):
         t.add_column(col, justify="right")
-    for r in res["beta"]["table"]:
+    for r in res.beta.table:
         t.add_row(
-            f"{r['beta']:g}",
-            f"{r['m_c']:.4f}",
-            f"{r['m_n']:.4f}",
-            f"{r['m_c_full']:.4f}",
-            f"{r['m_n_full']:.4f}",
-            f"{r['L_e']:.3g}",
+            f"{r.beta:g}", f"{r.m_c:.4f}", f"{r.m_n:.4f}", f"{r.m_c_full:.4f}", f"{r.m_n_full:.4f}", f"{r.L_e:.3g}"
         )
     console.print(t)
-    _print_claims(res["claims"])
-    if res["cached"]:
-        console.print(_r(f"loaded {' and '.join(res['cached'])} from the cache in {out}"))
-    console.print(_r(f"wrote {out}/results.json and fig6.png ({res['wall_time_s']:.1f} s)"))
+    _print_claims(res.claims)
+    if res.cached:
+        console.print(_r(f"loaded {' and '.join(res.cached)} from the cache in {out}"))
+    console.print(_r(f"wrote {out}/results.json and fig6.png ({res.wall_time_s:.1f} s)"))
 
 
 @app.command()

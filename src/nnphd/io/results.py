@@ -7,11 +7,14 @@ import os
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
 from nnphd.io.escape import mpl as _m
 from nnphd.io.outdir import ensure_writable_dir  # noqa: F401  (re-exported: the writers' folder check)
+
+R = TypeVar("R")  # a typed result
 
 
 def json_default(o):
@@ -96,17 +99,21 @@ def plot_sweep(curves: dict[str, Sequence[dict]], title: str = "", show_lb: bool
     return fig
 
 
-def write_results(outdir: Path | None, result: dict, figures: dict | None = None, t0: float | None = None) -> dict:
-    """Finish a study: draw ``figures`` (file name → a function of ``result`` returning a Figure) into ``outdir``,
-    set ``result["wall_time_s"]`` from ``t0`` (time.perf_counter), then write results.json (last, so its presence
-    marks a finished run). Returns ``result``."""
+def write_results(outdir: Path | None, result: R, figures: dict | None = None, t0: float | None = None) -> R:
+    """Finish a study: draw ``figures`` (file name → a function of the result's dict returning a Figure) into
+    ``outdir``, set the result's ``wall_time_s`` from ``t0`` (time.perf_counter), then write results.json, the
+    result's ``to_dict()`` (last, so its presence marks a finished run). ``result`` is a typed result (a frozen
+    dataclass with ``wall_time_s`` and ``to_dict()``, e.g. :class:`nnphd.paper.study_results.LambdaPResult`);
+    returns it with its wall time."""
+    import dataclasses
     import time
 
-    if outdir is not None:
-        for name, draw in (figures or {}).items():
-            save_figure(draw(result), Path(outdir) / name)
+    if outdir is not None and figures:
+        d = result.to_dict()
+        for name, draw in figures.items():
+            save_figure(draw(d), Path(outdir) / name)
     if t0 is not None:
-        result["wall_time_s"] = time.perf_counter() - t0
+        result = dataclasses.replace(result, wall_time_s=time.perf_counter() - t0)
     if outdir is not None:
-        write_json(Path(outdir) / "results.json", result)
+        write_json(Path(outdir) / "results.json", result.to_dict())
     return result

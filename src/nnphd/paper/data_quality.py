@@ -41,6 +41,7 @@ from nnphd.io.progress import Progress
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig6
 from nnphd.paper.lambda_p import ALIGN_TOL, NEAR_ZERO_FRACTION, RESULT_FORMAT
+from nnphd.paper.study_results import AlphaRow, BetaRow, Claim, DataQualityGrid, DataQualityResult
 from nnphd.parallel import Unit, UnitsFailed, run_units
 
 __all__ = ["DQ_GRID", "data_quality_study"]
@@ -146,63 +147,63 @@ def _dq_grid_run(kind: str, grid, steps: int, seed: int, n_train: int, n_test: i
     return res
 
 
-def _dq_claims(alpha_rows: list[dict], beta_rows: list[dict]) -> list[dict]:
+def _dq_claims(alpha_rows: Sequence[AlphaRow], beta_rows: Sequence[BetaRow]) -> list[Claim]:
     claims = []
-    lo = [r for r in alpha_rows if r["alpha"] <= 0.5]
-    hi = [r for r in alpha_rows if r["alpha"] > 0.5]
+    lo = [r for r in alpha_rows if r.alpha <= 0.5]
+    hi = [r for r in alpha_rows if r.alpha > 0.5]
     if lo:
-        worst = max(lo, key=lambda r: r["L_e"])
-        tol = NEAR_ZERO_FRACTION * max(r["fn_size"] for r in lo) if any(r["fn_size"] > 0 for r in lo) else None
+        worst = max(lo, key=lambda r: r.L_e)
+        tol = NEAR_ZERO_FRACTION * max(r.fn_size for r in lo) if any(r.fn_size > 0 for r in lo) else None
         tol = NEAR_ZERO_FRACTION * 0.5 if tol is None else tol
         claims.append(
-            {
-                "claim": f"HO+CD, λ=10: L_e nearly zero for α ≤ 0.5 (≤ {NEAR_ZERO_FRACTION:g}× ‖f_n‖₁ = {tol:.3g}): "
+            Claim(
+                claim=f"HO+CD, λ=10: L_e nearly zero for α ≤ 0.5 (≤ {NEAR_ZERO_FRACTION:g}× ‖f_n‖₁ = {tol:.3g}): "
                 "on q̇ ≥ 0 the damping looks like a constant conservative force",
-                "ours": f"max L_e = {worst['L_e']:.3g} at α={worst['alpha']:g}; "
-                + ", ".join(f"α={r['alpha']:g}: {r['L_e']:.3g}" for r in lo),
-                "met": bool(worst["L_e"] <= tol),
-            }
+                ours=f"max L_e = {worst.L_e:.3g} at α={worst.alpha:g}; "
+                + ", ".join(f"α={r.alpha:g}: {r.L_e:.3g}" for r in lo),
+                met=bool(worst.L_e <= tol),
+            )
         )
     if lo and hi:
-        med_lo = float(np.median([r["L_e"] for r in lo]))
-        med_hi = float(np.median([r["L_e"] for r in hi]))
+        med_lo = float(np.median([r.L_e for r in lo]))
+        med_hi = float(np.median([r.L_e for r in hi]))
         claims.append(
-            {
-                "claim": f"HO+CD, λ=10: L_e jumps past α = 0.5 (median L_e over α > 0.5 ≥ {MIN_RATIO:g}× median over "
+            Claim(
+                claim=f"HO+CD, λ=10: L_e jumps past α = 0.5 (median L_e over α > 0.5 ≥ {MIN_RATIO:g}× median over "
                 "α ≤ 0.5, the verdict's statistic)",
-                "ours": f"median {med_hi:.3g} vs {med_lo:.3g}: ×{med_hi / max(med_lo, 1e-300):.3g}",
-                "met": bool(med_hi >= MIN_RATIO * med_lo),
-            }
+                ours=f"median {med_hi:.3g} vs {med_lo:.3g}: ×{med_hi / max(med_lo, 1e-300):.3g}",
+                met=bool(med_hi >= MIN_RATIO * med_lo),
+            )
         )
-        mn_hi = min(r["L_e"] for r in hi)
-        mx_lo = max(r["L_e"] for r in lo)
+        mn_hi = min(r.L_e for r in hi)
+        mx_lo = max(r.L_e for r in lo)
         claims.append(
-            {
-                "claim": f"HO+CD, λ=10: every α > 0.5 has L_e ≥ {MIN_RATIO:g}× every α ≤ 0.5 (strict reading)",
-                "ours": f"min over α > 0.5 = {mn_hi:.3g}, max over α ≤ 0.5 = {mx_lo:.3g}: ×{mn_hi / max(mx_lo, 1e-300):.3g}",
-                "met": bool(mn_hi >= MIN_RATIO * mx_lo),
-            }
+            Claim(
+                claim=f"HO+CD, λ=10: every α > 0.5 has L_e ≥ {MIN_RATIO:g}× every α ≤ 0.5 (strict reading)",
+                ours=f"min over α > 0.5 = {mn_hi:.3g}, max over α ≤ 0.5 = {mx_lo:.3g}: ×{mn_hi / max(mx_lo, 1e-300):.3g}",
+                met=bool(mn_hi >= MIN_RATIO * mx_lo),
+            )
         )
     if beta_rows:
-        half = [r for r in beta_rows if r["beta"] == 0.5]
+        half = [r for r in beta_rows if r.beta == 0.5]
         if half and len(beta_rows) > 1:
-            bc = min(beta_rows, key=lambda r: r["m_c"])
-            bn = min(beta_rows, key=lambda r: r["m_n"])
+            bc = min(beta_rows, key=lambda r: r.m_c)
+            bn = min(beta_rows, key=lambda r: r.m_n)
             claims.append(
-                {
-                    "claim": "HO+LD, λ=0.5: misalignment m_c, m_n is smallest at β = 0.5 (balanced data)",
-                    "ours": f"argmin m_c: β={bc['beta']:g} ({bc['m_c']:.3g}); argmin m_n: β={bn['beta']:g} ({bn['m_n']:.3g})",
-                    "met": bool(bc["beta"] == 0.5 and bn["beta"] == 0.5),
-                }
+                Claim(
+                    claim="HO+LD, λ=0.5: misalignment m_c, m_n is smallest at β = 0.5 (balanced data)",
+                    ours=f"argmin m_c: β={bc.beta:g} ({bc.m_c:.3g}); argmin m_n: β={bn.beta:g} ({bn.m_n:.3g})",
+                    met=bool(bc.beta == 0.5 and bn.beta == 0.5),
+                )
             )
         if half:
             h = half[0]
             claims.append(
-                {
-                    "claim": f"HO+LD, λ=0.5: nearly zero misalignment at β = 0.5 (m_c, m_n ≤ {ALIGN_TOL:g})",
-                    "ours": f"m_c = {h['m_c']:.3g}, m_n = {h['m_n']:.3g}",
-                    "met": bool(max(h["m_c"], h["m_n"]) <= ALIGN_TOL),
-                }
+                Claim(
+                    claim=f"HO+LD, λ=0.5: nearly zero misalignment at β = 0.5 (m_c, m_n ≤ {ALIGN_TOL:g})",
+                    ours=f"m_c = {h.m_c:.3g}, m_n = {h.m_n:.3g}",
+                    met=bool(max(h.m_c, h.m_n) <= ALIGN_TOL),
+                )
             )
     return claims
 
@@ -231,13 +232,14 @@ def data_quality_study(
     n_test: int = 1000,
     workers: int | None = 1,
     scheduler: str | None = None,
-) -> dict:
+) -> DataQualityResult:
     """Fig. 6: L_e(α) of HO+CD at λ=10 on pie-shaped data, m_c(β), m_n(β) of HO+LD at λ=0.5 on imbalanced data.
 
-    Returns a JSON-able dict with "settings", "alpha" and "beta" (the two tables and their settings), "claims"
-    ({claim, ours, met}), "cached" and "wall_time_s". With ``out``: writes results.json and fig6.png, and caches the
-    two grids in out/alpha.json, out/beta.json (a repeated call with the same settings loads them). The two grids
-    are units of :func:`nnphd.parallel.run_units` (``workers``: 1 here, None one process per core; ``scheduler``).
+    Returns a :class:`nnphd.paper.study_results.DataQualityResult`: ``alpha`` and ``beta`` (the two grids: their
+    tables and settings), ``claims`` (claim, ours, met), ``cached``, ``settings`` and ``wall_time_s``; ``to_dict()``
+    is results.json's content. With ``out``: writes results.json and fig6.png, and caches the two grids in
+    out/alpha.json, out/beta.json (a repeated call with the same settings loads them). The two grids are units of
+    :func:`nnphd.parallel.run_units` (``workers``: 1 here, None one process per core; ``scheduler``).
     """
     t0 = time.perf_counter()
     if isinstance(steps, bool) or int(steps) != steps or steps < 4:
@@ -277,9 +279,11 @@ def data_quality_study(
     bad = [o for o in outs.values() if not o.ok]
     if bad:
         raise UnitsFailed(f"the {bad[0].key} grid failed: {bad[0].error}")
-    ares, bres = outs["alpha"].value, outs["beta"].value
-    result = {
-        "settings": {
+    # the grids as trained or cached (JSON), checked
+    ares = DataQualityGrid.from_dict(outs["alpha"].value, "alpha", "data-quality study")
+    bres = DataQualityGrid.from_dict(outs["beta"].value, "beta", "data-quality study")
+    result = DataQualityResult(
+        settings={
             "steps": steps,
             "seed": seed,
             "alphas": list(al),
@@ -295,13 +299,10 @@ def data_quality_study(
             "training": "from scratch at fixed λ (no sweep), one vmap over the grid, same init",
             "align_tol": ALIGN_TOL,
         },
-        "evaluated_on": ares["evaluated_on"],
-        "alpha": ares,
-        "beta": bres,
-        "claims": _dq_claims(ares["table"], bres["table"]),
-        "cached": [k for k, r in (("alpha", ares), ("beta", bres)) if r["cached"]],
-        "train_wall_time_s": ares["train_wall_time_s"] + bres["train_wall_time_s"],  # when they were trained
-        "wall_time_s": None,  # of this call (small when both grids come from the cache)
-        "jax_version": jax.__version__,
-    }
+        alpha=ares,
+        beta=bres,
+        claims=tuple(_dq_claims(ares.table, bres.table)),
+        wall_time_s=0.0,  # of this call (small when both grids come from the cache): set by write_results
+        jax_version=jax.__version__,
+    )
     return write_results(outdir, result, {"fig6.png": plot_fig6}, t0)

@@ -61,6 +61,15 @@ from nnphd.engine.verdict import MIN_RATIO
 from nnphd.io.progress import Progress, nested
 from nnphd.io.results import ensure_writable_dir, write_results
 from nnphd.paper.figures import plot_fig5, plot_fig5_forces
+from nnphd.paper.study_results import (
+    Alignment,
+    AlignmentRow,
+    Claim,
+    CurveRow,
+    LambdaPResult,
+    LambdaPVerdict,
+    LearnedForces,
+)
 from nnphd.paper.sweep import plan_sweep
 from nnphd.parallel import Unit, UnitsFailed, run_units, runs_here
 
@@ -494,15 +503,16 @@ def lambda_p_study(
     force_lambdas: Sequence[float] = FORCE_LAMBDAS,
     workers: int | None = 1,
     scheduler: str | None = None,
-) -> dict:
+) -> LambdaPResult:
     """Fig. 5: λ-sweeps of the toy systems for every loss, verdicts, HO+LD alignment and forces, claims.
 
-    Returns a JSON-able dict with "settings", "curves" (system → p → rows lam, L_e, L_b, m_c, m_n, ...),
-    "verdicts" (one per (system, p) with the verdict statistic and the jump/smooth sharpness), "alignment" (HO+LD:
-    m_c, m_n per loss and the learned forces at ``force_lambdas``), "claims" ({claim, ours, met}), "cached"
-    (the sub-runs loaded from ``out`` instead of trained) and "wall_time_s". With ``out``: writes results.json,
-    fig5.png (a–d L_e(λ) per loss; e, f learned vs true forces of HO+LD, p=1; g, h m_c, m_n vs λ) and
-    fig5_forces.png (learned forces for every loss), and caches each sweep in out/runs/<system>_p<p>/.
+    Returns a :class:`nnphd.paper.study_results.LambdaPResult`: ``curves`` (system → p → one row per λ: lam, L_e,
+    L_b, m_c, m_n, ...), ``verdicts`` (one per (system, p) with the verdict statistic and the jump/smooth
+    sharpness), ``alignment`` (HO+LD: m_c, m_n per loss and the learned forces at ``force_lambdas``), ``claims``
+    (claim, ours, met), ``cached`` (the sub-runs loaded from ``out`` instead of trained), ``settings`` and
+    ``wall_time_s``; ``to_dict()`` is results.json's content. With ``out``: writes results.json, fig5.png (a–d
+    L_e(λ) per loss; e, f learned vs true forces of HO+LD, p=1; g, h m_c, m_n vs λ) and fig5_forces.png (learned
+    forces for every loss), and caches each sweep in out/runs/<system>_p<p>/.
 
     The (system, p) sweeps are independent units of :func:`nnphd.parallel.run_units`: ``workers`` local worker
     processes (1: here, in this process; None: one per core) or an existing Dask ``scheduler``. The numbers do not
@@ -517,24 +527,24 @@ def lambda_p_study(
         systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress, workers, scheduler
     )
     _add_transitions(runs, systems, labels)
-    curves = {s: {l: runs[s][l]["table"] for l in labels} for s in systems}
-    verdicts = _verdict_rows(runs, systems, labels)
-    alignment_ = _alignment(runs, labels) if FORCE_SYSTEM in systems else None
-    result = {
-        "settings": _study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas),
-        "evaluated_on": "test set (L_e, L_b, m_c, m_n, forces)",
-        "curves": curves,
-        "verdicts": verdicts,
-        "alignment": alignment_,
-        "claims": _lambda_p_claims(runs, systems, labels, lams),
-        "cached": [f"{v['system']}/p={v['p']}" for v in verdicts if v["cached"]],
-        "train_wall_time_s": sum(v["train_wall_time_s"] for v in verdicts),  # of the sweeps, when they were trained
-        "compile_time_s": sum(runs[s][l]["compile_time_s"] for s in systems for l in labels),  # in this call
-        "wall_time_s": None,  # of this call (small when the sweeps come from the cache)
-        "jax_version": jax.__version__,
-    }
-    figs = {"fig5.png": plot_fig5, **({"fig5_forces.png": plot_fig5_forces} if alignment_ is not None else {})}
+    result = LambdaPResult(
+        settings=_study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas),
+        evaluated_on="test set (L_e, L_b, m_c, m_n, forces)",
+        curves={s: {l: _curve(runs[s][l]["table"], s, l) for l in labels} for s in systems},
+        verdicts=_verdict_rows(runs, systems, labels),
+        alignment=_alignment(runs, labels) if FORCE_SYSTEM in systems else None,
+        claims=tuple(Claim(**c) for c in _lambda_p_claims(runs, systems, labels, lams)),
+        compile_time_s=sum(runs[s][l]["compile_time_s"] for s in systems for l in labels),  # in this call
+        wall_time_s=0.0,  # of this call (small when the sweeps come from the cache): set by write_results
+        jax_version=jax.__version__,
+    )
+    figs = {"fig5.png": plot_fig5, **({"fig5_forces.png": plot_fig5_forces} if result.alignment is not None else {})}
     return write_results(outdir, result, figs, t0)
+
+
+def _curve(table: list[dict], system: str, label: str) -> tuple[CurveRow, ...]:
+    """A sub-run's table (as cached: JSON) as typed rows, checked."""
+    return tuple(CurveRow.from_dict(r, f"curves.{system}.{label}[{i}]", "λ/p study") for i, r in enumerate(table))
 
 
 def _add_transitions(runs: dict, systems, labels) -> None:
@@ -545,7 +555,7 @@ def _add_transitions(runs: dict, systems, labels) -> None:
             r["transition"] = transition_sharpness([x["lam"] for x in r["table"]], [x["L_e"] for x in r["table"]])
 
 
-def _verdict_rows(runs: dict, systems, labels) -> list[dict]:
+def _verdict_rows(runs: dict, systems, labels) -> tuple[LambdaPVerdict, ...]:
     """One row per (system, p): the verdict, whether it is correct, and the sharpness of the transition."""
     verdicts = []
     for s in systems:
@@ -553,42 +563,47 @@ def _verdict_rows(runs: dict, systems, labels) -> list[dict]:
             r = runs[s][l]
             v = r["verdict"]
             verdicts.append(
-                {
-                    "system": s,
-                    "p": l,
-                    "truth_conservative": r["truth_conservative"],
-                    "new_physics": v["new_physics"],
-                    "correct": v["new_physics"] != r["truth_conservative"],
-                    "ratio": v["ratio"],
-                    "L_below": v["L_below"],
-                    "L_above": v["L_above"],
-                    "relative_size": v["relative_size"],
-                    "reason": v["reason"],
-                    "sharpness": r["transition"]["sharpness"],
-                    "transition": r["transition"]["kind"],
-                    "rise_fraction": r["transition"]["rise_fraction"],
-                    "train_wall_time_s": r["train_wall_time_s"],
-                    "cached": r["cached"],
-                }
+                LambdaPVerdict(
+                    system=s,
+                    p=l,
+                    truth_conservative=r["truth_conservative"],
+                    new_physics=v["new_physics"],
+                    correct=v["new_physics"] != r["truth_conservative"],
+                    ratio=v["ratio"],
+                    L_below=v["L_below"],
+                    L_above=v["L_above"],
+                    relative_size=v["relative_size"],
+                    reason=v["reason"],
+                    sharpness=r["transition"]["sharpness"],
+                    transition=r["transition"]["kind"],
+                    rise_fraction=r["transition"]["rise_fraction"],
+                    train_wall_time_s=r["train_wall_time_s"],
+                    cached=r["cached"],
+                )
             )
-    return verdicts
+    return tuple(verdicts)
 
 
-def _alignment(runs: dict, labels) -> dict:
+def _alignment(runs: dict, labels) -> Alignment:
     """HO+LD (Fig. 5 e–h): m_c, m_n and the rms of f_n per loss and λ, and the learned forces."""
-    return {
-        "system": FORCE_SYSTEM,
-        "truth": "f_c = −q, f_n = −½q̇",
-        "fn_true_rms": runs[FORCE_SYSTEM][labels[0]]["fn_true_rms"],
-        "by_p": {
-            l: [
-                {"lam": r["lam"], "m_c": r["m_c"], "m_n": r["m_n"], "fn_rms": r["fn_rms"]}
-                for r in runs[FORCE_SYSTEM][l]["table"]
-            ]
+    by_p = runs[FORCE_SYSTEM]
+    return Alignment(
+        system=FORCE_SYSTEM,
+        truth="f_c = −q, f_n = −½q̇",
+        fn_true_rms=by_p[labels[0]]["fn_true_rms"],
+        by_p={
+            l: tuple(
+                AlignmentRow(lam=r["lam"], m_c=r["m_c"], m_n=r["m_n"], fn_rms=r["fn_rms"]) for r in by_p[l]["table"]
+            )
             for l in labels
         },
-        "forces": {l: runs[FORCE_SYSTEM][l]["forces"] for l in labels},
-    }
+        forces={
+            l: None
+            if by_p[l]["forces"] is None
+            else LearnedForces.from_dict(by_p[l]["forces"], f"alignment.forces.{l}", "λ/p study")
+            for l in labels
+        },
+    )
 
 
 def _study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas) -> dict:

@@ -46,10 +46,19 @@ from nnphd.engine.systems import get_system
 from nnphd.engine.train import TrainConfig, make_trainer, pnorm
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, save_figure, write_json
+from nnphd.paper.study_results import (
+    MODELS,  # the three models, in the results' order
+    THETA_TOL,  # rad: the θ1 error whose first crossing is reported
+    Claim,
+    Decomposition,
+    EnergyBalance,
+    EnergyTruth,
+    LnnEnergyConstancy,
+    ModelMetrics,
+    PredictionResult,
+)
 
-MODELS = ("nnphd", "lnn", "blackbox")
 LABELS = {"nnphd": "NNPhD", "lnn": "LNN", "blackbox": "black box"}
-THETA_TOL = 0.1  # rad: the θ1 error whose first crossing is reported
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -200,11 +209,12 @@ def run_prediction(
     uan_time: bool = False,
     standardize: bool = True,
     p: float | str = 1.0,
-) -> dict:
+) -> PredictionResult:
     """Train NNPhD, an LNN and a black box on t ≤ t_split of the damped double pendulum and extrapolate each with RK4.
 
-    Returns a JSON-ready dict (settings, metrics per model, energy balance, claims, wall time); with ``out`` also
-    writes results.json, prediction.png (θ1(t) and E(t)) and energy_balance.png there.
+    Returns a :class:`nnphd.paper.study_results.PredictionResult` (settings, metrics per model, energy balance,
+    claims, wall time; ``to_dict()`` is results.json's content); with ``out`` also writes results.json,
+    prediction.png (θ1(t) and E(t)) and energy_balance.png there.
     """
     say = Stages(progress, 2 + 2 * len(MODELS))
     widths, lam, n_traj, i_split = _checked_settings(widths, lam, n_traj, dt, t_split)
@@ -226,31 +236,31 @@ def run_prediction(
     decomposition = _decomposition(cfg, params["nnphd"], train, test, uan_time)
     claims = _claims(metrics, lnn_const, e_true)
 
-    results = {
-        "experiment": f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
+    results = PredictionResult(
+        experiment=f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
         f"extrapolate to t = {n_traj * dt:g} with RK4",
-        "settings": _settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_traj, t_split, train),
-        "metrics": metrics,
-        "truth": {
-            "energy_t_split": float(e_true[0]),
-            "energy_t_end": float(e_true[-1]),
-            "energy_loss": float(e_true[0] - e_true[-1]),
-        },
-        "lnn_energy_constancy": lnn_const,
-        "decomposition": {
-            "what": "NNPhD's f_n (an acceleration, so independent of the scale of L) against the true "
+        settings=_settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_traj, t_split, train),
+        metrics={k: ModelMetrics.from_dict(m, f"metrics.{k}", "prediction") for k, m in metrics.items()},
+        truth=EnergyTruth(
+            energy_t_split=float(e_true[0]),
+            energy_t_end=float(e_true[-1]),
+            energy_loss=float(e_true[0] - e_true[-1]),
+        ),
+        lnn_energy_constancy=LnnEnergyConstancy(**lnn_const),
+        decomposition=Decomposition(
+            what="NNPhD's f_n (an acceleration, so independent of the scale of L) against the true "
             "friction −γq̇: rms values and ‖f_n − f_n^true‖_rms / ‖f_n^true‖_rms on the training "
             "and test states",
             **decomposition,
-        },
-        "energy_balance": balance,
-        "claims": claims,
-        "jax_version": jax.__version__,
-    }
-    results["train_time_s"] = train_times
-    results["wall_time_s"] = time.perf_counter() - t_start
+        ),
+        energy_balance=EnergyBalance(**balance),
+        claims=tuple(Claim(**c) for c in claims),
+        jax_version=jax.__version__,
+        train_time_s=train_times,
+        wall_time_s=time.perf_counter() - t_start,
+    )
     if outdir is not None:
-        write_json(outdir / "results.json", results)
+        write_json(outdir / "results.json", results.to_dict())
         save_figure(plot_prediction(data, rolls, t_split), outdir / "prediction.png")
         save_figure(plot_energy_balance(series), outdir / "energy_balance.png")
     return results

@@ -122,7 +122,8 @@ def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dic
 
 
 def _run_experiment(exp: str, name: str | None, d: Path, seed: int, kw: dict, progress: Progress | None) -> dict:
-    """Run one experiment (``name``: the discovery system) into ``d``; returns its results."""
+    """Run one experiment (``name``: the discovery system) into ``d``; returns its results as a dict (results.json's
+    content, as a cached unit reads it back)."""
     if exp == "discover":
         from nnphd.paper.discover import discover, write_discovery
 
@@ -132,14 +133,14 @@ def _run_experiment(exp: str, name: str | None, d: Path, seed: int, kw: dict, pr
     if exp == "predict":
         from nnphd.paper.predict import run_prediction
 
-        return run_prediction(seed=seed, out=d, progress=progress, **kw)
+        return run_prediction(seed=seed, out=d, progress=progress, **kw).to_dict()
     if exp == "lambda-p":
         from nnphd.paper.lambda_p import lambda_p_study
 
-        return lambda_p_study(seed=seed, out=d, progress=progress, **kw)
+        return lambda_p_study(seed=seed, out=d, progress=progress, **kw).to_dict()
     from nnphd.paper.data_quality import data_quality_study
 
-    return data_quality_study(seed=seed, out=d, progress=progress, **kw)
+    return data_quality_study(seed=seed, out=d, progress=progress, **kw).to_dict()
 
 
 def experiment_unit(

@@ -9,11 +9,11 @@ the verdict and the table they repeat). A field that is wrong gives one ValueErr
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from nnphd.engine.verdict import PhaseTransition
+from nnphd.paper.result_checks import exact_keys, field_error, number, of_type, same_number
 
 STATISTIC_NAME = "ratio of median L_e above λ=1 to median L_e below λ=1"  # results.json's "statistic" → "name"
 ALIGNMENT_KEY = "alignment_lambda_0.1_to_0.5"
@@ -36,41 +36,6 @@ RESULT_KEYS = (
 )
 
 
-def _error(where: str, what: str) -> ValueError:
-    return ValueError(f"{where}: {what}")
-
-
-def _keys(d: Any, keys: tuple[str, ...], name: str, where: str) -> dict:
-    """``d`` as an object with exactly ``keys``."""
-    if not isinstance(d, dict):
-        raise _error(where, f"{name} must be an object, got {type(d).__name__}")
-    missing = [k for k in keys if k not in d]
-    extra = [k for k in d if k not in keys]
-    if missing:
-        raise _error(where, f"{name} has no {missing[0]!r}")
-    if extra:
-        raise _error(where, f"{name} has an unknown key {str(extra[0])!r:.60}")
-    return d
-
-
-def _number(v: Any, name: str, where: str, optional: bool = False) -> float | None:
-    if v is None and optional:
-        return None
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _error(where, f"{name} must be a number{' or null' if optional else ''}, got {v!r:.60}")
-    return float(v)
-
-
-def _typed(v: Any, typ: type, name: str, where: str):
-    if not isinstance(v, typ):
-        raise _error(where, f"{name} must be a {'string' if typ is str else typ.__name__}, got {v!r:.60}")
-    return v
-
-
-def _same(a: float | None, b: float | None) -> bool:
-    return a == b or (a is not None and b is not None and math.isnan(a) and math.isnan(b))
-
-
 @dataclass(frozen=True)
 class SweepRow:
     """One λ of a sweep: the losses on the evaluation set (``L_e``, ``L_b``) and on the training set, and the
@@ -91,25 +56,25 @@ class SweepRow:
     @classmethod
     def from_dict(cls, d: Any, name: str = "row", where: str = "sweep result") -> SweepRow:
         keys = tuple(f.name for f in fields(cls))
-        _keys(d, keys, name, where)
-        row = {k: _number(d[k], f"{name}.{k}", where, optional=k in ("m_c", "m_n")) for k in keys}
+        exact_keys(d, keys, name, where)
+        row = {k: number(d[k], f"{name}.{k}", where, optional=k in ("m_c", "m_n")) for k in keys}
         if (row["m_c"] is None) != (row["m_n"] is None):
-            raise _error(where, f"{name}: m_c and m_n must both be numbers or both null")
+            raise field_error(where, f"{name}: m_c and m_n must both be numbers or both null")
         return cls(**row)
 
 
 def _phase_transition(d: Any, where: str) -> PhaseTransition:
     """results.json's "verdict", checked."""
     keys = tuple(f.name for f in fields(PhaseTransition))
-    _keys(d, keys, "verdict", where)
+    exact_keys(d, keys, "verdict", where)
     vals = {}
     for k in keys:
         if k == "new_physics":
-            vals[k] = _typed(d[k], bool, "verdict.new_physics", where)
+            vals[k] = of_type(d[k], bool, "verdict.new_physics", where)
         elif k == "reason":
-            vals[k] = _typed(d[k], str, "verdict.reason", where)
+            vals[k] = of_type(d[k], str, "verdict.reason", where)
         else:
-            vals[k] = _number(d[k], f"verdict.{k}", where)
+            vals[k] = number(d[k], f"verdict.{k}", where)
     return PhaseTransition(**vals)
 
 
@@ -186,38 +151,38 @@ class SweepResult:
     def from_dict(cls, d: Any, where: str = "sweep result") -> SweepResult:
         """From a results dict (results.json's content), checked as untrusted input; ValueError with one line naming
         the field when it is not one."""
-        _keys(d, RESULT_KEYS, "the result", where)
-        table = _typed(d["table"], list, "table", where)
-        resumed = _typed(d["resumed_lambdas"], list, "resumed_lambdas", where)
+        exact_keys(d, RESULT_KEYS, "the result", where)
+        table = of_type(d["table"], list, "table", where)
+        resumed = of_type(d["resumed_lambdas"], list, "resumed_lambdas", where)
         protocol = d["protocol"]
         if protocol is not None and not isinstance(protocol, dict):
-            raise _error(where, f"protocol must be an object or null, got {protocol!r:.60}")
+            raise field_error(where, f"protocol must be an object or null, got {protocol!r:.60}")
         res = cls(
-            system=_typed(d["system"], str, "system", where),
-            description=_typed(d["description"], str, "description", where),
-            truth_conservative=_typed(d["truth_conservative"], bool, "truth_conservative", where),
+            system=of_type(d["system"], str, "system", where),
+            description=of_type(d["description"], str, "description", where),
+            truth_conservative=of_type(d["truth_conservative"], bool, "truth_conservative", where),
             verdict=_phase_transition(d["verdict"], where),
             table=tuple(SweepRow.from_dict(r, f"table[{i}]", where) for i, r in enumerate(table)),
-            settings=copy.deepcopy(_typed(d["settings"], dict, "settings", where)),
-            evaluated_on=_typed(d["evaluated_on"], str, "evaluated_on", where),
-            wall_time_s=_number(d["wall_time_s"], "wall_time_s", where),
-            resumed_lambdas=tuple(_number(x, f"resumed_lambdas[{i}]", where) for i, x in enumerate(resumed)),
+            settings=copy.deepcopy(of_type(d["settings"], dict, "settings", where)),
+            evaluated_on=of_type(d["evaluated_on"], str, "evaluated_on", where),
+            wall_time_s=number(d["wall_time_s"], "wall_time_s", where),
+            resumed_lambdas=tuple(number(x, f"resumed_lambdas[{i}]", where) for i, x in enumerate(resumed)),
             protocol=copy.deepcopy(protocol),
-            jax_version=_typed(d["jax_version"], str, "jax_version", where),
+            jax_version=of_type(d["jax_version"], str, "jax_version", where),
         )
         res._check_copies(d, where)
         return res
 
     def _check_copies(self, d: dict, where: str) -> None:
         """The dict repeats the verdict's call and ratio, and the table's alignment maxima: they must agree."""
-        if _typed(d["new_physics"], bool, "new_physics", where) != self.new_physics:
-            raise _error(where, f"new_physics is {d['new_physics']}, the verdict's is {self.new_physics}")
-        stat = _keys(d["statistic"], ("name", "value"), "statistic", where)
+        if of_type(d["new_physics"], bool, "new_physics", where) != self.new_physics:
+            raise field_error(where, f"new_physics is {d['new_physics']}, the verdict's is {self.new_physics}")
+        stat = exact_keys(d["statistic"], ("name", "value"), "statistic", where)
         if stat["name"] != STATISTIC_NAME:
-            raise _error(where, f"statistic.name must be {STATISTIC_NAME!r}, got {stat['name']!r:.60}")
-        if not _same(_number(stat["value"], "statistic.value", where), self.le_ratio):
-            raise _error(where, f"statistic.value is {stat['value']!r}, the verdict's ratio is {self.le_ratio!r}")
-        al = _keys(d[ALIGNMENT_KEY], ("max_m_c", "max_m_n"), ALIGNMENT_KEY, where)
+            raise field_error(where, f"statistic.name must be {STATISTIC_NAME!r}, got {stat['name']!r:.60}")
+        if not same_number(number(stat["value"], "statistic.value", where), self.le_ratio):
+            raise field_error(where, f"statistic.value is {stat['value']!r}, the verdict's ratio is {self.le_ratio!r}")
+        al = exact_keys(d[ALIGNMENT_KEY], ("max_m_c", "max_m_n"), ALIGNMENT_KEY, where)
         for k, derived in (("max_m_c", self.max_m_c), ("max_m_n", self.max_m_n)):
-            if not _same(_number(al[k], f"{ALIGNMENT_KEY}.{k}", where, optional=True), derived):
-                raise _error(where, f"{ALIGNMENT_KEY}.{k} is {al[k]!r}, the table's is {derived!r}")
+            if not same_number(number(al[k], f"{ALIGNMENT_KEY}.{k}", where, optional=True), derived):
+                raise field_error(where, f"{ALIGNMENT_KEY}.{k} is {al[k]!r}, the table's is {derived!r}")

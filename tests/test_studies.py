@@ -264,3 +264,14 @@ def test_api_rejects_bad_settings():
         lambda_p_study(lambdas=(2.0, 5.0))
     with pytest.raises(ValueError, match="alphas"):
         data_quality_study(alphas=(1.2,))
+
+
+def test_the_forces_figure_says_so_when_no_forces_were_stored():
+    """A λ grid without any of force_lambdas stores no learned forces (None): the figure says so instead of raising
+    (it raised TypeError before)."""
+    from nnphd.paper.figures import plot_fig5_forces
+
+    fig = plot_fig5_forces({"settings": {"ps": [1, 2]}, "alignment": {"forces": {1: None, 2: None}}})
+    texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+    assert len(texts) == 4 and all("no learned forces" in t for t in texts)
+    assert all(not ax.axison for ax in fig.axes)

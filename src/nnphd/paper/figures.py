@@ -13,7 +13,13 @@ def _loss_title(l: str) -> str:
     return "MSE" if l == "mse" else f"p = {l}"
 
 
-def _force_panels(ax_c, ax_n, forces: dict, title: str, letters=("", "")):
+def _force_panels(ax_c, ax_n, forces: dict | None, title: str, letters=("", "")):
+    if forces is None:  # no λ of force_lambdas was in the grid: nothing was stored to draw
+        for ax in (ax_c, ax_n):
+            ax.text(0.5, 0.5, f"{title}: no learned forces\n(no λ of force_lambdas in the grid)", ha="center",
+                    va="center", fontsize=8, transform=ax.transAxes)  # fmt: skip
+            ax.axis("off")
+        return
     q, qd = np.asarray(forces["q"]), np.asarray(forces["qd"])
     order = sorted(forces["by_lambda"].values(), key=lambda d: d["lam"])
     import matplotlib

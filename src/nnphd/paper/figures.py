@@ -93,7 +93,8 @@ def plot_fig5(result: dict):
         _force_panels(
             row2[0], row2[1], al["forces"][l0], f"HO+LD {_loss_title(l0)}", (letters[ncol], letters[ncol + 1])
         )
-        row2[0].legend(fontsize=6, markerscale=3)
+        if row2[0].get_legend_handles_labels()[0]:
+            row2[0].legend(fontsize=6, markerscale=3)
         for j, key in ((2, "m_c"), (3, "m_n")):
             ax = row2[j]
             for i, l in enumerate(labels):
@@ -127,7 +128,8 @@ def plot_fig5_forces(result: dict):
     fig, axes = subplots(len(labels), 2, figsize=(8.5, 3.2 * len(labels)), squeeze=False)
     for i, l in enumerate(labels):
         _force_panels(axes[i, 0], axes[i, 1], al["forces"][l], f"HO+LD {_loss_title(l)}")
-    axes[0, 0].legend(fontsize=6, markerscale=3)
+    if axes[0, 0].get_legend_handles_labels()[0]:
+        axes[0, 0].legend(fontsize=6, markerscale=3)
     fig.tight_layout()
     return fig
 

@@ -4,7 +4,7 @@ cause (discounted) — the rules on hand-made per-seed results."""
 
 import pytest
 
-from nnphd.user.rules import UNDERFIT_RATIO, combine_seeds, underfit_against
+from nnphd.user.rules import UNDERFIT_RATIO, combine_seeds, corroborates, underfit_against
 
 
 def _seed(k, status, cons, free=0.12, z=(0.1, 0.0), agreement=0.9):
@@ -14,7 +14,12 @@ def _seed(k, status, cons, free=0.12, z=(0.1, 0.0), agreement=0.9):
         "reason": f"reason {k}",
         "agreement": agreement,
         "gap": {"conservative_train": cons, "free_train": free, "gap_train": cons / free, "large": cons / free >= 2},
-        "trajectory_evidence": {"z_energy": z[0], "z_shooting": z[1]},
+        "trajectory_evidence": {
+            "z_energy": z[0],
+            "z_shooting": z[1],
+            "significant": status == "detected",
+            "direction": "loses energy" if z[0] > 0 else "gains energy",
+        },
     }
 
 
@@ -76,3 +81,41 @@ def test_three_seeds_one_discounted_two_agree_and_two_disagreeing_stay_inconclus
     assert sum(r.startswith("seed 2 is discounted") for r in reasons) == 1
     seeds[1] = _seed(1, "detected", 0.06, z=(8.0, 6.0))
     assert combine_seeds(seeds)[0] == "inconclusive"
+
+
+def test_an_inconclusive_seed_whose_weaker_evidence_points_the_same_way_backs_a_detection():
+    # the camera look-alike of a damped chaotic double pendulum (seed_robustness, --seed 0): seed 0's learned energy
+    # decays at z = 4.6 (probe −1.2: not a contradiction), seed 1's at z = 7.4 (probe 0.7)
+    weak, strong = _seed(0, "inconclusive", 0.1, z=(4.6, -1.2)), _seed(1, "detected", 0.1, z=(7.4, 0.7), agreement=0.8)
+    status, new, conf, reasons = combine_seeds([weak, strong])
+    assert (status, new) == ("detected", True)
+    assert conf == pytest.approx(0.4)  # the inconclusive seed counts against the confidence: 0.8 / 2
+    assert reasons[0] == (
+        'seed 0\'s "inconclusive" is weaker evidence of the same loss of energy (energy trend z = 4.6, shooting '
+        "probe z = -1.2), not a contradiction: seed 1's detection stands"
+    )
+    assert combine_seeds([strong, weak])[:2] == ("detected", True)
+
+
+@pytest.mark.parametrize(
+    "weak",
+    [
+        _seed(0, "inconclusive", 0.1, z=(4.6, -2.5)),  # the probe contradicts it (|z| ≥ Z_CONTRA, other sign)
+        _seed(0, "inconclusive", 0.1, z=(2.5, 1.0)),  # nothing reaches Z_BOTH: no evidence either way
+        _seed(0, "inconclusive", 0.1, z=(-4.6, 0.0)),  # the energy grows: the other direction
+        _seed(0, "none", 0.1, z=(0.5, 0.2)),  # "none" contradicts a detection
+    ],
+)
+def test_a_seed_that_does_not_back_the_detection_keeps_them_inconclusive(weak):
+    strong = _seed(1, "detected", 0.1, z=(7.4, 0.7))
+    assert corroborates(weak, strong) is None
+    status, _, _, reasons = combine_seeds([weak, strong])
+    assert status == "inconclusive" and reasons[0].startswith("seeds disagree")
+
+
+def test_a_detection_by_the_clock_is_not_backed_by_record_level_evidence():
+    clock = _seed(1, "detected", 0.1, z=(0.3, 0.1))
+    clock["trajectory_evidence"]["significant"] = False  # detected by the clock test, not along the record
+    weak = _seed(0, "inconclusive", 0.1, z=(4.6, 0.0))
+    assert corroborates(weak, clock) is None
+    assert combine_seeds([weak, clock])[0] == "inconclusive"

@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from nnphd.user.checks import Z_BOTH
+from nnphd.user.checks import Z_BOTH, Z_CONTRA
 
 LIBRARY_BASE = "the conservative library"  # the law table's seed-free conservative base
 
@@ -79,34 +79,76 @@ def underfit_against(seed: dict, seeds: list[dict]) -> str | None:
     )
 
 
+def corroborates(seed: dict, detecting: dict) -> str | None:
+    """Why ``seed``'s "inconclusive" backs ``detecting``'s record-level detection rather than contradicting it, or
+    None: the detection rests on the record-level evidence (energy trend, shooting probe), and ``seed``'s own
+    statistics point the same way — one at |z| ≥ Z_BOTH of the detection's sign, none at |z| ≥ Z_CONTRA of the other
+    sign (weaker evidence of the same loss, "too strong for a none"). Measured: a camera look-alike of a damped chaotic
+    double pendulum (two 10-s takes): seed 0's learned energy decayed at z = 4.6 (probe z = −1.2), "inconclusive";
+    seed 1's at z = 7.4 (probe 0.7), "detected" — the same loss seen more or less sharply, not two verdicts."""
+    det = detecting.get("trajectory_evidence") or {}
+    mine = seed.get("trajectory_evidence") or {}
+    if seed["status"] != "inconclusive" or detecting["status"] != "detected" or not det.get("significant"):
+        return None
+    sign = {"loses energy": 1.0, "gains energy": -1.0}.get(det.get("direction"))
+    zs = [z for z in (mine.get("z_energy"), mine.get("z_shooting")) if z is not None]
+    if sign is None or not any(sign * z >= Z_BOTH for z in zs) or any(sign * z <= -Z_CONTRA for z in zs):
+        return None
+    shown = ", ".join(f"{k} z = {mine[k2]:.1f}" for k, k2 in (("energy trend", "z_energy"), ("shooting probe",
+                      "z_shooting")) if mine.get(k2) is not None)  # fmt: skip
+    return (
+        f'seed {seed["seed"]}\'s "inconclusive" is weaker evidence of the same {"loss" if sign > 0 else "gain"} '
+        f"of energy ({shown}), not a contradiction: seed {detecting['seed']}'s detection stands"
+    )
+
+
 def combine_seeds(seeds: list[dict]) -> tuple[str, bool, float, list[str]]:
     """(status, new_physics, confidence, reasons) from the seeds' own statuses.
 
     - All seeds agree: their status. ``confidence`` = mean over seeds of the share of bootstrap replicas of the
       seed's evidence that give its call.
-    - They differ: seeds whose "inconclusive" is an optimisation failure (:func:`underfit_against`) are set aside;
-      if the others agree, their status decides, and the reasons say which seed was discounted and why.
+    - They differ: seeds whose "inconclusive" is an optimisation failure (:func:`underfit_against`) are set aside,
+      and "inconclusive" seeds whose own evidence backs another seed's record-level detection
+      (:func:`corroborates`) count with it; if what is left agrees, it decides, and the reasons say which seed was
+      set aside or counted and why.
       ``confidence`` = mean over *all* seeds of [agrees] × bootstrap share (a discounted seed counts against it).
     - Otherwise "inconclusive" ("seeds disagree": well-fitted models disagree), confidence the larger share of
       seeds on one side of detected / not detected; ``new_physics`` (best call) the majority.
     """
     statuses = [s["status"] for s in seeds]
     per_seed = [f"seed {s['seed']}: {s['reason']}" for s in seeds]
-    discounted = [] if len(set(statuses)) == 1 else [(s, underfit_against(s, seeds)) for s in seeds]
-    discounted = [(s, why) for s, why in discounted if why]
-    kept = {s["status"] for s in seeds if all(s is not d for d, _ in discounted)}
-    if len(set(statuses)) == 1 or (discounted and len(kept) == 1):
-        status = statuses[0] if len(set(statuses)) == 1 else kept.pop()
-        reasons = [why for _, why in discounted] + per_seed
-        conf = float(np.mean([(s["status"] == status) * s["agreement"] for s in seeds]))
-    else:
-        status = "inconclusive"
-        reasons = [f"seeds disagree ({', '.join(statuses)})"] + per_seed
-        det = float(np.mean([s["status"] == "detected" for s in seeds]))
-        conf = max(det, 1 - det)
+    status, notes = (statuses[0], []) if len(set(statuses)) == 1 else _settle(seeds)
     det = float(np.mean([s["status"] == "detected" for s in seeds]))
-    new = {"detected": True, "none": False}.get(status, bool(det > 0.5))
-    return status, new, conf, reasons
+    if status is None:
+        return "inconclusive", det > 0.5, max(det, 1 - det), [f"seeds disagree ({', '.join(statuses)})", *per_seed]
+    conf = float(np.mean([(s["status"] == status) * s["agreement"] for s in seeds]))
+    return status, {"detected": True, "none": False}.get(status, det > 0.5), conf, notes + per_seed
+
+
+def _settle(seeds: list[dict]) -> tuple[str | None, list[str]]:
+    """(the status, why) when the seeds' differing statuses settle — under-fitted seeds set aside
+    (:func:`underfit_against`), "inconclusive" seeds that back a detection (:func:`corroborates`) — else (None, [])."""
+    notes = [(s, why) for s in seeds if (why := underfit_against(s, seeds))]
+    kept = [s for s in seeds if all(s is not d for d, _ in notes)]
+    left = {s["status"] for s in kept}
+    if left == {"detected", "inconclusive"} and (backing := _corroborated(kept)):
+        notes, left = notes + backing, {"detected"}
+    if notes and len(left) == 1:
+        return left.pop(), [why for _, why in notes]
+    return None, []
+
+
+def _corroborated(kept: list[dict]) -> list[tuple[dict, str]] | None:
+    """[(seed, why)] when every "inconclusive" seed of ``kept`` backs a detecting seed (:func:`corroborates`), else
+    None."""
+    detecting = [s for s in kept if s["status"] == "detected"]
+    out = []
+    for s in (s for s in kept if s["status"] == "inconclusive"):
+        why = next((w for d in detecting if (w := corroborates(s, d))), None)
+        if why is None:
+            return None
+        out.append((s, why))
+    return out
 
 
 def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, float, list[str]]:

@@ -119,3 +119,43 @@ def test_a_detection_by_the_clock_is_not_backed_by_record_level_evidence():
     weak = _seed(0, "inconclusive", 0.1, z=(4.6, 0.0))
     assert corroborates(weak, clock) is None
     assert combine_seeds([weak, clock])[0] == "inconclusive"
+
+
+def _law_dict(share):
+    return {"law": {"title": "power-law drag −k (|q̇|²)^m q̇"}, "status": "claimed", "ties": [], "reason": "r",
+            "_against_velocity": share}  # fmt: skip
+
+
+def _res(direction="loses energy", significant=True):
+    return {"evidence": {"combined": {"direction": direction, "significant": significant}}}
+
+
+def test_a_law_that_pumps_energy_into_a_record_that_loses_it_is_not_claimed():
+    from nnphd.user.rules import unclaim_against_evidence
+
+    law = _law_dict(-1.0)  # a thrust along the velocity (the camera case: k = −3.1e-15, m = 6.35)
+    why = unclaim_against_evidence(_res(), law)
+    assert why and "adds energy (-100% of its force against the velocity) where the record loses energy" in why
+    assert law["law"] is None and law["candidate_law"]["title"].startswith("power-law") and law["status"] == "none"
+    assert "_against_velocity" not in law
+    # the mirror case: a drag claimed on a record that gains energy
+    law = _law_dict(0.9)
+    assert "takes energy" in unclaim_against_evidence(_res("gains energy"), law) and law["law"] is None
+
+
+@pytest.mark.parametrize(
+    "share, res",
+    [
+        (1.0, _res()),  # a drag on a record that loses energy: the law stands
+        (-0.4, _res()),  # mostly across the velocity (a share above −0.5): not clearly against the evidence
+        (-1.0, _res(significant=False)),  # no record-level evidence to contradict (detected by the clock, say)
+        (-1.0, _res(direction="none")),
+        (None, _res()),  # the share could not be computed (nothing moves)
+    ],
+)
+def test_a_law_consistent_with_or_untested_by_the_evidence_stands(share, res):
+    from nnphd.user.rules import unclaim_against_evidence
+
+    law = _law_dict(share)
+    assert unclaim_against_evidence(res, law) is None
+    assert law["law"] == {"title": "power-law drag −k (|q̇|²)^m q̇"} and law["status"] == "claimed"

@@ -27,6 +27,7 @@ from nnphd.user.rules import (
     RECONCILED_BASIS,
     against_velocity,
     reconcile,
+    unclaim_against_evidence,
 )
 
 
@@ -255,6 +256,7 @@ def detect_data(
             res, data, traj, coords, ud, info, row_err, laws, law_fit, seed, lambda d, t, m: say(m), field, timer
         )
         status, new_physics, confidence, reasons = reconcile(res, law, field)
+        unclaim_against_evidence(res, law)
         declared, fitted, fc, fn = _declared_forces(law, data, ud, fc, fn)
         blind = {}
         if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
@@ -477,8 +479,10 @@ def _law_table(
         zero = next((r for r in table.rows if r.key == "none"), None)
         out["_field"] = {k: _fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
                          (("alone", zero), ("with_law", table.law))}  # fmt: skip
-        if table.law is not None:  # a drag opposes the velocity (:data:`DRAG_ALONG_MIN`)
-            out["_field"]["against_velocity"] = against_velocity(table.law.predict(data.q, data.qd, data.t), data.qd)
+    if table.law is not None:  # the law's share against the velocity: a drag's is 1, a thrust's −1
+        out["_against_velocity"] = against_velocity(table.law.predict(data.q, data.qd, data.t), data.qd)
+        if field == "uniform":  # a drag opposes the velocity (:data:`DRAG_ALONG_MIN`)
+            out["_field"]["against_velocity"] = out["_against_velocity"]
     return out, table.law
 
 

@@ -434,6 +434,35 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
     )
 
 
+# a claimed law whose force pumps energy in on net where the record-level evidence says the record loses it (or takes
+# it out where the record gains it) explains the opposite of what was measured: measured on the camera look-alike of a
+# damped chaotic double pendulum (--seed 1), where a power law −k(|q̇|²)^m q̇ with k = −3.1e-15, m = 6.35 (a thrust
+# acting only at the fastest rows) won the law table while the learned energy decayed at z = 7.4
+LAW_AGAINST_EVIDENCE = 0.5
+
+
+def unclaim_against_evidence(res: dict, law: dict) -> str | None:
+    """Withdraw the claimed law when its force works against the verdict's record-level evidence: the share of its
+    force against the velocity (:func:`against_velocity`) ≤ −LAW_AGAINST_EVIDENCE while the record loses energy
+    (≥ LAW_AGAINST_EVIDENCE while it gains it). The law becomes ``candidate_law`` with the reason; returns it (None
+    when the law stands). Pops ``law["_against_velocity"]``."""
+    share = law.pop("_against_velocity", None)
+    comb = (res.get("evidence") or {}).get("combined") or {}
+    sign = {"loses energy": 1.0, "gains energy": -1.0}.get(comb.get("direction"))
+    if not law.get("law") or share is None or sign is None or not comb.get("significant"):
+        return None
+    if sign * share > -LAW_AGAINST_EVIDENCE:
+        return None
+    why = (
+        f"no law is claimed: the best candidate, {law['law']['title']}, {'adds' if share < 0 else 'takes'} energy "
+        f"({100 * share:.0f}% of its force against the velocity) where the record {comb['direction']} along its whole "
+        "length — it fits the record's positions, not its physics"
+    )
+    law["candidate_law"] = law["law"]
+    law["law"], law["status"], law["ties"], law["reason"] = None, "none", [], why
+    return why
+
+
 def withhold(law: dict, status: str, why: str | None = None) -> None:
     """No law is claimed unless the verdict is "detected": the table's law becomes ``candidate_law``."""
     if status == "detected":

@@ -11,6 +11,7 @@ import subprocess
 import sys
 import time
 from dataclasses import FrozenInstanceError, fields
+from pathlib import Path
 
 import pytest
 
@@ -26,6 +27,9 @@ from nnphd.paper.study_results import (
     ModelMetrics,
     PredictionResult,
 )
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.fixtures.edit import set_item  # noqa: E402
 
 
 def _dump(x) -> str:  # as write_json writes results.json
@@ -298,17 +302,7 @@ def test_row_types_name_the_dict_keys():
 
 def _set(d: dict, path: str, value) -> dict:
     """``d`` with the item at ``path`` ("a/b/0/c") replaced (or removed, for value ...)."""
-    *parents, last = path.split("/")
-    obj = d
-    for k in parents:
-        obj = obj[int(k)] if isinstance(obj, list) else obj[k]
-    if isinstance(obj, list):
-        last = int(last)
-    if value is ...:
-        del obj[last]
-    else:
-        obj[last] = value
-    return d
+    return set_item(d, path, value)
 
 
 @pytest.mark.parametrize(

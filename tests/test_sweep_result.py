@@ -6,7 +6,9 @@ from __future__ import annotations
 import copy
 import json
 import math
+import sys
 from dataclasses import FrozenInstanceError, fields
+from pathlib import Path
 
 import pytest
 
@@ -15,6 +17,9 @@ from nnphd.engine.train import SweepPoint
 from nnphd.engine.verdict import PhaseTransition
 from nnphd.io.results import json_default
 from nnphd.paper.sweep_result import RESULT_KEYS, STATISTIC_NAME, SweepResult, SweepRow
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from tests.fixtures.edit import set_item  # noqa: E402
 
 
 def _results() -> dict:
@@ -119,18 +124,7 @@ def test_nan_ratio_survives_the_round_trip():
 
 def _set(path: str, value):
     """The hand-made dict with the item at ``path`` ("a/b/0/c") replaced (or removed, for value ...)."""
-    d = _results()
-    *parents, last = path.split("/")
-    obj = d
-    for k in parents:
-        obj = obj[int(k)] if isinstance(obj, list) else obj[k]
-    if isinstance(obj, list):
-        last = int(last)
-    if value is ...:
-        del obj[last]
-    else:
-        obj[last] = value
-    return d
+    return set_item(_results(), path, value)
 
 
 @pytest.mark.parametrize(

@@ -19,8 +19,12 @@ The order in which :func:`reconcile` applies them:
 5. Otherwise the seeds' status stands; a record that does not oscillate gets a hint of what would decide
    (:func:`uniform_field_hint`).
 
-No law is claimed unless the final status is "detected" (:func:`withhold`). Before them, the seeds' own statuses
-(:func:`nnphd.user.checks.seed_status`) are combined by :func:`combine_seeds`: their common status; where they
+No law is claimed unless the final status is "detected" (:func:`withhold`), nor a law whose force works against
+the record-level evidence: one that adds energy (≤ −LAW_AGAINST_EVIDENCE of its force against the velocity) where
+the record loses it, or takes it where the record gains it, is only a candidate
+(:func:`unclaim_against_evidence`; measured on the camera look-alike of a damped chaotic double pendulum, seed 1: a
+power law with k = −3.1e-15, m = 6.35, a thrust at the fastest rows, on a record losing energy at z = 7.4).
+Before them, the seeds' own statuses (:func:`nnphd.user.checks.seed_status`) are combined by :func:`combine_seeds`: their common status; where they
 differ, a seed whose conservative model failed to fit (an optimisation failure another seed shows the data do not
 cause) is discounted, and the others decide if they agree; else "inconclusive". The paper's phase-transition rule
 is :mod:`nnphd.engine.verdict`.

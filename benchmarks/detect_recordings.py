@@ -102,6 +102,8 @@ def main() -> None:
                     "energy_z": tr.get("z"),
                     "wall_s": wall,
                     "law": law_s,
+                    "law_status": lw.get("status"),  # "claimed", "tie" (law_s is then the tie's first) or "none"
+                    "ties": [x.get("title") for x in lw.get("ties") or []],
                     "reasons": rep["reasons"],
                 }
             )

@@ -735,6 +735,32 @@ def laws_table() -> str:
     return "\n".join(out) + "\n"
 
 
+def detect_recordings() -> str:
+    """The energy-decay rate of the damped recording look-alikes against its truth (results/detect_recordings.json)."""
+    rows = _load("detect_recordings.json")
+    out = [
+        "| case | seed | verdict (confidence) | energy-decay rate: ours / truth | energy z | shooting z "
+        "| law (or best candidate, not claimed) | s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        rate = (
+            f"{r['rate']:.4g} / {r['rate_truth']:.4g} ({100 * (r['rate'] / r['rate_truth'] - 1):+.1f} %)"
+            if r["rate"] is not None and r["rate_truth"]
+            else "—"
+        )
+        z = [f"{x:.1f}" if x is not None else "—" for x in (r["energy_z"], r["shooting_z"])]
+        law = r["law"].replace("|", "\\|")
+        out.append(
+            f"| {r['name']} | {r['seed']} | {r['status']} ({r['confidence']:.2f}) | {rate} | {z[0]} | {z[1]} | "
+            f"{law} | {r['wall_s']:.0f} |"
+        )
+    worst = max(abs(r["rate"] / r["rate_truth"] - 1) for r in rows if r["rate"] is not None and r["rate_truth"])
+    out.append("")
+    out.append(f"Largest error of the decay rate: {100 * worst:.2f} %.")
+    return "\n".join(out) + "\n"
+
+
 TABLES = {
     "stage_times": stage_times,
     "cluster_scaling": cluster_scaling,
@@ -749,6 +775,7 @@ TABLES = {
     "friction_lookalikes": friction_lookalikes,
     "real_friction": real_friction,
     "real_friction_seeds": real_friction_seeds,
+    "detect_recordings": detect_recordings,
 }
 
 

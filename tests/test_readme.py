@@ -153,7 +153,9 @@ def _check_recordings(text):
     assert math.ceil(max(noise)) == int(m[7]), noise
     # the energy-decay rates against their truth: detect_recordings.json (benchmarks/detect_recordings.py, seed 0,
     # the damped pendulum and the two cart recordings), the largest error rounded up to the README's decimals
-    rates = {r["name"]: abs(r["rate"] / r["rate_truth"] - 1) for r in _json("detect_recordings.json") if r["rate_truth"]}
+    rates = {
+        r["name"]: abs(r["rate"] / r["rate_truth"] - 1) for r in _json("detect_recordings.json") if r["rate_truth"]
+    }
     assert set(rates) == {"pendulum-damped", "cart", "carts-coupled"}, rates
     assert f"{math.ceil(1000 * max(rates.values())) / 10:.1f}" == m[6], rates
     # the real double pendulum's whole runs: runs 6–20 in real_double_pendulum.json; run 5 was measured by hand with

@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 from nnphd.explain.envelope import measured_envelope, predicted_envelope
 from nnphd.explain.families import families
 from nnphd.explain.laws import rank_laws
-from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, LawFit, _phase_locked, select_law
+from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, Candidate, _phase_locked, select_law
 from nnphd.user.rest import rest_mask, without_rest
 
 
@@ -71,7 +71,7 @@ TERMS = {"none": (), "linear": ("q̇",), "quadratic": ("|q̇|q̇",), "coulomb": 
 
 def _row(key, k, ic, sig=True):
     terms = tuple(t for part in key.split("+") for t in TERMS[part])
-    r = LawFit(key, key, k, {"a": 1.0}, {"a": 0.1}, {"x_ddot": key}, {}, 1.0, 1.0, ic, 0.0, 0.1, terms)
+    r = Candidate(key, key, k, {"a": 1.0}, {"a": 0.1}, {"x_ddot": key}, {}, 1.0, 1.0, ic, 0.0, 0.1, terms)
     r.significant = sig
     r.family = object() if key != "none" else None
     return r

@@ -3,14 +3,15 @@
 import numpy as np
 import pytest
 
-from nnphd.explain.parametric import Fit, fit_drag_power, fit_linear_friction, fit_perturber
+from nnphd.explain.law import Law
+from nnphd.explain.parametric import fit_drag_power, fit_linear_friction, fit_perturber
 
 
 def _noisy(fn, rng, level):
     return fn + level * np.sqrt(np.mean(fn**2)) * rng.standard_normal(fn.shape)
 
 
-def _assert_errs(fit: Fit):
+def _assert_errs(fit: Law):
     errs = np.array(list(fit.stderr.values()))
     assert set(fit.stderr) == set(fit.params)
     assert np.all(np.isfinite(errs)) and np.all(errs > 0)
@@ -23,7 +24,7 @@ def test_linear_friction(noise):
     qd = rng.normal(size=(500, 2))
     fn = _noisy(-qd @ gamma.T, rng, noise)
     fit = fit_linear_friction(qd, fn)
-    assert fit.name == "linear_friction"
+    assert fit.key == "linear_friction" and fit.status == "candidate"
     assert set(fit.params) == {"Gamma_11", "Gamma_12", "Gamma_21", "Gamma_22"}
     tol = 1e-12 if noise == 0 else 5e-4
     assert abs(fit.params["Gamma_11"] - 0.02) <= tol
@@ -32,7 +33,7 @@ def test_linear_friction(noise):
     assert fit.rel_rms == pytest.approx(noise, abs=0.003)
     if noise:
         _assert_errs(fit)
-    assert "Gamma" in fit.formula
+    assert "Gamma" in fit.text()
 
 
 def _orbit_speeds(rng, n=1000):
@@ -58,7 +59,7 @@ def test_drag_power(noise):
         assert fit.params["m"] == pytest.approx(m, abs=0.03)
         assert fit.rel_rms == pytest.approx(noise, abs=0.003)
         _assert_errs(fit)
-    assert fit.formula.startswith("f_n = -")
+    assert fit.text().startswith("f_n = -")
 
 
 def test_drag_power_respects_m_bounds():
@@ -92,7 +93,7 @@ def test_perturber(noise):
     assert fit.rel_rms == pytest.approx(noise, abs=0.003)
     if noise:
         _assert_errs(fit)
-    assert "r_p" in fit.formula
+    assert "r_p" in fit.text()
 
 
 def test_perturber_retrograde():

@@ -30,8 +30,8 @@ def test_friction_found():
         time="t",
     )
     assert r.readable and r.n_terms == 2
-    assert _coef(r.expressions[0], "theta1_dot") == pytest.approx(-0.02, rel=0.05)
-    assert _coef(r.expressions[1], "theta2_dot") == pytest.approx(-0.02, rel=0.05)
+    assert _coef(r.formula["a1"], "theta1_dot") == pytest.approx(-0.02, rel=0.05)
+    assert _coef(r.formula["a2"], "theta2_dot") == pytest.approx(-0.02, rel=0.05)
 
 
 def test_gravitational_radiation_law_found():
@@ -41,13 +41,13 @@ def test_gravitational_radiation_law_found():
         {"x": X, "y": Y, "vx": VX, "vy": VY, "t": T}, fn, ["ax", "ay"], velocities=["vx", "vy"], time="t"
     )
     assert r.readable and r.n_terms == 2
-    assert _coef(r.expressions[0], "vx*(vx**2 + vy**2)**4") == pytest.approx(-0.00165, rel=0.02)
-    assert _coef(r.expressions[1], "vy*(vx**2 + vy**2)**4") == pytest.approx(-0.00165, rel=0.02)
+    assert _coef(r.formula["ax"], "vx*(vx**2 + vy**2)**4") == pytest.approx(-0.00165, rel=0.02)
+    assert _coef(r.formula["ay"], "vy*(vx**2 + vy**2)**4") == pytest.approx(-0.00165, rel=0.02)
 
 
 def test_periodic_driving_found():
     r = sparse_formula({"x": X, "t": T}, _noisy((0.5 * np.sin(T))[:, None]), ["a"], time="t")
-    assert r.readable and r.n_terms == 1 and _coef(r.expressions[0], "sin(t)") == pytest.approx(0.5, rel=0.02)
+    assert r.readable and r.n_terms == 1 and _coef(r.formula["a"], "sin(t)") == pytest.approx(0.5, rel=0.02)
 
 
 def test_noise_is_nothing_readable():

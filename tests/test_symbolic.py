@@ -32,14 +32,11 @@ def test_friction_found_and_reproducible():
     inputs = {"theta1": X, "theta2": Y, "theta1_dot": VX, "theta2_dot": VY, "t": T}
     r = genetic_formula(inputs, fn, ["a1", "a2"], max_time=600, generations=150, n_threads=1)
     assert r.readable and r.rel_rms < 0.02
-    e1, e2 = (sp.sympify(e) for e in r.expressions)
+    e1, e2 = (sp.sympify(r.formula[c]) for c in ("a1", "a2"))
     assert e1.free_symbols == {sp.Symbol("theta1_dot")} and e2.free_symbols == {sp.Symbol("theta2_dot")}
     assert float(sp.diff(e1, "theta1_dot")) == pytest.approx(-0.02, rel=0.05)
     assert float(sp.diff(e2, "theta2_dot")) == pytest.approx(-0.02, rel=0.05)
-    assert (
-        genetic_formula(inputs, fn, ["a1", "a2"], max_time=600, generations=150, n_threads=1).expressions
-        == r.expressions
-    )
+    assert genetic_formula(inputs, fn, ["a1", "a2"], max_time=600, generations=150, n_threads=1).formula == r.formula
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
@@ -51,7 +48,8 @@ def test_gravitational_radiation_law_found():
     inputs = {"x": X, "y": Y, "vx": VX, "vy": VY, "t": T}
     r = genetic_formula(inputs, fn, ["ax", "ay"], max_time=600, generations=1000, n_threads=1)
     assert r.readable and r.rel_rms < 0.03
-    for i, expr in enumerate(r.expressions):  # the formula, not just a good fit: it matches the law off the data too
+    # the formula, not just a good fit: it matches the law off the data too
+    for i, expr in enumerate(r.formula.values()):
         assert sp.sympify(expr).free_symbols <= {sp.Symbol("vx"), sp.Symbol("vy")}
         grid = dict(vx=np.linspace(-1.2, 1.2, N), vy=np.linspace(1.1, -0.9, N))
         law = -0.00165 * (grid["vx"] ** 2 + grid["vy"] ** 2) ** 4 * grid["vx" if i == 0 else "vy"]
@@ -62,9 +60,9 @@ def test_periodic_driving_found():
     r = genetic_formula(
         {"x": X, "t": T}, _noisy((0.5 * np.sin(T))[:, None]), ["a"], max_time=600, generations=150, n_threads=1
     )
-    assert r.readable and sp.sympify(r.expressions[0]).free_symbols == {sp.Symbol("t")}
+    assert r.readable and sp.sympify(r.formula["a"]).free_symbols == {sp.Symbol("t")}
     tt = np.linspace(-2, 2, N)
-    assert np.max(np.abs(_on_data(r.expressions[0], t=tt) - 0.5 * np.sin(tt))) < 0.02
+    assert np.max(np.abs(_on_data(r.formula["a"], t=tt) - 0.5 * np.sin(tt))) < 0.02
 
 
 def test_noise_is_nothing_readable():

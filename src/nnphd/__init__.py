@@ -27,9 +27,11 @@ __version__ = "0.1.0"
 
 __all__ = [
     "DataQualityResult",
+    "Derivatives",
     "DetectResult",
     "LambdaPResult",
     "Law",
+    "LawLibrary",
     "NNPhD",
     "PredictionResult",
     "Status",
@@ -43,6 +45,7 @@ __all__ = [
 ]
 _API = ("DetectResult", "Law", "NNPhD", "Status", "Trajectories", "Verdict", "load", "read_report")
 _STUDY_RESULTS = ("DataQualityResult", "LambdaPResult", "PredictionResult")  # the paper's studies' typed results
+_STRATEGIES = ("Derivatives", "LawLibrary")  # NNPhD's strategy objects (how q̇, q̈ are estimated; which laws)
 
 
 def __getattr__(name: str):  # the API loads on first use, so `import nnphd` stays light and inert
@@ -50,6 +53,10 @@ def __getattr__(name: str):  # the API loads on first use, so `import nnphd` sta
         from nnphd import api
 
         return getattr(api, name)
+    if name in _STRATEGIES:
+        from nnphd.user import strategies
+
+        return getattr(strategies, name)
     if name == "SweepResult":  # the paper's λ-sweep result (nnphd.paper.sweep.run_sweep)
         from nnphd.paper.sweep_result import SweepResult
 

@@ -21,11 +21,15 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from nnphd.explain.law import Law
 from nnphd.io.progress import Progress
+
+if TYPE_CHECKING:  # the strategy objects (nnphd.Derivatives, nnphd.LawLibrary) load with the first NNPhD
+    from nnphd.user.strategies import Derivatives, LawLibrary
 
 __all__ = ["DetectResult", "Law", "NNPhD", "Status", "Trajectories", "Verdict", "load", "read_report"]
 
@@ -130,27 +134,6 @@ class Verdict:
         return asdict(self)
 
 
-@dataclass(frozen=True)
-class Law:
-    """The law of f_n: the winner of the ranked candidates (``table``: every candidate, best first). ``status``
-    "claimed", or "tie" when the record cannot tell this family from those in ``ties`` (the same number of
-    parameters, within ΔIC 6): then no family is claimed, and this one (the first) is only what predictions use."""
-
-    key: str
-    title: str
-    formula: dict[str, str]
-    latex: dict[str, str]
-    params: dict[str, float]
-    stderr: dict[str, float]
-    method: str
-    table: tuple[dict, ...] = field(default=(), repr=False)
-    status: str = "claimed"
-    ties: tuple[dict, ...] = field(default=(), repr=False)
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
 MAX_REPORT_BYTES = 256 * 2**20  # a report.json larger than this is refused unread
 
 
@@ -176,39 +159,6 @@ def _verdict_of(report: dict, where: str = "report") -> Verdict:
     if stat is not None and (isinstance(stat, bool) or not isinstance(stat, (int, float))):
         raise _report_error(where, f"statistic.value must be a number or null, got {stat!r:.60}")
     return Verdict(status, bool(report.get("new_physics")), float(conf), tuple(reasons), stat)
-
-
-_LAW_KEYS = {"law": str, "title": str, "formula": dict, "latex": dict, "params": dict, "stderr": dict, "method": str}
-
-
-def _law_of(report: dict, where: str = "report") -> Law | None:
-    """The claimed law of a report (None without one), checked as :func:`_verdict_of`."""
-    table = report.get("law") or {}
-    if not isinstance(table, dict):
-        raise _report_error(where, "law must be an object")
-    w = table.get("law")
-    if not w:
-        return None
-    if not isinstance(w, dict):
-        raise _report_error(where, "law.law must be an object")
-    for k, typ in _LAW_KEYS.items():
-        if not isinstance(w.get(k), typ):
-            raise _report_error(where, f"law.law.{k} must be a {typ.__name__}")
-    cands, ties = table.get("candidates", []), table.get("ties", [])
-    if not isinstance(cands, list) or not isinstance(ties, list):
-        raise _report_error(where, "law.candidates and law.ties must be lists")
-    return Law(
-        w["law"],
-        w["title"],
-        w["formula"],
-        w["latex"],
-        w["params"],
-        w["stderr"],
-        w["method"],
-        tuple(cands),
-        status=str(table.get("status", "claimed")),
-        ties=tuple(ties),
-    )
 
 
 @dataclass(frozen=True)
@@ -240,7 +190,7 @@ class DetectResult:
         """From a report dict (report.json's content); ValueError with one line when it is not one."""
         if not isinstance(report, dict):
             raise _report_error(where, f"expected a JSON object, got {type(report).__name__}")
-        verdict, law = _verdict_of(report, where), _law_of(report, where)
+        verdict, law = _verdict_of(report, where), Law.from_report(report, where)
         effect = report.get("effect")
         warnings = report.get("warnings", [])
         if effect is not None and not isinstance(effect, str):
@@ -291,14 +241,18 @@ class NNPhD:
     """The estimator: ``NNPhD(seed=0).fit(data)`` runs what ``nnphd detect`` runs (derivative estimates, the
     λ-sweep, the trust checks, the ranked candidate laws) and keeps the fitted model.
 
-    ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``laws``: your candidate
-    laws (SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``); ``law_fit``: "auto" / "pointwise" / "trajectory";
-    ``sr_time``: seconds of genetic symbolic regression for the fallback (0: none); ``trim``: drop the ends of
-    each trajectory ("auto"); ``field``: the conservative force, "learned" (by the LNN, the default) or "uniform"
-    (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the verdict and the law then
-    rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted field); ``workers``: train
-    the seeds on that many local Dask worker processes (default 1: here; the numbers are the same),
-    ``scheduler``: on an existing Dask cluster; further keywords go to :func:`nnphd.user.assess.assess`.
+    ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``derivatives``: how q̇
+    and q̈ are estimated, an :class:`nnphd.Derivatives` (method, trim; None: ``Derivatives()``, what ``nnphd detect``
+    does); ``library``: which candidate laws are ranked and how, an :class:`nnphd.LawLibrary` (families, your own
+    laws, fit; None: ``LawLibrary()``, every family). The older keywords set the same fields: ``laws`` (your candidate
+    laws, SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``) is ``LawLibrary.laws``, ``law_fit`` ("auto" / "pointwise" /
+    "trajectory") ``LawLibrary.fit``, ``trim`` (drop the ends of each trajectory: "auto", True, False)
+    ``Derivatives.trim``; one given beside an object that says otherwise is a ValueError. ``sr_time``: seconds of
+    genetic symbolic regression for the fallback (0: none); ``field``: the conservative force, "learned" (by the LNN,
+    the default) or "uniform" (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the
+    verdict and the law then rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted
+    field); ``workers``: train the seeds on that many local Dask worker processes (default 1: here; the numbers are
+    the same), ``scheduler``: on an existing Dask cluster; further keywords go to :func:`nnphd.user.assess.assess`.
 
     After ``fit``: ``result_`` (:class:`DetectResult`: everything below, typed), ``verdict_`` (:class:`Verdict`),
     ``status_`` (:class:`Status`), ``confidence_``, ``new_physics_``, ``law_`` (:class:`Law` or None), ``report_``
@@ -311,19 +265,24 @@ class NNPhD:
         seed: int = 0,
         steps: int = 1000,
         n_seeds: int = 2,
-        laws: Sequence[str] = (),
-        law_fit: str = "auto",
+        derivatives: Derivatives | None = None,
+        library: LawLibrary | None = None,
+        laws: Sequence[str] | None = None,
+        law_fit: str | None = None,
         sr_time: float = 0.0,
-        trim: bool | str = "auto",
+        trim: bool | str | None = None,
         field: str = "learned",
         **assess_kw: Any,
     ):
         from nnphd.user.detect import check_field
+        from nnphd.user.strategies import with_old_keywords
 
-        check_field(field, law_fit)
+        self.derivatives, self.library = with_old_keywords(derivatives, library, trim=trim, laws=laws, law_fit=law_fit)
+        check_field(field, self.library.fit)
         self.seed, self.steps, self.n_seeds = int(seed), int(steps), int(n_seeds)
-        self.laws = (laws,) if isinstance(laws, str) else tuple(laws)  # one str is one law, not its characters
-        self.law_fit, self.sr_time, self.trim, self.assess_kw = law_fit, float(sr_time), trim, dict(assess_kw)
+        # the older names of the objects' fields (save() writes them)
+        self.laws, self.law_fit, self.trim = self.library.laws, self.library.fit, self.derivatives.trim
+        self.sr_time, self.assess_kw = float(sr_time), dict(assess_kw)
         self.field = field
         self._model: dict | None = None
         self._fc_jit = None
@@ -345,9 +304,11 @@ class NNPhD:
                 sr_time=self.sr_time,
                 n_seeds=self.n_seeds,
                 progress=progress,
-                trim=self.trim,
-                laws=self.laws,
-                law_fit=self.law_fit,
+                trim=self.derivatives.trim,
+                derivative_method=self.derivatives.method,
+                laws=self.library.laws,
+                law_fit=self.library.fit,
+                families=self.library.families,
                 field=self.field,
                 **self.assess_kw,
             )
@@ -494,6 +455,8 @@ class NNPhD:
         no pickle; written atomically."""
         import jax
 
+        from nnphd.user.strategies import family_filter
+
         self._check_fitted()
         path = Path(path)
         if path.suffix != ".npz":
@@ -530,6 +493,9 @@ class NNPhD:
                 "sr_time": self.sr_time,
                 "trim": self.trim,
                 "field": self.field,
+                # the strategy objects' other fields, where not the default (older files have neither)
+                **({"derivative_method": self.derivatives.method} if self.derivatives.method != "auto" else {}),
+                **({"families": list(self.library.families)} if family_filter(self.library.families) else {}),
             },
         }
         if self._model.get("field") is not None:
@@ -561,9 +527,10 @@ def load(path) -> NNPhD:
     that is not a valid model raises ValueError with one line naming the path and what is wrong."""
     import jax
 
-    from nnphd.explain.table import LawFit
+    from nnphd.explain.table import Candidate
     from nnphd.user.modelfile import read_model_file
     from nnphd.user.scaling import Scaling
+    from nnphd.user.strategies import FAMILIES, Derivatives, LawLibrary
 
     mf = read_model_file(Path(path))
     meta, cfg = mf.meta, mf.cfg
@@ -572,20 +539,22 @@ def load(path) -> NNPhD:
     s = meta["scaling"]
     sc = Scaling(np.asarray(s["mu_q"], float), np.asarray(s["s_q"], float), float(s["t0"]), float(s["s_t"]))
     st = meta["settings"]
-    model = NNPhD(
-        seed=st["seed"],
-        steps=st["steps"],
-        n_seeds=st["n_seeds"],
-        laws=st["laws"],
-        law_fit=st["law_fit"],
-        sr_time=st["sr_time"],
-        trim=st["trim"],
-        field=st.get("field", "learned"),
-    )
+    try:  # a setting the file's types let through that NNPhD refuses (a trim that is none: Derivatives' check)
+        model = NNPhD(
+            seed=st["seed"],
+            steps=st["steps"],
+            n_seeds=st["n_seeds"],
+            derivatives=Derivatives(method=st.get("derivative_method", "auto"), trim=st["trim"]),
+            library=LawLibrary(families=st.get("families", FAMILIES), laws=st["laws"], fit=st["law_fit"]),
+            sr_time=st["sr_time"],
+            field=st.get("field", "learned"),
+        )
+    except ValueError as e:
+        raise ValueError(f"{path}: not a valid nnphd model file: settings: {e}") from None
     law = None
     if mf.family is not None:
         fam, beta, theta = mf.family, mf.beta, mf.theta
-        law = LawFit(
+        law = Candidate(
             fam.key,
             fam.title,
             fam.k,

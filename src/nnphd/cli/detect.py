@@ -62,6 +62,13 @@ def detect(
         "--law-fit",
         help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
     ),
+    families: str | None = typer.Option(
+        None,
+        "--families",
+        help="comma-separated candidate law families to rank (default: all — linear, quadratic, coulomb, their sums "
+        "such as linear+coulomb, power, rayleigh, vanderpol, rayleigh-vdp, drive, sparse; -diag/-full variants for "
+        "two or more coordinates); your --law laws are ranked too (NNPhD(library=LawLibrary(families=…)))",
+    ),
     field: Field = typer.Option(
         Field.learned,
         "--field",
@@ -90,7 +97,9 @@ def detect(
     scheduler: str | None = scheduler_option(),
 ):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
+    fams = _families_setting(families, law)  # checked before anything is read or created
     ang, extra, trim_v, paths = _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, width)
+    extra |= fams
     settings = _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra)
     if paths is not None:
         return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
@@ -132,6 +141,23 @@ def _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, wid
     except (ValueError, DataError) as e:
         raise InputError(str(e)) from None
     return ang, extra, trim_v, paths
+
+
+def _families_setting(families: str | None, law) -> dict:
+    """``--families`` as the setting of :func:`nnphd.user.detect.detect_data` (none when not given), checked: a
+    family that does not exist, or nothing to rank at all, is an :class:`InputError`."""
+    if families is None:
+        return {}
+    from nnphd.user.strategies import check_families
+
+    keys = tuple(k.strip() for k in families.split(",") if k.strip())
+    try:
+        check_families(keys)
+    except ValueError as e:
+        raise InputError(f"--families: {e}") from None
+    if not keys and not law:
+        raise InputError("--families names no family and no --law is given: there is nothing to rank")
+    return {"families": keys}
 
 
 def _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra) -> dict:

@@ -126,7 +126,7 @@ def envelope_report(
     rows, q, qd, t, traj, sigma: float, period: float, limit: int = 4, angle: bool = False
 ) -> dict | None:
     """The measured envelope of one coordinate and the envelope each of the first ``limit`` candidate laws of
-    ``rows`` (LawFit, best first; the zero law skipped) predicts, per trajectory from its first measured
+    ``rows`` (Candidate, best first; the zero law skipped) predicts, per trajectory from its first measured
     amplitude; with each one's rms log-error against the measured amplitudes (JSON-ready). None without ≥ 4 half
     swings or a finite period."""
     if not np.isfinite(period) or period <= 0:
@@ -256,7 +256,7 @@ def _envelope_curve(rate: np.ndarray, grid: np.ndarray, A0: float, dt: np.ndarra
 
 
 def fit_envelope(rows, tm, A, k, sigma: float, orbit: Orbit) -> list[dict]:
-    """Each candidate family of ``rows`` (LawFit; the zero law included; drives skipped) fitted to the measured
+    """Each candidate family of ``rows`` (Candidate; the zero law included; drives skipped) fitted to the measured
     envelope (tm, A, k) of :func:`measured_envelope`: its coefficients β (nonlinear parameters held at the row's
     values) and each trajectory's starting amplitude, by least squares on log A weighted by the half swing's error
     (σ/√2 position noise, and :data:`ENV_FLOOR`), started from the row's own β. Returns one dict per row fitted:

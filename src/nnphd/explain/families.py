@@ -28,6 +28,7 @@ __all__ = [
     "check_law_text",
     "families",
     "family_from_spec",
+    "family_keys",
     "parse_law",
     "perturber_family",
     "sparse_family",
@@ -94,6 +95,13 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
     ]
     spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)]}
     return [replace(f, spec={**spec, "key": f.key}) for f in out]
+
+
+def family_keys() -> tuple[str, ...]:
+    """The keys of the candidate families, in ranking order: every built-in one (:func:`families`; the "-diag" and
+    "-full" variants exist for two or more coordinates only) and "sparse" (the sparse polynomial law, odd in q̇) —
+    what ``include`` of :func:`nnphd.explain.laws.rank_laws` selects from; the opt-in "perturber" is not one."""
+    return (*(f.key for f in families(3, ("q1", "q2", "q3"), np.ones(3))), "sparse")
 
 
 def _linear_families(n: int, nm: list[str]) -> list[Family]:

@@ -34,7 +34,7 @@ from nnphd.explain.jointfit import (
 )
 from nnphd.explain.table import (
     IC_TIE,
-    LawFit,
+    Candidate,
     LawTable,
     law_row,
     overdispersion_c_hat,
@@ -242,7 +242,7 @@ def _score_fits(prob: JointProblem, fits, folds, segs, tau, n_boot, seed, names,
     """Held-out errors and bootstrap uncertainties of every fit: its table row, its (held-out mse, k, overdispersion
     ratio) and its conservative coefficients (by ``id(row)``)."""
     N = len(q)
-    rows: list[LawFit] = []
+    rows: list[Candidate] = []
     stats: list = []
     alphas: dict[int, np.ndarray] = {}
     Kc = prob.Z.shape[1]  # the Jacobian's conservative columns (reduced basis)
@@ -267,7 +267,7 @@ def _score_fits(prob: JointProblem, fits, folds, segs, tau, n_boot, seed, names,
     return rows, stats, alphas
 
 
-def _information_criteria(rows: list[LawFit], stats: list, n_eff: float, tau: float) -> tuple[float, float]:
+def _information_criteria(rows: list[Candidate], stats: list, n_eff: float, tau: float) -> tuple[float, float]:
     """Each row's IC once the overdispersion ĉ is known (from the stats of :func:`_score_fits`): n_eff / ĉ and τ·ĉ."""
     c_hat = overdispersion_c_hat([x[2] for x in stats], [x[0] for x in stats])  # IC once the overdispersion is known
     n_eff = n_eff / c_hat
@@ -277,7 +277,7 @@ def _information_criteria(rows: list[LawFit], stats: list, n_eff: float, tau: fl
     return n_eff, tau
 
 
-def _best_sparse_only(rows: list[LawFit]) -> list[LawFit]:
+def _best_sparse_only(rows: list[Candidate]) -> list[Candidate]:
     """The sparse family keeps only its best support, and not when a named family has the same formula."""
     sparse = [r for r in rows if r.key == "sparse"]
     if len(sparse) > 1:

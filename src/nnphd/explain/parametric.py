@@ -1,8 +1,11 @@
 """Parametric hypothesis fits for a learned non-conservative acceleration f_n (paper §III.A.3, Table II).
 
-Each fit takes samples of f_n (N, n) with the coordinates they were evaluated at and returns a :class:`Fit` with
-the best parameters, their standard errors from the Jacobian at the optimum (cov = s² (JᵀJ)⁻¹ with
-s² = RSS / (N·n − p)), the residual rms and a human-readable formula.
+Each fit takes samples of f_n (N, n) with the coordinates they were evaluated at and returns a
+:class:`~nnphd.explain.law.Law` (status "candidate": a hypothesis fitted, not claimed) with the best parameters,
+their standard errors from the Jacobian at the optimum (cov = s² (JᵀJ)⁻¹ with s² = RSS / (N·n − p)), the residual
+``rms`` and ``rel_rms`` (over the rms of f_n) and the formula of the whole vector as one entry ``"f_n"``
+(:meth:`~nnphd.explain.law.Law.text` reads "f_n = …"; :meth:`~nnphd.explain.law.Law.to_fit_dict` is results.json's
+``parametric``).
 
 * :func:`fit_linear_friction` — f_n ≈ −Γ q̇ (full n×n Γ, linear least squares);
 * :func:`fit_drag_power` — f_n ≈ −k (|q̇|²)^m q̇;
@@ -11,22 +14,16 @@ s² = RSS / (N·n − p)), the residual rms and a human-readable formula.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from scipy.optimize import least_squares
 
+from nnphd.explain.law import Law
 
-@dataclass(frozen=True)
-class Fit:
-    """Result of one hypothesis fit; ``rel_rms`` is the residual rms divided by the rms of f_n."""
-
-    name: str
-    params: dict[str, float]
-    stderr: dict[str, float]
-    rms: float
-    rel_rms: float
-    formula: str
+TITLES = {  # the fits' titles (Law.title), by key
+    "linear_friction": "linear friction −Γ q̇ (full n×n Γ)",
+    "drag_power": "power-law drag −k (|q̇|²)^m q̇",
+    "perturber": "perturber GM (r_p(t) − q)/|r_p(t) − q|³ on a circular orbit",
+}
 
 
 # ---------------------------------------------------------------------------------------------------- helpers
@@ -69,17 +66,22 @@ def _stderr_from_jac(jac: np.ndarray, resid: np.ndarray) -> np.ndarray:
     return np.where(d >= 0, np.sqrt(np.abs(d)), np.inf)
 
 
-def _make_fit(name, names, values, errors, resid, fn, formula) -> Fit:
+def _make_fit(name, names, values, errors, resid, fn, formula) -> Law:
+    """The fit as a :class:`Law`: ``formula`` is the right-hand side of "f_n = …"."""
     rms = _rms(resid)
     scale = _rms(fn)
     rel = rms / scale if scale > 0 else (0.0 if rms == 0 else np.inf)
-    return Fit(
-        name=name,
+    return Law(
+        key=name,
+        title=TITLES[name],
+        formula={"f_n": formula},
+        latex={},
         params={k: float(v) for k, v in zip(names, values)},
         stderr={k: float(e) for k, e in zip(names, errors)},
+        method="pointwise",
+        status="candidate",
         rms=float(rms),
         rel_rms=float(rel),
-        formula=formula,
     )
 
 
@@ -90,7 +92,7 @@ def _wrap(phi: float) -> float:
 
 
 # ---------------------------------------------------------------------------------------------------- friction
-def fit_linear_friction(qd, fn) -> Fit:
+def fit_linear_friction(qd, fn) -> Law:
     """Fit f_n ≈ −Γ q̇ with a full n×n matrix Γ (params ``Gamma_ij``, indices from 1)."""
     qd = _as_array("qd", qd, 2)
     fn = _as_array("fn", fn, 2)
@@ -112,12 +114,12 @@ def fit_linear_friction(qd, fn) -> Fit:
         errs = np.full((n, n), np.inf)
     names = [f"Gamma_{i + 1}{j + 1}" for i in range(n) for j in range(n)]
     rows = "; ".join(" ".join(f"{gamma[i, j]:+.6g}" for j in range(n)) for i in range(n))
-    formula = f"f_n = -Gamma q_dot, Gamma = [{rows}]"
+    formula = f"-Gamma q_dot, Gamma = [{rows}]"
     return _make_fit("linear_friction", names, gamma.ravel(), errs.ravel(), resid, fn, formula)
 
 
 # ---------------------------------------------------------------------------------------------------- drag power
-def fit_drag_power(qd, fn, m_bounds=(0.0, 10.0)) -> Fit:
+def fit_drag_power(qd, fn, m_bounds=(0.0, 10.0)) -> Law:
     """Fit f_n ≈ −k (|q̇|²)^m q̇ for (k, m), m constrained to ``m_bounds``."""
     qd = _as_array("qd", qd, 2)
     fn = _as_array("fn", fn, 2)
@@ -170,7 +172,7 @@ def fit_drag_power(qd, fn, m_bounds=(0.0, 10.0)) -> Fit:
     k, m = res.x
     r = resid(res.x)
     errs = _stderr_from_jac(jac(res.x), r)
-    formula = f"f_n = -{k:.6g} (|q_dot|^2)^{m:.6g} q_dot"
+    formula = f"-{k:.6g} (|q_dot|^2)^{m:.6g} q_dot"
     return _make_fit("drag_power", ["k", "m"], [k, m], errs, r, fn, formula)
 
 
@@ -317,7 +319,7 @@ def _best_perturber_refit(resid, jac, starts, n_keep: int) -> np.ndarray:
     return best[1]
 
 
-def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.0, n_keep: int = 5) -> Fit:
+def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.0, n_keep: int = 5) -> Law:
     """Fit a circularly orbiting point-mass perturber: f_n ≈ GM (r_p(t) − q)/|r_p(t) − q|³ (n = 2 only).
 
     ``r_grid``: start radii (default 12 values over 0.5…4 × median |q|, skipping radii that come within 5 % of
@@ -335,7 +337,5 @@ def fit_perturber(q, t, fn, r_grid=None, omega_grid=None, gm_central: float = 1.
     x = np.array([gm, R, w, ph])
     r = resid(x)
     errs = _stderr_from_jac(jac(x), r)
-    formula = (
-        f"f_n = {gm:.6g} (r_p - q)/|r_p - q|^3, r_p(t) = {R:.6g} (cos({w:.6g} t {ph:+.6g}), sin({w:.6g} t {ph:+.6g}))"
-    )
+    formula = f"{gm:.6g} (r_p - q)/|r_p - q|^3, r_p(t) = {R:.6g} (cos({w:.6g} t {ph:+.6g}), sin({w:.6g} t {ph:+.6g}))"
     return _make_fit("perturber", ["GM", "R", "omega", "phi"], x, errs, r, fn, formula)

@@ -5,40 +5,43 @@ input (q, q̇, t), isotropic drag laws v_j·(|v|²)^m for m ≤ 6, sin/cos of t 
 component the sparsity threshold is swept over a grid (plus an exhaustive search of 1- and 2-term models), keeping
 the model that minimises log(rms) + term_cost·terms: every term must cut the residual by 25%. The result is a SymPy expression built from the library terms.
 When the best model still leaves a large residual or needs many terms, it says so (``readable = False``).
+The result is a :class:`~nnphd.explain.law.Law` of status "hint" (a blind formula is a suggestion, never the law);
+:meth:`~nnphd.explain.law.Law.to_hint_dict` is what results.json and report.json write under ``blind``.
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
+
+from nnphd.explain.law import Law
 
 READABLE_MAX_TERMS = 12
 READABLE_MAX_REL_RMS = 0.25
 
 
-@dataclass(frozen=True)
-class BlindFormula:
-    method: str
-    expressions: tuple[str, ...]  # one SymPy string per component of f_n
-    component_names: tuple[str, ...]
-    rel_rms: float  # residual rms / rms of f_n
-    n_terms: int  # nonzero library terms over all components
-    readable: bool
-    note: str
-
-    def to_dict(self) -> dict:
-        return {
-            "method": self.method,
-            "formula": dict(zip(self.component_names, self.expressions)),
-            "rel_rms": self.rel_rms,
-            "n_terms": self.n_terms,
-            "readable": self.readable,
-            "note": self.note,
-        }
+def blind_law(
+    key: str, title: str, method: str, exprs, component_names, rel_rms: float, n_terms: int, readable: bool, note: str
+) -> Law:
+    """A blind formula as a :class:`Law` of status "hint": ``exprs`` one SymPy expression per component of f_n
+    (``formula`` component → its string), ``rel_rms`` the residual rms / rms of f_n, ``n_terms`` its size."""
+    return Law(
+        key=key,
+        title=title,
+        formula=dict(zip(component_names, (str(e) for e in exprs))),
+        latex={},
+        params={},
+        stderr={},
+        method=method,
+        status="hint",
+        rel_rms=float(rel_rms),
+        n_terms=int(n_terms),
+        readable=bool(readable),
+        note=note,
+    )
 
 
 def _library(
@@ -153,8 +156,9 @@ def sparse_formula(
     fourier: int = 2,
     thresholds: Sequence[float] | None = None,
     term_cost: float = float(np.log(1.25)),
-) -> BlindFormula:
-    """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,))."""
+) -> Law:
+    """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,)): a :class:`Law`
+    of status "hint" (``n_terms``: nonzero library terms over all components)."""
     from nnphd._extras import require
 
     STLSQ = require("pysindy", "the sparse (blind) explanation").STLSQ
@@ -202,10 +206,12 @@ def sparse_formula(
             f"nothing readable: the best sparse model needs {k} terms and leaves {100 * rel:.0f}% rms "
             f"(readable means ≤ {READABLE_MAX_TERMS} terms and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)"
         )
-    return BlindFormula(
+    return blind_law(
+        "sparse",
+        "blind formula (sparse regression)",
         "sparse regression (pysindy STLSQ; every term must cut the residual by 25%)",
-        tuple(str(e) for e in exprs),
-        tuple(component_names),
+        exprs,
+        component_names,
         rel,
         k,
         readable,

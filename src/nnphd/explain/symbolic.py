@@ -17,8 +17,9 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from nnphd.explain.law import Law
 from nnphd.explain.lawtext import parse_formula
-from nnphd.explain.sparse import READABLE_MAX_REL_RMS, BlindFormula, regression_data
+from nnphd.explain.sparse import READABLE_MAX_REL_RMS, blind_law, regression_data
 
 READABLE_MAX_LENGTH = 30  # expression-tree nodes per component
 NODE_COST = float(np.log(1.25)) / 4
@@ -55,8 +56,9 @@ def genetic_formula(
     population_size: int = 1000,
     max_length: int = 30,
     n_threads: int = 2,
-) -> BlindFormula:
-    """Genetic symbolic-regression formula for f_n (N, n) in terms of the named input columns (each (N,)).
+) -> Law:
+    """Genetic symbolic-regression formula for f_n (N, n) in terms of the named input columns (each (N,)): a
+    :class:`~nnphd.explain.law.Law` of status "hint" (``n_terms``: expression-tree nodes over all components).
 
     ``max_time`` bounds the search per component in seconds (pyoperon stops at whichever of time and generations
     comes first). Same seed and inputs → the same formula (single-threaded search is deterministic; with more threads
@@ -114,10 +116,12 @@ def genetic_formula(
             f"nothing readable: the selected models leave {100 * rel:.0f}% rms with up to {max(lengths)} nodes "
             f"(readable means ≤ {READABLE_MAX_LENGTH} nodes and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)"
         )
-    return BlindFormula(
+    return blind_law(
+        "genetic",
+        "blind formula (genetic symbolic regression)",
         "genetic symbolic regression (pyoperon; Pareto front of accuracy vs size; each node must cut the residual by 5.7%)",
-        tuple(str(e) for e in exprs),
-        tuple(component_names),
+        exprs,
+        component_names,
         rel,
         int(sum(lengths)),
         readable,

@@ -1,4 +1,6 @@
-r"""The ranked law table: one :class:`LawFit` per candidate, the :class:`LawTable`, and how the winner is chosen.
+r"""The ranked law table: one :class:`Candidate` per candidate family, the :class:`LawTable`, and how the winner is
+chosen. A candidate is working state (arrays, mutable); its result is a :class:`~nnphd.explain.law.Law`
+(:meth:`Candidate.to_law`, :meth:`LawTable.to_law`).
 
 Candidates are ranked by
 
@@ -28,8 +30,9 @@ import numpy as np
 import sympy as sp
 
 from nnphd.explain.families import DIGITS, Family
+from nnphd.explain.law import Law
 
-__all__ = ["IC_TIE", "Z_TERM", "LawFit", "LawTable"]
+__all__ = ["IC_TIE", "Z_TERM", "Candidate", "LawTable"]
 
 IC_TIE = 6.0  # candidates within this IC of the best count as equally good: the simplest wins (ΔIC < 6: no strong preference)
 Z_TERM = 2.0  # a term whose coefficient is within Z_TERM standard errors of zero makes its candidate ineligible
@@ -41,8 +44,10 @@ MIN_TERM_SHARE = 0.05  # a term of a sum that carries less than this share of th
 
 
 @dataclass
-class LawFit:
-    """One fitted candidate (one row of the ranked table)."""
+class Candidate:
+    """One candidate of the ranking (internal working state: mutable, with the arrays the ranking needs); one row of
+    the ranked table, :meth:`to_dict` as report.json writes it. Its result is a :class:`~nnphd.explain.law.Law`,
+    via :meth:`to_law`."""
 
     key: str
     title: str
@@ -97,6 +102,23 @@ class LawFit:
             **({"stuck": self.stuck} if self.stuck is not None else {}),
         }
 
+    def to_law(self, status: str = "candidate", table: tuple[dict, ...] = (), ties: tuple[dict, ...] = ()) -> Law:
+        """This candidate as a :class:`Law` of ``status`` ("claimed", "tie" or "candidate"), with the ``table`` and
+        ``ties`` it was ranked in (rows as :meth:`to_dict` writes them) — the Law that
+        :meth:`Law.from_report <nnphd.explain.law.Law.from_report>` reads back from report.json."""
+        return Law(
+            self.key,
+            self.title,
+            dict(self.formula),
+            dict(self.latex),
+            dict(self.params),
+            dict(self.stderr),
+            self.method,
+            tuple(table),
+            status=status,
+            ties=tuple(ties),
+        )
+
     def on_rows(self, q, qd, t) -> None:
         """Set :attr:`fn` (the law on the rows) and :attr:`shares` (each term's rms force over the law's)."""
         self.fn = self.predict(q, qd, t)
@@ -126,22 +148,30 @@ class LawFit:
 class LawTable:
     """The ranked candidates (winner first), the law (None when no candidate beats zero) and why."""
 
-    rows: list[LawFit]
-    law: LawFit | None
+    rows: list[Candidate]
+    law: Candidate | None
     reason: str
     n_eff: float
     tau: float
     folds: str
     settings: dict
-    ties: list[LawFit] = field(default_factory=list)  # families as good as the law (within IC_TIE, not nested)
+    ties: list[Candidate] = field(default_factory=list)  # families as good as the law (within IC_TIE, not nested)
     # no law because the best candidate's two fits (windows, envelope) disagree: that candidate (see envelope.py)
-    blocked: LawFit | None = None
+    blocked: Candidate | None = None
 
     @property
     def status(self) -> str:
         """ "claimed" (one family, the others clearly worse), "tie" (the record cannot tell :attr:`law` from
         :attr:`ties`: no family is claimed) or "none" (no candidate beats zero)."""
         return "none" if self.law is None else ("tie" if self.ties else "claimed")
+
+    def to_law(self) -> Law | None:
+        """The table's result: its law (status "claimed" or "tie", with the candidates and ties as report.json writes
+        them), None when no candidate beats zero."""
+        if self.law is None:
+            return None
+        rows = tuple(r.to_dict() for r in self.rows)
+        return self.law.to_law(self.status, rows, tuple(r.to_dict() for r in self.ties))
 
     def to_dict(self) -> dict:
         return {
@@ -219,7 +249,7 @@ def _phase_locked(omega: float, qd: np.ndarray, t: np.ndarray) -> float:
     return 0.0
 
 
-def _significance(rows: list[LawFit]) -> None:
+def _significance(rows: list[Candidate]) -> None:
     for r in rows:
         if r.family is not None and r.state_like >= DRIVE_STATE_R2:
             r.significant = False
@@ -247,7 +277,7 @@ def dissipative_ok(fam: Family, beta) -> bool:
     return not fam.dissipative or bool(np.all(np.asarray(beta, float) >= 0))
 
 
-def law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> LawFit:
+def law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> Candidate:
     """A table row: parameters ± se and the law as SymPy/LaTeX in the coordinates' names (IC set by the caller)."""
     Q = [sp.Symbol(c) for c in names]
     V = [sp.Symbol(f"{c}_dot") for c in names]
@@ -260,7 +290,7 @@ def law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str
         exprs.append(e)
     pn = list(fam.coef_names) + list(fam.nl_names)
     vals = np.concatenate([beta, theta])
-    return LawFit(
+    return Candidate(
         fam.key,
         fam.title,
         fam.k,
@@ -281,9 +311,9 @@ def law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str
     )
 
 
-def zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
+def zero_row(names, heldout_mse: float, N: int, method: str) -> Candidate:
     zero = {f"{c}_ddot": "0" for c in names}
-    return LawFit(
+    return Candidate(
         "none",
         "no law (conservative model alone)",
         0,
@@ -302,7 +332,7 @@ def zero_row(names, heldout_mse: float, N: int, method: str) -> LawFit:
     )
 
 
-def relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
+def relative_to_zero(rows: list[Candidate], y_rms: float) -> None:
     """Held-out ratio and ΔIC against the zero law (rows[0]), and the law's size relative to q̈."""
     z = rows[0]
     for r in rows:
@@ -311,7 +341,7 @@ def relative_to_zero(rows: list[LawFit], y_rms: float) -> None:
         r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / (y_rms or 1.0)
 
 
-def select_law(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = True) -> LawTable:
+def select_law(rows: list[Candidate], n_eff, tau, folds, settings, judge: bool = True) -> LawTable:
     if judge:
         _significance(rows)
     order = {id(r): i for i, r in enumerate(rows)}
@@ -326,7 +356,7 @@ def select_law(rows: list[LawFit], n_eff, tau, folds, settings, judge: bool = Tr
     win = min(nested, key=lambda r: (r.k, r.key == "sparse", r.ic, order[id(r)]))
     rows.remove(win)
     rows.insert(0, win)
-    ties: list[LawFit] = []
+    ties: list[Candidate] = []
     if win.key == "none":
         nxt = rows[1] if len(rows) > 1 else None
         reason = "no candidate beats zero: " + (
@@ -373,7 +403,7 @@ INELIGIBLE = (
 NESTS = {"power": ("linear", "quadratic")}  # families a nonlinear family holds as special cases (m = 0, ½ in 1-D)
 
 
-def _nested(a: LawFit, b: LawFit) -> bool:
+def _nested(a: Candidate, b: Candidate) -> bool:
     """Whether ``a`` is a special case of ``b``: the same, no law, its terms a subset of b's, or listed in NESTS."""
     if a is b or a.key == "none" or a.key == b.key:
         return True
@@ -382,11 +412,11 @@ def _nested(a: LawFit, b: LawFit) -> bool:
     return set(a.terms) <= set(b.terms) or a.key in NESTS.get(b.key, ())
 
 
-def _coefs(r: LawFit) -> str:
+def _coefs(r: Candidate) -> str:
     return ", ".join(f"{p} = {v:.3g} ± {r.stderr.get(p, float('nan')):.2g}" for p, v in r.params.items())
 
 
-def _tie_reason(win: LawFit, ties: list[LawFit]) -> str:
+def _tie_reason(win: Candidate, ties: list[Candidate]) -> str:
     """The words of a tie: the families, their coefficients and how close they are."""
     gap = max(abs(r.ic - win.ic) for r in ties)
     names = " or ".join([win.title, *(r.title for r in ties)])
@@ -399,7 +429,7 @@ def _tie_reason(win: LawFit, ties: list[LawFit]) -> str:
     )
 
 
-def preferred(table: LawTable) -> list[LawFit]:
+def preferred(table: LawTable) -> list[Candidate]:
     """The families a table points to: its law and its ties; without a law, the candidate that bars one (its two
     fits disagree, :attr:`LawTable.blocked`); else none."""
     if table.law is not None:

@@ -161,13 +161,7 @@ def discover(
         "fn_truth_rms": float(np.sqrt(np.mean(d.fn**2))),
         "fn_learned_rms": float(np.sqrt(np.mean(cf.fn**2))),
         "fn_mismatch_rms": float(np.sqrt(np.mean((cf.fn - d.fn) ** 2))),
-        "parametric": {
-            "form": fit.name,
-            "formula": fit.formula,
-            "params": fit.params,
-            "stderr": fit.stderr,
-            "rel_rms": fit.rel_rms,
-        },
+        "parametric": fit.to_fit_dict(),
         "table2": rows,
         "law": table.to_dict(),
         "law_winner": table.law.key if table.law else None,
@@ -250,11 +244,13 @@ def _blind_explanations(sysm, d, fn, seed: int, sr_time: float, say) -> dict:
     inputs["t"] = d.t
     comps = [f"{c}_ddot" for c in sysm.coords]
     blind = {
-        "sparse": sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in sysm.coords], time="t").to_dict()
+        "sparse": sparse_formula(
+            inputs, fn, comps, velocities=[f"{c}_dot" for c in sysm.coords], time="t"
+        ).to_hint_dict()
     }
     if sr_time > 0:
         say("blind explanation (genetic symbolic regression)")
-        blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
+        blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_hint_dict()
     return blind
 
 

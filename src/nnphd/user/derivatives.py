@@ -58,9 +58,14 @@ from nnphd.user.localpoly import MIN_SAMPLES, MIN_WINDOW, POLYORDER, poly_coordi
 from nnphd.user.recording import DataError, Trajectory, UserData
 from nnphd.user.sampling import UNIFORM_RTOL, classify_sampling, grid_step, noise_level
 
-__all__ = ["DerivativeEstimate", "estimate_derivatives", "to_dataset"]
+__all__ = ["METHODS", "DerivativeEstimate", "Derivatives", "estimate_derivatives", "to_dataset"]
 
 _N_BOOTSTRAP = 8
+METHODS = ("auto", "savgol", "local", "spline")  # what :func:`estimate_derivatives` takes
+# trim="auto" trims the ends (trim=True) unless that leaves a trajectory less than TRIM_KEEP_MIN of its rows or fewer
+# than TRIM_KEEP_ROWS rows
+TRIM_KEEP_MIN = 0.6
+TRIM_KEEP_ROWS = 12
 
 
 @dataclass(frozen=True)
@@ -235,7 +240,7 @@ def _checked_inputs(t, q, method: str) -> tuple[np.ndarray, np.ndarray]:
         raise DataError(f"{n_rows} samples; at least {MIN_SAMPLES} are needed to estimate derivatives")
     if not np.all(np.diff(t) > 0):
         raise DataError("t must be strictly increasing")
-    if method not in ("auto", "savgol", "local", "spline"):
+    if method not in METHODS:
         raise ValueError(f"method must be 'auto', 'savgol', 'local' or 'spline', got {method!r}")
     return t, q2
 
@@ -460,3 +465,63 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
         "_rows": rows,
     }
     return ds, info
+
+
+# ---- the strategy object --------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Derivatives:
+    """How q̇ and q̈ are estimated from the positions: ``nnphd.NNPhD(derivatives=Derivatives(...))``.
+
+    ``method``: "auto" (the default: Savitzky–Golay on uniform grids, local polynomials on near-uniform ones, the
+    smoothing spline on grossly irregular ones; see the module docstring), "savgol" (uniform grids only), "local"
+    (local polynomials in the recorded times) or "spline" (:func:`estimate_derivatives`).  ``trim``: drop the first
+    and last half-window rows of each trajectory, where the one-sided estimates are ~20x worse — True, False, or
+    "auto" (the default: True unless that leaves a trajectory less than :data:`TRIM_KEEP_MIN` of its rows or fewer
+    than :data:`TRIM_KEEP_ROWS` rows).  ``Derivatives()`` is what ``nnphd detect`` does (``--trim``).  A bad field is a
+    ValueError naming it and what is expected.
+    """
+
+    method: str = "auto"
+    trim: bool | str = "auto"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.method, str) or self.method not in METHODS:
+            raise ValueError(
+                f"Derivatives: method must be one of {', '.join(map(repr, METHODS))}, got {self.method!r:.60}"
+            )
+        if isinstance(self.trim, np.bool_):
+            object.__setattr__(self, "trim", bool(self.trim))
+        if not (isinstance(self.trim, bool) or (isinstance(self.trim, str) and self.trim == "auto")):
+            raise ValueError(f"Derivatives: trim must be 'auto', True or False, got {self.trim!r:.60}")
+
+    def estimate(self, t, q) -> DerivativeEstimate:
+        """q̇ and q̈ of ONE trajectory (t (N,), q (N,) or (N, n)): :func:`estimate_derivatives` with this method and
+        trim ("auto": trimmed when :data:`TRIM_KEEP_MIN` and :data:`TRIM_KEEP_ROWS` allow; ``.keep`` says)."""
+        if self.trim != "auto":
+            return estimate_derivatives(t, q, self.method, trim=self.trim)
+        try:
+            est = estimate_derivatives(t, q, self.method, trim=True)
+        except DataError:  # trimming would leave no row
+            return estimate_derivatives(t, q, self.method, trim=False)
+        if not trim_keeps_enough([(int(est.keep.sum()), est.keep.size)]):
+            return estimate_derivatives(t, q, self.method, trim=False)
+        return est
+
+    def dataset(self, userdata: UserData):
+        """All trajectories of ``userdata`` stacked (:func:`to_dataset` with this method and trim; "auto": trimmed
+        when every trajectory keeps enough rows).  Returns ``(dataset, info, the trim used)``."""
+        if self.trim != "auto":
+            return (*to_dataset(userdata, method=self.method, trim=self.trim), self.trim)
+        try:
+            data, info = to_dataset(userdata, method=self.method, trim=True)
+        except DataError:
+            return (*to_dataset(userdata, method=self.method, trim=False), False)
+        if not trim_keeps_enough([(b - a, tr["n_samples"]) for tr in info["trajectories"] for a, b in [tr["kept"]]]):
+            return (*to_dataset(userdata, method=self.method, trim=False), False)
+        return data, info, True
+
+
+def trim_keeps_enough(kept: list[tuple[int, int]]) -> bool:
+    """Whether trimming leaves every trajectory enough rows: ``kept`` = (rows kept, rows) per trajectory; at least
+    :data:`TRIM_KEEP_MIN` of its rows and :data:`TRIM_KEEP_ROWS` rows each."""
+    return min(k / n for k, n in kept) >= TRIM_KEEP_MIN and min(k for k, _ in kept) >= TRIM_KEEP_ROWS

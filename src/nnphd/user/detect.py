@@ -101,13 +101,17 @@ def _check_declared_field(field: str, data, traj, ud, info) -> None:
         )
 
 
-def _check_settings(ud, laws: Sequence[str], law_fit: str, field: str) -> None:
-    """Refuse bad settings before any work: the law level, the field, and every ``laws`` entry (a --law) parsed on
-    the file's coordinates."""
+def _check_settings(ud, laws: Sequence[str], law_fit: str, field: str, families=None, method: str = "auto") -> None:
+    """Refuse bad settings before any work: the law level, the field, the law families and the derivative method,
+    and every ``laws`` entry (a --law) parsed on the file's coordinates."""
     from nnphd.explain.families import parse_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.strategies import check_families
 
     _check_law_fit(law_fit)
     check_field(field, law_fit)
+    check_families(families or ())
+    Derivatives(method)
     for x in laws:  # fail on a bad --law before any work
         parse_law(x, ud.coords)
 
@@ -229,32 +233,39 @@ def detect_data(
     workers: int | None = 1,
     scheduler: str | None = None,
     read_s: float | None = None,
+    derivative_method: str = "auto",
+    families: Sequence[str] | None = None,
     **assess_kw,
 ) -> tuple[dict, dict]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
-    model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed LawFit or None, the
+    model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed Candidate or None, the
     data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps. ``field``: the conservative
     force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
     :func:`declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
-    (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`)."""
+    (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`).
+    ``derivative_method``: how q̇, q̈ are estimated (:data:`nnphd.user.derivatives.METHODS`); ``families``: the
+    candidate law families ranked (None: all, :data:`nnphd.user.strategies.FAMILIES`) — the report's settings name
+    them only when they are not the defaults."""
+    from nnphd.user.strategies import family_filter
+
     say = _Say(progress)
-    _check_settings(ud, laws, law_fit, field)
+    _check_settings(ud, laws, law_fit, field, families, derivative_method)
+    families = family_filter(families)
     release_compiled_if_crowded()  # a process fitting record after record must not run out of memory mappings
     timer = StageTimer()
     if read_s is not None:
         timer.add("reading the file", read_s)
     with timer:
         with timer.stage("derivatives"):
-            data, info, trim, row_err, traj = _prepared(ud, trim)
+            data, info, trim, row_err, traj = _prepared(ud, trim, derivative_method)
             _check_declared_field(field, data, traj, ud, info)
         say("λ-sweep and trust checks")
         with timer.stage("training and trust checks"):
             res = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler, assess_kw)
         coords = list(ud.coords)
         fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
-        law, law_row = _law_table(
-            res, data, traj, coords, ud, info, row_err, laws, law_fit, seed, lambda d, t, m: say(m), field, timer
-        )
+        law, law_row = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_fit, seed,
+                                  lambda d, t, m: say(m), field, timer, families)  # fmt: skip
         status, new_physics, confidence, reasons = reconcile(res, law, field)
         unclaim_against_evidence(res, law)
         declared, fitted, fc, fn = _declared_forces(law, data, ud, fc, fn)
@@ -270,6 +281,8 @@ def detect_data(
             "sr_time_per_component_s": sr_time,
             "trim": trim,
             "field": field,
+            **({"derivative_method": derivative_method} if derivative_method != "auto" else {}),
+            **({"families": list(families)} if families is not None else {}),
             **assess_kw,
         }
         verdict = (status, new_physics, confidence, reasons)
@@ -310,10 +323,10 @@ def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
     return tm | {"stages": stages, "compile_s": tm["compile_s"] + elsewhere, "note": note, "per_seed": per_seed}
 
 
-def _prepared(ud, trim):
-    """(data set, info, trim used, per-row errors, trajectory id per row) of validated data; a trim that leaves too
-    few rows of a trajectory is refused."""
-    data, info, trim = _dataset(ud, trim)
+def _prepared(ud, trim, method: str = "auto"):
+    """(data set, info, trim used, per-row errors, trajectory id per row) of validated data, the derivatives by
+    ``method``; a trim that leaves too few rows of a trajectory is refused."""
+    data, info, trim = _dataset(ud, trim, method)
     row_err = info.pop("_rows", None)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     for tr in info["trajectories"]:
@@ -340,10 +353,12 @@ def _blind(data, coords, fn, sr_time, seed, say, reasons) -> dict:
     comps = [f"{c}_ddot" for c in coords]
     try:
         say("blind explanation (sparse regression)")
-        blind["sparse"] = sparse_formula(inputs, fn, comps, velocities=[f"{c}_dot" for c in coords], time="t").to_dict()
+        blind["sparse"] = sparse_formula(
+            inputs, fn, comps, velocities=[f"{c}_dot" for c in coords], time="t"
+        ).to_hint_dict()
         if sr_time > 0:
             say("blind explanation (genetic symbolic regression)")
-            blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_dict()
+            blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_hint_dict()
     except MissingExtra as e:  # the fallback is optional: say why it is missing
         reasons.append(f"no blind explanation: {e}")
     return blind
@@ -369,26 +384,14 @@ def _warnings(info: dict, coords) -> list[str]:
     return out
 
 
-def _dataset(ud, trim):
+def _dataset(ud, trim, method: str = "auto"):
     """to_dataset with the ends trimmed (``trim="auto"``: drop the half-window at each end of every trajectory,
     where the one-sided derivative estimates are ~20x worse, unless that would leave a trajectory with less than
-    TRIM_KEEP_MIN of its rows). Returns (dataset, info, the trim actually used)."""
-    from nnphd.user.derivatives import to_dataset
-    from nnphd.user.recording import DataError
+    TRIM_KEEP_MIN of its rows: :meth:`nnphd.user.derivatives.Derivatives.dataset`), the derivatives by ``method``
+    (:data:`nnphd.user.derivatives.METHODS`). Returns (dataset, info, the trim actually used)."""
+    from nnphd.user.derivatives import Derivatives
 
-    if trim != "auto":
-        return (*to_dataset(ud, trim=bool(trim)), bool(trim))
-    try:
-        data, info = to_dataset(ud, trim=True)
-    except DataError:
-        return (*to_dataset(ud, trim=False), False)
-    kept = [(b - a) / tr["n_samples"] for tr in info["trajectories"] for a, b in [tr["kept"]]]
-    if min(kept) < TRIM_KEEP_MIN or min(b - a for tr in info["trajectories"] for a, b in [tr["kept"]]) < 12:
-        return (*to_dataset(ud, trim=False), False)
-    return data, info, True
-
-
-TRIM_KEEP_MIN = 0.6
+    return Derivatives(method, trim if isinstance(trim, str) and trim == "auto" else bool(trim)).dataset(ud)
 
 
 def _best_formula(blind: dict) -> dict | None:
@@ -425,7 +428,7 @@ def _law_formula(law: dict) -> dict | None:
 
 
 def _law_table(
-    res, data, traj, coords, ud, info, row_err, laws, level, seed, progress, field="learned", timer=None
+    res, data, traj, coords, ud, info, row_err, laws, level, seed, progress, field="learned", timer=None, families=None
 ) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base — and, for one coordinate, with the
     conservative library alone (no network, so no seed), the two combined by
@@ -437,7 +440,8 @@ def _law_table(
     motion that does not oscillate (a throw, a fall), where the library is the uniform field alone, seed-free in any
     dimension (the LNN absorbs a throw's drag: along one arc any force of the state is a force of position). A law is
     claimed only when the verdict is "detected" (:func:`reconcile`). A declared uniform field is the only base.
-    Returns (the table as a dict, the winning LawFit or None)."""
+    ``families``: the candidate families ranked (:func:`find_law`). Returns (the table as a dict, the winning Candidate
+    or None)."""
     from nnphd.user.assess import conservative_fn
 
     cons = res.get("_conservative")
@@ -464,13 +468,14 @@ def _law_table(
         progress=progress,
         field=field,
         timer=timer,
+        families=families,
     )
     arcs = not res["quality"].get("oscillating", True)  # a throw, a fall: the library is the uniform field alone
     if ok and (len(coords) == 1 or arcs) and level != "pointwise":
         from nnphd.explain.table import combine_bases
 
         lib = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, laws=laws, level=level,
-                       seed=seed, progress=progress, timer=timer)  # fmt: skip
+                       seed=seed, progress=progress, timer=timer, families=families)  # fmt: skip
         if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
             table = combine_bases([(LIBRARY_BASE, lib), (f"seed {seed}'s LNN", table)])
     out = table.to_dict()
@@ -497,7 +502,7 @@ def field_force(fitted: dict, q, is_angle, xp=np):
 
 
 def _fitted_field(table, row, coords, is_angle, q) -> dict | None:
-    """The declared uniform field as the joint trajectory-level fit of ``row`` (a LawFit: the zero law or the law)
+    """The declared uniform field as the joint trajectory-level fit of ``row`` (a Candidate: the zero law or the law)
     found it: its conservative coefficients over the library's columns (:func:`nnphd.explain.conservative.
     conservative_basis`, library "minimal"), their centring, and the field g with its standard error per coordinate
     at the record's mean position (constant for coordinates that are not angles). None without a fit."""
@@ -558,6 +563,7 @@ def find_law(
     progress: Progress | None = None,
     field: str = "learned",
     timer: StageTimer | None = None,
+    families: Sequence[str] | None = None,
 ):
     """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
     (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
@@ -565,13 +571,15 @@ def find_law(
     shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
     (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
     ``field`` is "uniform" (declared: nothing oscillates). ``timer``: the stages are timed on it (law table:
-    pointwise fits, trajectory-level fits, rests, stops and envelope). Returns a LawTable."""
+    pointwise fits, trajectory-level fits, rests, stops and envelope). ``families``: the keys of the candidate
+    families to rank (:func:`nnphd.explain.laws.rank_laws`' ``include``; None: all); your ``laws`` are always ranked.
+    Returns a LawTable."""
     timed = timer.stage if timer is not None else (lambda _name: nullcontext())
     say = Stages(progress, 2)
     say("candidate laws (pointwise joint fits)")
     with timed("law table: pointwise fits"):
         table, data, traj, rest, whole, period = _pointwise_table(
-            data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field
+            data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families
         )
     if level != "pointwise":
         say("candidate laws (trajectory level: multiple shooting on the positions)")
@@ -582,7 +590,7 @@ def find_law(
                                   seed)  # fmt: skip
 
 
-def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field):
+def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families=None):
     """find_law's pointwise stage: (the table, the moving rows' data and trajectory ids, the rest found, the whole
     data and ids, the period)."""
     from nnphd.engine.evidence import dominant_period
@@ -615,6 +623,7 @@ def _pointwise_table(data, traj, coords, is_angle, info, row_err, fc, laws, leve
         qdd_err=err,
         fc=fc,
         user_laws=laws,
+        include=families,
         seed=seed,
         library=_library(data.t, traj, period, level),
     )

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nnphd.io.cache import check_array, one_line, read_npz
+from nnphd.user.derivatives import METHODS as DERIVATIVE_METHODS
 
 __all__ = ["MAX_MODEL_BYTES", "ModelFile", "read_model_file"]
 
@@ -233,6 +234,7 @@ REPORT = {  # the fields NNPhD reads; the report may hold more
     ),
 }
 
+OPTIONAL_SETTINGS = ("field", "derivative_method", "families")  # absent from older files, or at their default
 SETTINGS = {  # NNPhD's arguments
     "seed": integer(-(2**63), 2**63 - 1),
     "steps": integer(0, 2**31),
@@ -242,6 +244,9 @@ SETTINGS = {  # NNPhD's arguments
     "sr_time": number(nonneg=True),
     "trim": either(boolean, string(max_len=100)),
     "field": one_of("learned", "uniform"),  # (files saved before it was a setting have none: "learned")
+    # written only when not the default (nnphd.Derivatives' method "auto"; nnphd.LawLibrary's families: all)
+    "derivative_method": one_of(*DERIVATIVE_METHODS),
+    "families": list_of(string(nonempty=True, max_len=100), max_len=100),
 }
 
 FIELD = {  # a declared uniform field as fitted (nnphd.user.detect._fitted_field)
@@ -263,7 +268,7 @@ META = obj(
         "law": optional(obj(LAW)),
         "report": obj(REPORT, required=("status", "new_physics", "confidence", "reasons"), others=True),
         "n_leaves": integer(1, 1000),
-        "settings": obj(SETTINGS, required=tuple(k for k in SETTINGS if k != "field")),
+        "settings": obj(SETTINGS, required=tuple(k for k in SETTINGS if k not in OPTIONAL_SETTINGS)),
         "field": optional(obj(FIELD)),
     },
     required=("format", "version", "names", "angles", "cfg", "scaling", "law", "report", "n_leaves", "settings"),

@@ -1,0 +1,231 @@
+"""`Law`: the one result type for a law of the non-conservative force f_n.
+
+Whatever found it — the ranked candidate table (:mod:`nnphd.explain.table`: the claimed law, a tie, any candidate
+via :meth:`~nnphd.explain.table.Candidate.to_law`), a post-hoc parametric fit of a learned f_n
+(:mod:`nnphd.explain.parametric`: the paper's Table II hypotheses) or a blind formula
+(:mod:`nnphd.explain.sparse`, :mod:`nnphd.explain.symbolic`) — its result is a frozen :class:`Law`. ``status`` says
+what it is worth: "claimed" (the law), "tie" (the record cannot tell it from other families), "candidate" (fitted,
+not claimed) or "hint" (a blind formula: a suggestion, never the law).
+
+Dicts only at the JSON boundary: :meth:`Law.to_dict` / :meth:`Law.from_dict` (checked as untrusted input, one
+ValueError naming the field); :meth:`Law.from_report` reads the claimed law of a report.json; the shapes older files
+always had are written by :meth:`Law.to_fit_dict` (results.json's ``parametric``) and :meth:`Law.to_hint_dict`
+(the ``blind`` formulas).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any
+
+__all__ = ["STATUSES", "Law"]
+
+STATUSES = ("claimed", "tie", "candidate", "hint")  # what a Law is worth, from the law itself to a blind hint
+
+# a report's law.law (a candidate row of the table): its keys and their types, checked by Law.from_report
+_REPORT_KEYS = {"law": str, "title": str, "formula": dict, "latex": dict, "params": dict, "stderr": dict, "method": str}
+
+
+def _error(where: str, what: str) -> ValueError:
+    return ValueError(f"{where}: {what}")
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+@dataclass(frozen=True)
+class Law:
+    """A law of f_n and how well it holds.
+
+    ``key``: the family or fit (e.g. "quadratic", "linear_friction", "sparse"); ``title``: its name in words;
+    ``formula``: component name → SymPy string (a parametric fit of the whole vector: one entry "f_n"); ``latex``:
+    the same in LaTeX (empty where none is made); ``params`` ± ``stderr``: the fitted parameters (empty for a blind
+    formula, whose numbers are in the formula); ``method``: how it was fitted. A law of the ranked table also carries
+    the ``table`` (every candidate, best first, as report.json writes them) and the families it ``ties`` with
+    (``status`` "tie": then no family is claimed and this one, the first, is only what predictions use).
+    ``rms`` / ``rel_rms``: the residual rms of a pointwise fit and that over the rms of the learned f_n (None where
+    not measured); ``n_terms``: a blind formula's size (nonzero library terms, or expression-tree nodes);
+    ``readable``: whether a blind formula is short and close enough to read; ``note``: a line about it."""
+
+    key: str
+    title: str
+    formula: dict[str, str]
+    latex: dict[str, str]
+    params: dict[str, float]
+    stderr: dict[str, float]
+    method: str
+    table: tuple[dict, ...] = field(default=(), repr=False)
+    status: str = "claimed"
+    ties: tuple[dict, ...] = field(default=(), repr=False)
+    rms: float | None = None
+    rel_rms: float | None = None
+    n_terms: int | None = None
+    readable: bool | None = None
+    note: str = ""
+
+    def text(self) -> str:
+        """The law in one line: ``"<component> = <expression>"``, joined by "; "."""
+        return "; ".join(f"{c} = {e}" for c, e in self.formula.items())
+
+    # ------------------------------------------------------------------------------------------ JSON boundary
+    def to_dict(self) -> dict:
+        """Every field under its name (a deep copy); :meth:`from_dict` reads it back."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: Any, where: str = "law") -> Law:
+        """From :meth:`to_dict`'s dict (e.g. parsed JSON), checked: the fields without a default present, no unknown
+        key, each value of its field's type, ``status`` one of :data:`STATUSES`. ValueError ``"<where>: <field> …"``
+        otherwise."""
+        if not isinstance(d, dict):
+            raise _error(where, f"expected an object, got {type(d).__name__}")
+        names = [f.name for f in fields(cls)]
+        extra = [k for k in d if k not in names]
+        if extra:
+            raise _error(where, f"unknown field {str(extra[0])!r:.60}")
+        vals = {}
+        for f in fields(cls):
+            if f.name not in d:
+                if f.name in _REQUIRED:
+                    raise _error(where, f"{f.name} is missing")
+                continue
+            vals[f.name] = _READ[f.name](d[f.name], f.name, where)
+        return cls(**vals)
+
+    @classmethod
+    def from_report(cls, report: dict, where: str = "report") -> Law | None:
+        """The law of a report.json dict (its ``law`` object, :meth:`nnphd.explain.table.LawTable.to_dict`): None
+        without one; with one, of status "claimed" or "tie", carrying the candidates and ties. Checked as untrusted
+        input: ValueError ``"<where>: law.…"`` naming what is wrong."""
+        table = report.get("law") or {}
+        if not isinstance(table, dict):
+            raise _error(where, "law must be an object")
+        w = table.get("law")
+        if not w:
+            return None
+        if not isinstance(w, dict):
+            raise _error(where, "law.law must be an object")
+        for k, typ in _REPORT_KEYS.items():
+            if not isinstance(w.get(k), typ):
+                raise _error(where, f"law.law.{k} must be a {typ.__name__}")
+        cands, ties = table.get("candidates", []), table.get("ties", [])
+        if not isinstance(cands, list) or not isinstance(ties, list):
+            raise _error(where, "law.candidates and law.ties must be lists")
+        return cls(
+            w["law"],
+            w["title"],
+            w["formula"],
+            w["latex"],
+            w["params"],
+            w["stderr"],
+            w["method"],
+            tuple(cands),
+            status=str(table.get("status", "claimed")),
+            ties=tuple(ties),
+        )
+
+    def to_fit_dict(self) -> dict:
+        """A parametric fit as results.json's ``parametric`` has always held it: form, one-line formula, parameters,
+        standard errors, relative residual rms."""
+        return {
+            "form": self.key,
+            "formula": self.text(),
+            "params": dict(self.params),
+            "stderr": dict(self.stderr),
+            "rel_rms": self.rel_rms,
+        }
+
+    def to_hint_dict(self) -> dict:
+        """A blind formula as the ``blind`` entries of results.json and report.json have always held it."""
+        return {
+            "method": self.method,
+            "formula": dict(self.formula),
+            "rel_rms": self.rel_rms,
+            "n_terms": self.n_terms,
+            "readable": self.readable,
+            "note": self.note,
+        }
+
+
+_REQUIRED = ("key", "title", "formula", "latex", "params", "stderr", "method")
+
+
+def _text(v: Any, name: str, where: str) -> str:
+    if not isinstance(v, str):
+        raise _error(where, f"{name} must be a string, got {v!r:.60}")
+    return v
+
+
+def _texts(v: Any, name: str, where: str) -> dict[str, str]:
+    """An object of strings (a formula by component)."""
+    if not isinstance(v, dict):
+        raise _error(where, f"{name} must be an object, got {v!r:.60}")
+    for k, x in v.items():
+        if not isinstance(x, str):
+            raise _error(where, f"{name}[{str(k)!r:.40}] must be a string, got {x!r:.60}")
+    return dict(v)
+
+
+def _numbers(v: Any, name: str, where: str) -> dict[str, float]:
+    """An object of numbers (parameters, standard errors)."""
+    if not isinstance(v, dict):
+        raise _error(where, f"{name} must be an object, got {v!r:.60}")
+    for k, x in v.items():
+        if not _is_number(x):
+            raise _error(where, f"{name}[{str(k)!r:.40}] must be a number, got {x!r:.60}")
+    return {k: float(x) for k, x in v.items()}
+
+
+def _rows(v: Any, name: str, where: str) -> tuple[dict, ...]:
+    """A list of objects (table rows)."""
+    if not isinstance(v, (list, tuple)) or not all(isinstance(r, dict) for r in v):
+        raise _error(where, f"{name} must be a list of objects")
+    return tuple(v)
+
+
+def _status(v: Any, name: str, where: str) -> str:
+    if v not in STATUSES:
+        raise _error(where, f"{name} must be one of {', '.join(map(repr, STATUSES))}, got {v!r:.60}")
+    return v
+
+
+def _optional_number(v: Any, name: str, where: str) -> float | None:
+    if v is None:
+        return None
+    if not _is_number(v):
+        raise _error(where, f"{name} must be a number or null, got {v!r:.60}")
+    return float(v)
+
+
+def _optional_count(v: Any, name: str, where: str) -> int | None:
+    if v is None:
+        return None
+    if not isinstance(v, int) or isinstance(v, bool) or v < 0:
+        raise _error(where, f"{name} must be a count (an integer ≥ 0) or null, got {v!r:.60}")
+    return v
+
+
+def _optional_flag(v: Any, name: str, where: str) -> bool | None:
+    if v is not None and not isinstance(v, bool):
+        raise _error(where, f"{name} must be true, false or null, got {v!r:.60}")
+    return v
+
+
+_READ = {
+    "key": _text,
+    "title": _text,
+    "formula": _texts,
+    "latex": _texts,
+    "params": _numbers,
+    "stderr": _numbers,
+    "method": _text,
+    "table": _rows,
+    "status": _status,
+    "ties": _rows,
+    "rms": _optional_number,
+    "rel_rms": _optional_number,
+    "n_terms": _optional_count,
+    "readable": _optional_flag,
+    "note": _text,
+}

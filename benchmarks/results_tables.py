@@ -761,6 +761,145 @@ def detect_recordings() -> str:
     return "\n".join(out) + "\n"
 
 
+# ---- scale-out, FLOPs, speed ---------------------------------------------------------------------------------------
+WORKER_RUNS = (  # results/workers_<what>.json (benchmarks/bench_workers.py <what>): the work each row is
+    ("workers_reproduce_quick.json", "`reproduce --quick`"),
+    ("workers_lambda-p.json", "λ/p study, 20 sweeps at {steps} steps per λ (`lambda-p --steps {steps}`)"),
+    ("workers_reproduce.json", "`reproduce` (full: paper settings)"),
+    ("workers_detect.json", "the 8 noisy constructed cases as one batch, {detect_steps} steps, 2 seeds (`detect`)"),
+)
+
+
+def _claims_met(run: dict) -> int:
+    return sum(bool(v[1]) for v in run.values())
+
+
+def workers() -> str:
+    """results/workers_*.json (benchmarks/bench_workers.py): the latest run of each work on 1 and on 2 workers."""
+    out = ["| work | 1 worker | 2 workers | speed-up | numbers |", "|---" * 5 + "|"]
+    for name, label in WORKER_RUNS:
+        d = _load(name)
+        w = str(d["settings"]["workers"])
+        same = "identical" if d["identical_numbers"] else "**differ**"
+        if d["what"] == "reproduce":
+            met = {_claims_met(d["numbers"][k]) for k in ("1", w)}
+            n = len(d["numbers"]["1"])
+            same += f" ({met.pop()} of {n} claims met both ways)" if len(met) == 1 else ""
+        out.append(
+            f"| {label.format(**d['settings'])} | {d['wall_s']['1']:.1f} s | {d['wall_s'][w]:.1f} s | "
+            f"{d['speedup']:.2f}× | {same} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+def workers_detect() -> str:
+    """results/workers_detect.json (benchmarks/bench_workers.py detect): each file's seconds one by one and in the
+    batch (its report's wall_time_s), and the walls."""
+    d = _load("workers_detect.json")
+    w = str(d["settings"]["workers"])
+    out = [
+        f"| file ({d['settings']['detect_steps']} steps, 2 seeds) | verdict | one by one, in this process (s) | "
+        f"in the batch, on a 1-thread worker (s) |",
+        "|---" * 4 + "|",
+    ]
+    for name, s1 in d["file_s"]["1"].items():
+        status, conf = d["numbers"]["1"][name][:2]
+        out.append(f"| {name} | {status}, {conf:.2f} | {s1:.1f} | {d['file_s'][w][name]:.1f} |")
+    same = "identical reports" if d["identical_numbers"] else "**reports differ**"
+    out.append(
+        f"| **all {len(d['file_s']['1'])}** | {same} | **{d['wall_s']['1']:.1f} wall** | "
+        f"**{d['wall_s'][w]:.1f} wall ({d['speedup']:.2f}×)** |"
+    )
+    return "\n".join(out) + "\n"
+
+
+FLOP_STEPS = {  # bench_flops.py's step labels as the table names them
+    "reference": "reference (per-sample `jax.hessian`)",
+    "plain": "plain MLP",
+    "ours, 13 λ vmapped": "ours, 13 λ vmapped into one program (shared batch)",
+    "ours, 32 seeds vmapped": "ours, 32 seeds vmapped (own weights and batches)",
+    "breakdown: ours with SGD": "breakdown: ours with plain SGD instead of Adam",
+    "breakdown: Adam alone": "breakdown: Adam's update alone",
+}
+
+
+def _ms(x: float) -> str:
+    return f"{x:.3f}" if x < 10 else f"{x:.1f}"
+
+
+def flops() -> str:
+    """results/flops.json (benchmarks/bench_flops.py): FLOPs of a training step from XLA's cost analysis, its time,
+    and the share of a one-thread float64 GEMM's rate; the breakdown rows last."""
+    d = _load("flops.json")
+    out = ["| step | batch | MFLOP (XLA) | ms per step | GFLOP/s | % of the GEMM peak |", "|---" * 6 + "|"]
+    for r in sorted(d["rows"], key=lambda r: r["step"].startswith("breakdown")):
+        batch = "—" if r["batch"] == 0 else f"{r['batch']}" + (f" × {r['copies']}" if r["copies"] > 1 else "")
+        out.append(
+            f"| {FLOP_STEPS.get(r['step'], r['step'])} | {batch} | {r['mflop']:.1f} | {_ms(r['ms'])} | "
+            f"{r['gflops']:.1f} | {100 * r['fraction_of_peak']:.1f} |"
+        )
+    g, ra, a = d["gemm"], d["ratios"], d["args"]
+    goal = d["goal_batch32_fraction"]
+    ref_reps = next(r["reps_per_block"] for r in d["rows"] if r["step"] == "reference" and r["batch"] == 1000)
+    out.append("")
+    out.append(
+        f"One run, {d['timestamp'][:10]} (load {d['machine']['loadavg_1min']:.2f}); ms: the median of {a['blocks']} "
+        f"blocks of {a['reps']} steps (the reference at batch 1000: {ref_reps}). The peak: a {g['n']}³ float64 matrix "
+        f"product, {1000 * g['s']:.0f} ms = {g['gflops']:.1f} GFLOP/s. FLOPs at batch 1000: ours / plain MLP "
+        f"{ra['ours_over_plain_flops_b1000']:.2f}, reference / ours {ra['reference_over_ours_flops_b1000']:.2f}. "
+        f"The best batch-32 work of ours: {100 * ra['best_batch32_fraction']:.1f} % of the peak (goal ≥ "
+        f"{100 * goal:.0f} %: {'met' if ra['best_batch32_fraction'] >= goal else '**not met**'})."
+    )
+    return "\n".join(out) + "\n"
+
+
+SWEEP_NAMES = {
+    "ho+ld warm": "HO+LD, warm start",
+    "ho+ld vmap": "HO+LD, 13 λ vmapped",
+    "ho+mf warm": "HO+MF, warm start",
+}
+
+
+def _met(ok: bool) -> str:
+    return "met" if ok else "**not met**"
+
+
+def speed() -> str:
+    """results/speed.json (benchmarks/bench_speed.py): ms per training step of ours, the reference and a plain MLP,
+    and the full 13-λ sweeps."""
+    d = _load("speed.json")
+    g = d["goals"]
+    out = [
+        f"| batch | ours ms | reference ms | plain MLP ms | reference / ours (goal ≥ {g['reference_over_ours_min']:g}) "
+        f"| ours / plain (goal ≤ {g['ours_over_plain_max']:g}) |",
+        "|---" * 6 + "|",
+    ]
+    for b, r in d["steps"].items():
+        out.append(
+            f"| {b} | {_g(r['ours_ms'], 3, True)} | {_g(r['reference_ms'], 3, True)} | {_g(r['plain_ms'], 3, True)} | "
+            f"{r['reference_over_ours']:.2f} — {_met(r['goal_reference_met'])} | "
+            f"{r['ours_over_plain']:.2f} — {_met(r['goal_plain_met'])} |"
+        )
+    reps = ", ".join(f"{r['reps_per_block']['reference']} at batch {b}" for b, r in d["steps"].items())
+    out.append("")
+    out.append(
+        f"One run, {d['timestamp'][:10]} (load {d['machine']['loadavg_1min']:.2f}); the median of "
+        f"{d['args']['blocks']} blocks of {d['args']['reps']} steps (the reference: {reps})."
+    )
+    if d.get("sweeps"):
+        out.append("")
+        out.append(
+            f"| full 13-λ sweep, 2000 steps per λ | s in all | s, the sweep's own wall time | goal (in all) ≤ "
+            f"{g['sweep_s_max']:g} s |"
+        )
+        out.append("|---" * 4 + "|")
+        for k, r in d["sweeps"].items():
+            out.append(
+                f"| {SWEEP_NAMES.get(k, k)} | {r['total_s']:.1f} | {r['sweep_only_s']:.1f} | {_met(r['goal_met'])} |"
+            )
+    return "\n".join(out) + "\n"
+
+
 TABLES = {
     "stage_times": stage_times,
     "cluster_scaling": cluster_scaling,
@@ -776,6 +915,10 @@ TABLES = {
     "real_friction": real_friction,
     "real_friction_seeds": real_friction_seeds,
     "detect_recordings": detect_recordings,
+    "workers": workers,
+    "workers_detect": workers_detect,
+    "flops": flops,
+    "speed": speed,
 }
 
 

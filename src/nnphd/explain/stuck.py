@@ -122,6 +122,17 @@ def _draws(mean, cov, rng, n: int) -> np.ndarray:
     return mean[None] + (rng.standard_normal((n, len(mean))) * np.sqrt(np.maximum(w, 0.0))) @ V.T
 
 
+def _compiled(fc_fn):
+    """``fc_fn`` compiled (``jax.jit``), or None: :func:`_integrate` calls it four times a step on one batch shape,
+    and called as it comes — an LNN's f_c, a hundred JAX operations each dispatched on its own — those calls were
+    most of a stop's cost (130 ms each: 58 s of 60 on a dry-friction look-alike ending in three rests)."""
+    if fc_fn is None:
+        return None
+    import jax
+
+    return jax.jit(fc_fn)
+
+
 def _integrate(rows, A, B, q0: float, t0: float, t1: float, period: float, fc_fn, angles, center, library):
     """(grid (S,), x (S, len(rows)·N_DRAWS)): each candidate's joint fit, with its coefficient draws ``A``
     (conservative) and ``B`` (law), integrated from rest at q0 (time t0) to t1 — all draws of all candidates as one
@@ -162,7 +173,19 @@ def _integrate(rows, A, B, q0: float, t0: float, t1: float, period: float, fc_fn
 
 
 def stop_contradictions(
-    table, stretches, q, qd, t, traj, period: float, *, angles, fc_fn=None, seed: int = 0, window_periods: float = 0.5
+    table,
+    stretches,
+    q,
+    qd,
+    t,
+    traj,
+    period: float,
+    *,
+    angles,
+    fc_fn=None,
+    seed: int = 0,
+    window_periods: float = 0.5,
+    threads: int | None = None,
 ) -> dict:
     r"""{family key: {"kind": "stop", …}} for the candidates of a trajectory-level ``table`` (one coordinate) without
     a dry term that a *finite-time stop* contradicts: the record swings, then rests for good, where the candidate
@@ -181,7 +204,9 @@ def stop_contradictions(
 
     ``stretches``: dicts with "t0" (start), "traj" (its trajectory id), "seconds", "tolerance" (n,) (from
     ``nnphd.user.detect._moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
-    ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible."""
+    ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible. The
+    rests' integrations run side by side on ``threads`` threads (None: one per core,
+    :func:`nnphd.explain.trajectory.default_threads`), with the same numbers whatever the number."""
     settings = table.settings
     if (
         settings.get("method") != "trajectory"
@@ -204,55 +229,76 @@ def stop_contradictions(
     center, library = settings.get("_center"), settings.get("library", True)
     q, qd, t, traj = (np.asarray(a, float).reshape(len(t), -1) for a in (q, qd, t, traj))
     t, traj, q, qd = t[:, 0], traj[:, 0], q[:, 0], qd[:, 0]
+    fc_fn = _compiled(fc_fn)
     rng = np.random.default_rng(seed)
     A = [_draws(r.conservative, r.conservative_cov, rng, N_DRAWS) for r in rows]
     B = [_draws(r.beta, r.cov, rng, N_DRAWS) for r in rows]
+    swings = [(s, w) for s in stretches if (w := _last_swing(s, q, qd, t, traj, period, window_periods)) is not None]
+
+    def integrate(swing):
+        _, w = swing
+        return _integrate(rows, A, B, *w["ends"], period, fc_fn, (bool(angles[0]),), center, library)
+
+    from nnphd.explain.trajectory import map_in_threads
+
     out = {}
-    for s in stretches:
-        tol = float(np.asarray(s["tolerance"], float).reshape(-1)[0])
-        seg = np.flatnonzero(traj == s["traj"])
-        before, rest = seg[t[seg] < s["t0"]], seg[t[seg] >= s["t0"]]
-        window = min(window_periods * period, float(s["seconds"]))
-        rest = rest[t[rest] <= s["t0"] + window]
-        if len(before) < 3 or len(rest) < 3:
-            continue
-        q_rest = float(np.mean(q[rest]))
-        turns = [
-            j
-            for j in before[1:]
-            if qd[j - 1] * qd[j] <= 0 and abs(q[j] - q_rest) >= STOP_MIN * tol and s["t0"] - t[j] <= period
-        ]
-        if not turns:
-            continue
-        j = turns[-1]
-        measured = max(float(np.std(q[rest])), tol)
-        ends = (float(q[j]), float(t[j]), float(t[rest[-1]]))
-        grid, xs = _integrate(rows, A, B, *ends, period, fc_fn, (bool(angles[0]),), center, library)
-        inside = grid >= s["t0"]
-        stds = np.std(xs[inside], axis=0)
-        for i, r in enumerate(rows):
-            if r.key in out:
-                continue
-            d = stds[i * N_DRAWS : (i + 1) * N_DRAWS]
-            if np.mean(np.isfinite(d)) < 0.9:  # the fit runs away from the turning point: nothing to judge
-                continue
-            d = d[np.isfinite(d)]
-            m, sd = float(np.mean(d)), float(np.std(d))
-            if m - Z_STUCK * sd >= STOP_MIN * measured:
-                out[r.key] = {
-                    "kind": "stop",
-                    "q": float(q_rest),
-                    "t_turn": float(t[j]),
-                    "q_turn": float(q[j]),
-                    "t_rest": float(s["t0"]),
-                    "predicted_std": m,
-                    "se": sd,
-                    "measured_std": measured,
-                    "tolerance": tol,
-                    "window": float(window),
-                    "seconds": float(s["seconds"]),
-                }
+    for (s, w), (grid, xs) in zip(swings, map_in_threads(integrate, swings, threads)):
+        _judge_stop(rows, s, w, np.std(xs[grid >= s["t0"]], axis=0), out)
     return out
+
+
+def _last_swing(s, q, qd, t, traj, period: float, window_periods: float) -> dict | None:
+    """The last swing into the rest ``s`` (:func:`stop_contradictions`; q, qd, t, traj of one coordinate, the whole
+    record): {"tol", "q_rest", "j" (the row of its last turning point), "measured" (the std over the rest window, at
+    least the tolerance), "window" (its length), "ends" (q and t at the turn, the window's last time)}, or None when
+    too few rows precede the rest or lie in its window, or no turning point is far enough from the rest."""
+    tol = float(np.asarray(s["tolerance"], float).reshape(-1)[0])
+    seg = np.flatnonzero(traj == s["traj"])
+    before, rest = seg[t[seg] < s["t0"]], seg[t[seg] >= s["t0"]]
+    window = min(window_periods * period, float(s["seconds"]))
+    rest = rest[t[rest] <= s["t0"] + window]
+    if len(before) < 3 or len(rest) < 3:
+        return None
+    q_rest = float(np.mean(q[rest]))
+    turns = [
+        j
+        for j in before[1:]
+        if qd[j - 1] * qd[j] <= 0 and abs(q[j] - q_rest) >= STOP_MIN * tol and s["t0"] - t[j] <= period
+    ]
+    if not turns:
+        return None
+    j = turns[-1]
+    measured = max(float(np.std(q[rest])), tol)
+    ends = (float(q[j]), float(t[j]), float(t[rest[-1]]))
+    return {"tol": tol, "q_rest": q_rest, "j": j, "measured": measured, "window": window, "ends": ends}
+
+
+def _judge_stop(rows, s, w: dict, stds, out: dict) -> None:
+    """Add to ``out`` the ``rows`` not in it yet that the rest ``s`` contradicts (:func:`stop_contradictions`): w
+    its last swing (:func:`_last_swing`), ``stds`` (len(rows)·N_DRAWS,) the std of each draw's predicted motion over
+    the rest window."""
+    for i, r in enumerate(rows):
+        if r.key in out:
+            continue
+        d = stds[i * N_DRAWS : (i + 1) * N_DRAWS]
+        if np.mean(np.isfinite(d)) < 0.9:  # the fit runs away from the turning point: nothing to judge
+            continue
+        d = d[np.isfinite(d)]
+        m, sd = float(np.mean(d)), float(np.std(d))
+        if m - Z_STUCK * sd >= STOP_MIN * w["measured"]:
+            out[r.key] = {
+                "kind": "stop",
+                "q": float(w["q_rest"]),
+                "t_turn": w["ends"][1],
+                "q_turn": w["ends"][0],
+                "t_rest": float(s["t0"]),
+                "predicted_std": m,
+                "se": sd,
+                "measured_std": w["measured"],
+                "tolerance": w["tol"],
+                "window": float(w["window"]),
+                "seconds": float(s["seconds"]),
+            }
 
 
 def bar_stuck(table, contradicted: dict):

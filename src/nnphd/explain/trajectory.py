@@ -5,6 +5,7 @@ noisy or biased for the law (a Coulomb force's jumps are smeared, cubic terms bi
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 
@@ -179,16 +180,18 @@ def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: i
     return base, D, u0, len(idx)
 
 
-def _shoot_candidate(resjac, res, s0, starts, free, fam: Family | None, Kc: int, n_fit: int):
+def _shoot_candidate(model, s0, starts, free, fam: Family | None, Kc: int, n_fit: int):
     """Levenberg–Marquardt of the windows from each of ``starts`` until one gives a finite χ²; a family's nonlinear
-    parameters out of their bounds are clipped, fixed (in ``free``, in place) and the fit repeated. Returns
-    (θ, r, jac, χ²), or None when no fit is finite."""
+    parameters out of their bounds are clipped, fixed (in ``free``, in place) and the fit repeated. ``model``: the
+    residuals and the derivatives (res, jac_fn) of :func:`nnphd.engine.shooting.lm_windows`. Returns (θ, r, jac,
+    χ²), or None when no fit is finite."""
     from nnphd.engine.shooting import lm_windows
 
+    res, jac_fn = model
     chi2 = np.nan
     for u_start in starts:
         try:
-            s, th, r, jac, chi2 = lm_windows(resjac, s0, u_start, free, iters=15, res=res)
+            s, th, r, jac, chi2 = lm_windows(None, s0, u_start, free, iters=15, res=res, jac_fn=jac_fn)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             continue
         if np.isfinite(chi2):
@@ -203,7 +206,7 @@ def _shoot_candidate(resjac, res, s0, starts, free, fam: Family | None, Kc: int,
             th1 = th.copy()
             th1[Kc + K : n_fit] = np.clip(nl, lo, hi)
             free[Kc + K : n_fit] = False
-            s, th, r, jac, chi2 = lm_windows(resjac, s, th1, free, iters=15, res=res)
+            s, th, r, jac, chi2 = lm_windows(None, s, th1, free, iters=15, res=res, jac_fn=jac_fn)
             if not np.isfinite(chi2):
                 return None
     return th, r, jac, chi2
@@ -287,6 +290,103 @@ def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
     return rows, n_eff, tau
 
 
+def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, compiled=None, **stats):
+    """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``cands``; :func:`_candidate_statistics`):
+    its joint fit by multiple shooting from its pointwise fit, or None when no fit is finite or it is not at an
+    optimum. ``layout``: the universal θ (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of
+    every row; Kc), ``model``: the shooting functions' data, the right-hand side and the RK4 substeps;
+    ``compiled()``, if given, is called once both shooting functions have run (and so are compiled)."""
+    import jax.numpy as jnp
+
+    from nnphd.engine.shooting import model_jac, model_residuals
+
+    slots, P_dir, nl_defaults, alpha0, Kc = layout
+    args, rhs, nsub = model
+    fam = row.family
+    base, D, u0, n_fit = _candidate_start(row, ci, slots, nl_defaults, alpha0, Kc, P_dir)
+    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32))  # branch ci: this row's family
+
+    def res(s_, u_):
+        return model_residuals(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
+
+    def jac(s_, u_):  # (the LM's first point computes the residuals, then the derivatives)
+        out = model_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
+        if compiled is not None:
+            compiled()
+        return out
+
+    free = np.zeros(P_dir, bool)
+    free[:n_fit] = True
+    # the conservative starts: this row's own, then (the zero law, whole trajectories) the other rows' — the
+    # zero law's pointwise f_c soaks up what it can of the friction and can run away over a long window
+    starts = [u0] + [np.concatenate([alpha0[id(c)], u0[Kc:]]) for c in (cands[:2] if fam is None and in_sample else [])]
+    fit = _shoot_candidate((res, jac), s0, starts, free, fam, Kc, n_fit)
+    if fit is None:
+        return None
+    return _candidate_statistics(row, *fit, free, n_fit, Kc=Kc, in_sample=in_sample, **stats)
+
+
+def default_threads() -> int:
+    """Threads for the candidates' fits: one per core this process may use — but one in a worker of
+    :mod:`nnphd.parallel`, which owns a single core (a ``detect`` batch fills the cores with files)."""
+    import os
+
+    from nnphd.parallel import default_workers
+
+    return 1 if os.environ.get("NNPHD_WORKER") else default_workers()
+
+
+def map_in_threads(fn, items: list, threads: int | None = None) -> list:
+    """``[fn(x) for x in items]`` on ``threads`` threads (None: :func:`default_threads`): for independent pieces of
+    work whose time is spent in compiled XLA programs (or numpy), which run outside Python's global lock. Each piece
+    runs the same programs on the same data as one after another: the numbers do not depend on the threads."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    threads = min(default_threads() if threads is None else int(threads), len(items))
+    if threads <= 1:
+        return [fn(x) for x in items]
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nnphd") as ex:
+        return list(ex.map(fn, items))
+
+
+def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
+    """The ranking entries of the zero law and ``cands`` (``fit(ci, row)``: :func:`_fit_row`; a candidate without
+    one left out), or None when the zero law has none — nothing is ranked against it then, and the candidates are
+    not fitted (or no further). The fits are independent and their time is spent in compiled XLA programs, which
+    run outside Python's global lock: on ``threads`` threads (None: :func:`default_threads`) they run side by side —
+    the candidates once the zero law's fit has compiled the shooting functions they share (its first point). Each
+    fit runs the same programs on the same data as one after another: the numbers do not depend on the threads."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    threads = min(default_threads() if threads is None else int(threads), len(cands) + 1)
+    if threads <= 1:
+        first = fit(0, zero)
+        if first is None:
+            return None
+        return [first, *(x for x in (fit(ci, r) for ci, r in enumerate(cands, 1)) if x is not None)]
+    ready = threading.Event()
+
+    def fit_zero():
+        try:
+            return fit(0, zero, compiled=ready.set)
+        finally:
+            ready.set()
+
+    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nnphd-shooting") as ex:
+        try:
+            first = ex.submit(fit_zero)
+            ready.wait()
+            rest = [ex.submit(fit, ci, r) for ci, r in enumerate(cands, 1)]
+            if first.result() is None:
+                ex.shutdown(cancel_futures=True)
+                return None
+            return [first.result(), *(x for x in (f.result() for f in rest) if x is not None)]
+        except BaseException:  # an error or an interrupt: the fits not started are not started
+            ex.shutdown(cancel_futures=True)
+            raise
+
+
 def rank_trajectory(
     table: LawTable,
     q_pos,
@@ -306,6 +406,7 @@ def rank_trajectory(
     max_window_rows: int | None = None,
     min_windows: int = MIN_WINDOWS,
     allow_in_sample: bool = False,
+    threads: int | None = None,
 ) -> LawTable:
     """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* by multiple shooting and
     rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
@@ -321,11 +422,10 @@ def rank_trajectory(
     windows, at most ``max_window_rows`` rows each. With fewer and ``allow_in_sample``, each trajectory is one window
     and the IC uses the in-sample χ² (BIC; no held-out groups, no bootstrap) — a record of a few periods or a throw;
     a zero law that runs away over a whole trajectory is started again from the candidates' conservative fits.
+
+    ``threads``: the candidates are fitted side by side on that many threads (None: :func:`default_threads`;
+    :func:`_fit_rows`), the same numbers whatever the number.
     """
-    import jax.numpy as jnp
-
-    from nnphd.engine.shooting import model_residuals, model_residuals_and_jac
-
     if table.settings.get("conservative_extra", 0):
         raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
     q_pos, qd, t = (np.asarray(a, float) for a in (q_pos, qd, t))
@@ -351,35 +451,12 @@ def rank_trajectory(
     fams = [r.family for r in cands]
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
     rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"], table.settings.get("library", True))
-    results = []
-    for ci, row in enumerate([zero, *cands]):
-        fam = row.family
-        base, D, u0, n_fit = _candidate_start(row, ci, slots, nl_defaults, alpha0, Kc, P_dir)
-        aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32))  # branch ci: this row's family
-
-        def resjac(s_, u_, aux=aux):
-            return model_residuals_and_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
-
-        def res(s_, u_, aux=aux):
-            return model_residuals(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
-
-        free = np.zeros(P_dir, bool)
-        free[:n_fit] = True
-        # the conservative starts: this row's own, then (the zero law, whole trajectories) the other rows' — the
-        # zero law's pointwise f_c soaks up what it can of the friction and can run away over a long window
-        starts = [u0] + [
-            np.concatenate([alpha0[id(c)], u0[Kc:]]) for c in (cands[:2] if fam is None and in_sample else [])
-        ]
-        fit = _shoot_candidate(resjac, res, s0, starts, free, fam, Kc, n_fit)
-        if fit is None:
-            continue
-        entry = _candidate_statistics(
-            row, *fit, free, n_fit, Kc=Kc, n=n, W=W, groups=groups, in_sample=in_sample, n_res=n_res,
-            n_boot=n_boot, seed=seed,
-        )  # fmt: skip
-        if entry is not None:
-            results.append(entry)
-    if len(results) < 2 or results[0][0].key != "none":
+    fit = functools.partial(
+        _fit_row, cands=cands, layout=(slots, P_dir, nl_defaults, alpha0, Kc), model=(args, rhs, nsub), s0=s0,
+        in_sample=in_sample, n=n, W=W, groups=groups, n_res=n_res, n_boot=n_boot, seed=seed,
+    )  # fmt: skip
+    results = _fit_rows(fit, zero, cands, threads)
+    if results is None or len(results) < 2:  # no zero law, or nothing beside it: the table stands
         return table
     rows, n_eff, tau = _trajectory_rows(results, table.settings, q_pos, qd, t, n_res)
     return select_law(

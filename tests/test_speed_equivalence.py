@@ -1,0 +1,182 @@
+"""The law table's faster paths give the numbers of the plain ones, bit for bit (issue 31): the shooting's residuals
+and derivatives from their own compiled functions, the Levenberg–Marquardt search that keeps a trial's residuals,
+the candidates' fits and the stops' integrations side by side on threads."""
+
+from __future__ import annotations
+
+import threading
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import nnphd  # noqa: F401  (float64)
+from nnphd.engine.shooting import (
+    _damping_rhs,
+    lm_windows,
+    model_jac,
+    model_residuals,
+    model_residuals_and_jac,
+    pad_windows,
+    shooting_windows,
+)
+
+W0 = 1.1
+
+
+def _accel(p, q, v):
+    return -p * jnp.sin(q)
+
+
+def _windows(gamma=0.02, noise=0.0025, seed=0):
+    """A damped pendulum's noisy positions, cut into shooting windows: (args of the model functions, start states)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 8 * 2 * np.pi / W0, 1 / 6)
+    q = 0.5 * np.exp(-gamma * t / 2) * np.cos(W0 * t)
+    qd = np.gradient(q, t)
+    q, qd = (q + rng.normal(0, noise, t.size))[:, None], (qd + rng.normal(0, 2 * noise, t.size))[:, None]
+    wins = shooting_windows([np.arange(t.size)], t, 2 * np.pi / W0)
+    tw, qw, mask, s0 = pad_windows(wins, t, q, (q, qd))
+    tw = tw - tw[:, :1]
+    args = (jnp.asarray(W0**2), jnp.asarray(tw), jnp.zeros(len(wins)), jnp.asarray(qw), jnp.asarray(mask))
+    return (*args, jnp.asarray([1 / noise])), s0
+
+
+def test_residuals_and_derivatives_alone_are_those_of_the_joint_function():
+    args, s0 = _windows()
+    rhs = _damping_rhs(_accel)
+    for th in (np.zeros(2), np.array([0.03, 0.05])):
+        r, jac = model_residuals_and_jac(s0, th, *args, rhs=rhs, nsub=2)
+        assert np.array_equal(np.asarray(model_residuals(s0, th, *args, rhs=rhs, nsub=2)), np.asarray(r))
+        assert np.array_equal(np.asarray(model_jac(s0, th, *args, rhs=rhs, nsub=2)), np.asarray(jac))
+
+
+def test_the_search_that_keeps_its_trials_residuals_takes_the_same_steps():
+    """lm_windows with the residuals and the derivatives from their own functions (a trial's residuals kept at an
+    accepted point) ends where it ends with the joint function, bit for bit, with fewer simulations."""
+    args, s0 = _windows()
+    rhs = _damping_rhs(_accel)
+    calls = {"resjac": 0, "res": 0, "jac": 0}
+
+    def counted(name, f):
+        def g(s, th):
+            calls[name] += 1
+            return f(s, th, *args, rhs=rhs, nsub=2)
+
+        return g
+
+    resjac, res, jac = (counted(k, f) for k, f in (("resjac", model_residuals_and_jac), ("res", model_residuals),
+                                                   ("jac", model_jac)))  # fmt: skip
+    free = np.ones(2, bool)
+    start = np.array([-0.5, 1.0])  # far: trial steps get rejected on the way
+    a = lm_windows(resjac, s0, start, free, res=res)
+    n_resjac, n_res = calls["resjac"], calls["res"]
+    calls.update(resjac=0, res=0, jac=0)
+    b = lm_windows(None, s0, start, free, res=res, jac_fn=jac)
+    for x, y in zip(a, b):
+        assert np.array_equal(np.asarray(x), np.asarray(y))
+    assert calls["resjac"] == 0 and calls["jac"] == n_resjac and calls["res"] == n_res + 1
+    assert n_res > n_resjac - 1  # some trials were rejected: the path is not trivial
+
+
+@pytest.mark.parametrize("threads", [1, 2, 3])
+def test_the_candidates_fits_come_back_in_order_whatever_the_threads(threads):
+    """_fit_rows: the zero law's entry first, then the candidates' in their order (those without one left out); the
+    candidates start only once the zero law's fit has compiled the shooting functions (its ``compiled`` call)."""
+    from nnphd.explain.trajectory import _fit_rows
+
+    ready = threading.Event()
+    started = []
+
+    def fit(ci, row, compiled=None):
+        if ci == 0:
+            if threads > 1:
+                assert not started  # nothing started before the zero law's first point
+            (compiled or ready.set)()
+            ready.set()
+        else:
+            started.append(ci)
+            assert ready.is_set()
+        return None if row == "bad" else (ci, row)
+
+    cands = ["a", "bad", "c", "d", "bad", "f"]
+    out = _fit_rows(fit, "zero", cands, threads)
+    assert out == [(0, "zero"), (1, "a"), (3, "c"), (4, "d"), (6, "f")]
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_without_the_zero_laws_fit_nothing_is_ranked(threads):
+    from nnphd.explain.trajectory import _fit_rows
+
+    seen = []
+
+    def fit(ci, row, compiled=None):
+        seen.append(ci)
+        return None
+
+    assert _fit_rows(fit, "zero", ["a", "b"], threads) is None
+    if threads == 1:
+        assert seen == [0]  # one after another: the candidates are not fitted at all
+
+
+def test_map_in_threads_keeps_the_order():
+    from nnphd.explain.trajectory import map_in_threads
+
+    items = list(range(9))
+    for threads in (1, 2, 4):
+        assert map_in_threads(lambda x: x * x, items, threads) == [x * x for x in items]
+    assert map_in_threads(lambda x: x, [], 2) == []
+
+
+def _swing(q0, gam=0.3, mu=0.8, w2=50.0, dt=0.01, seconds=9.0):
+    """A pendulum θ̈ = −w2 sin θ − γ θ̇ − μ sign(θ̇) from rest at q0, sticking when |w2 sin θ| ≤ μ at a stop (as
+    tests/test_stuck.py): (q, t)."""
+    q, v, qs = q0, 0.0, [q0]
+    for _ in range(int(seconds / dt)):
+        f = -w2 * np.sin(q) - gam * v - mu * np.sign(v) if abs(v) > 1e-9 or abs(w2 * np.sin(q)) > mu else 0.0
+        v_new = v + f * dt
+        v = 0.0 if v != 0 and np.sign(v_new) != np.sign(v) and abs(w2 * np.sin(q)) <= mu else v_new
+        q += v * dt
+        qs.append(q)
+    return np.asarray(qs)[:, None], dt * np.arange(len(qs))
+
+
+@pytest.mark.parametrize("with_fc", [False, True])
+def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc):
+    """Two swings that stop for good: their integrations on one thread and on two give the same contradictions,
+    with a conservative force given as a JAX function (compiled once for the integration) or none."""
+    from types import SimpleNamespace
+
+    from nnphd.explain.families import families
+    from nnphd.explain.stuck import stop_contradictions
+    from nnphd.explain.table import LawTable, law_row, zero_row
+    from nnphd.user.detect import _moving_rows
+
+    (q1, t1), (q2, t2) = _swing(0.3), _swing(0.25)
+    q, t = np.concatenate([q1, q2]), np.concatenate([t1, t2])
+    traj = np.r_[np.zeros(len(t1), int), np.ones(len(t2), int)]
+    qd = np.concatenate([np.gradient(q1, t1, axis=0), np.gradient(q2, t2, axis=0)])
+    data = SimpleNamespace(q=q, qd=qd, qdd=np.zeros_like(q), t=t)
+    info = {"per_coordinate": {"th": {"noise": 1e-4, "quantization_step": 0.0, "qdd": {"windows": [4]}}}}
+    period = 2 * np.pi / np.sqrt(50.0)
+    *_, rest = _moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
+    assert len(rest["final"]) == 2
+
+    def row(key, beta):
+        fam = next(f for f in families(1, ["th"], np.ones(1)) if f.key == key)
+        r = law_row(fam, np.asarray(beta, float), np.zeros(len(fam.nl_names)), 0.01 * np.ones(len(beta)), ["th"],
+                    1.0, "trajectory")  # fmt: skip
+        r.ic = r.delta_ic = -20.0
+        r.conservative = np.array([1.0]) if with_fc else np.array([0.0, 50.0])
+        r.conservative_cov = 1e-4 * np.eye(len(r.conservative))
+        return r
+
+    rows = [row("linear", [2.0]), row("quadratic", [3.0])]
+    zero = zero_row(["th"], 1.0, 10, "trajectory")
+    zero.ic = zero.delta_ic = 0.0
+    settings = {"method": "trajectory", "names": ["th"], "library": False if with_fc else "short", "_center": None}
+    table = LawTable([rows[0], zero, rows[1]], rows[0], "r", 10.0, 1.0, "f", settings)
+    fc_fn = (lambda q_, v_: -50.0 * jnp.sin(q_)) if with_fc else None
+    outs = [stop_contradictions(table, rest["final"], q, qd, t, traj, period, angles=(True,), fc_fn=fc_fn,
+                                threads=k) for k in (1, 2)]  # fmt: skip
+    assert "linear" in outs[0] and outs[0] == outs[1]

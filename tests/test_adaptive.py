@@ -99,6 +99,7 @@ def test_chunk_trainer_objective_and_learning_rate():
     assert all(np.array_equal(a, b) for a, b in zip(jax.tree_util.tree_leaves(same), jax.tree_util.tree_leaves(p0)))
 
 
+@pytest.mark.slow  # training runs: slow tier (`python3 dev.py test --slow`, and CI)
 def test_train_converged_counts_its_steps():
     d = gaussian_dataset("ho+ld", 128, seed=0)
     tcfg = TrainConfig(steps=400)  # ≤ 100 steps per learning rate
@@ -139,6 +140,7 @@ def test_train_converged_counts_its_steps():
         assert used == steps
 
 
+@pytest.mark.slow  # a sweep end to end: slow tier (`python3 dev.py test --slow`, and CI)
 def test_fast_sweep_runs_the_paper_protocol_when_undecided(monkeypatch):
     tr = gaussian_dataset("ho+ld", 128, seed=0)
     tcfg = TrainConfig(steps=40)

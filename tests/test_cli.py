@@ -55,6 +55,7 @@ def test_small_sweep_writes_results(tmp_path, capsys):
     assert [r["L_e"] for r in res3["table"]] != [r["L_e"] for r in res["table"]]
 
 
+@pytest.mark.slow  # a fast-mode sweep end to end: slow tier (`python3 dev.py test --slow`, and CI)
 def test_fast_sweep_reports_its_protocol(tmp_path, capsys):
     out = tmp_path / "f"
     lams = "0.05,0.1,0.5,2,10,20"

@@ -84,7 +84,14 @@ def test_label_matches_system():
     assert isinstance(d.q, np.ndarray) and d.q.dtype == np.float64 and len(d) == 3
 
 
-@pytest.mark.parametrize("name,N,n", [("double-pendulum", 301, 2), ("neptune", 1001, 2), ("gw", 301, 2)])
+@pytest.mark.parametrize(
+    "name,N,n",
+    [
+        pytest.param("double-pendulum", 301, 2, marks=pytest.mark.slow),
+        pytest.param("neptune", 1001, 2, marks=pytest.mark.slow),
+        ("gw", 301, 2),
+    ],
+)
 def test_trajectory_dataset_defaults(name, N, n):
     s = SYSTEMS[name]
     d = trajectory_dataset(s)

@@ -45,6 +45,7 @@ def test_damped_recording_is_detected_with_its_decay_rate(name, tmp_path):
     assert "decays" in rep["effect"] and "z =" in rep["effect"]
 
 
+@pytest.mark.slow  # a whole detect run: slow tier (`python3 dev.py test --slow`, and CI)
 @pytest.mark.parametrize("name", ["pendulum"])  # (carts-coupled-free: benchmarks/detect_recordings.py)
 def test_conservative_recording_is_none(name, tmp_path):
     rec, rep = _detect(name, tmp_path)

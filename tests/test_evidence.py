@@ -206,6 +206,7 @@ def test_a_none_that_one_statistic_contradicts_at_three_sigma_is_inconclusive():
     assert seed_status(*_checks(), base | {"z_energy": None, "z_shooting": -2.9}, good, 1)[0] == "none"
 
 
+@pytest.mark.slow  # compiles JAX's full Jacobian (~20 s): slow tier (`python3 dev.py test --slow`, and CI)
 def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
     """The shooting Jacobian with f_c differentiated once per row (rowwise_jvp) equals JAX's own forward derivatives
     through a small LNN's Euler–Lagrange solve, for window states and parameters alike; the values are identical."""

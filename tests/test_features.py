@@ -26,7 +26,7 @@ def test_double_pendulum_features_at_true_coefficients_give_f_c():
     np.testing.assert_allclose(FEATURE_SETS[s.feature_set].accel(c, q, qd), expected, atol=1e-10)
 
 
-@pytest.mark.parametrize("name", ["neptune", "gw"])
+@pytest.mark.parametrize("name", [pytest.param("neptune", marks=pytest.mark.slow), "gw"])  # neptune: ~20 s, slow tier
 def test_kepler_features_at_true_coefficients_give_f_c(name):
     s = get_system(name)
     gm = s.params["GM"] if name == "neptune" else s.params["G"] * (s.params["M1"] + s.params["M2"])

@@ -101,6 +101,7 @@ def _law_from_csv(path, angles=()):
     return find_law(data, traj, list(ud.coords), [bool(x) for x in ud.is_angle], info, rows)
 
 
+@pytest.mark.slow  # a whole detect run: slow tier (`python3 dev.py test --slow`, and CI)
 @pytest.mark.parametrize("name", ["dry-friction"])  # (the other families: benchmarks/laws_table.py)
 def test_trajectory_level_law_from_positions(name, tmp_path):
     """Positions only (0.1% noise): the pointwise derivatives smear the sign jump / bias the cubic terms, and the

@@ -40,6 +40,7 @@ def test_handwritten_pass_equals_hessian_reference(n, act):
     np.testing.assert_allclose(ours, ref, atol=1e-10, rtol=0)
 
 
+@pytest.mark.slow  # compiles the reference's gradients (~17 s): slow tier (`python3 dev.py test --slow`, and CI)
 def test_handwritten_pass_three_layers_and_gradients_match_reference():
     cfg = ModelConfig(n=2, lnn_widths=(20, 20, 20), lnn_out_scale=1.0)
     lnn = init_lnn(jax.random.PRNGKey(3), cfg)
@@ -94,6 +95,7 @@ def test_exact_harmonic_oscillator_in_the_network():
     np.testing.assert_allclose(lnn_accel(lnn, q, qd, cfg), -q, atol=1e-10)
 
 
+@pytest.mark.slow  # compiles a reference pass (~9 s): slow tier (`python3 dev.py test --slow`, and CI)
 def test_exact_magnetic_lagrangian_in_the_network():
     # L = ½|q̇|² + (B/2)(q1 q̇2 − q2 q̇1) − ½k|q|², with xy = ½[σ(x+y) − σ(x−y)] for σ(a)=a²/2 → q̈ = −kq + B(q̇2, −q̇1)
     k, b = 1.3, 0.7
@@ -135,6 +137,7 @@ def test_random_lnn_conserves_its_energy_with_rk4_order_4():
 # ---- the guarded solve -----------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # a training run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_guard_singular_mass_matrix_gives_finite_output():
     # H = 0 (no split trick, L_NN without q̇ dependence) must not produce inf/NaN, nor NaN gradients
     cfg = ModelConfig(n=2, lnn_widths=(8,), split_mass=0.0, lnn_activation="quadratic")
@@ -174,6 +177,7 @@ def test_float32_model_runs_and_matches_float64():
     np.testing.assert_allclose(fn32, fn64, atol=1e-4)
 
 
+@pytest.mark.slow  # a training run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_float32_config_trains_in_float32():
     """ModelConfig(dtype="float32") means float32 weights (a NumPy float64 scale once made them float64, so the
     "float32" runs were float64 but for their biases and data), and they stay float32 through Adam."""
@@ -214,6 +218,7 @@ def test_split_trick_makes_initial_mass_matrix_near_identity():
     assert eig.min() > 0.5 and eig.max() < 1.5
 
 
+@pytest.mark.slow  # a training run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_input_standardisation_is_folded_into_the_first_layer():
     rng = np.random.default_rng(5)
     q, qd, t = rng.normal(3, 2, (50, 2)), rng.normal(-1, 0.5, (50, 2)), rng.uniform(0, 100, 50)

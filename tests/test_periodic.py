@@ -211,6 +211,7 @@ def _rel_l1(lnn, data, cfg):
     return float(jnp.mean(jnp.abs(lnn_accel(lnn, q, qd, cfg) - qdd)) / jnp.mean(jnp.abs(qdd)))
 
 
+@pytest.mark.slow  # two training runs: slow tier (`python3 dev.py test --slow`, and CI)
 def test_training_on_a_spinning_pendulum_needs_the_embedding():
     train_data, test_data = _spinning_pendulum_data(0), _spinning_pendulum_data(1)
     assert float(jnp.max(jnp.abs(train_data[0]))) > 50 and float(jnp.max(jnp.abs(train_data[1]))) > 3

@@ -46,6 +46,7 @@ def test_rollout_time_is_passed_to_the_force():
     np.testing.assert_allclose(q[:, 0], exact, atol=1e-9)
 
 
+@pytest.mark.slow  # training of three models: slow tier (`python3 dev.py test --slow`, and CI)
 def test_models_forces_and_learned_power():
     cfg = ModelConfig(n=2, lnn_widths=(8, 8), uan_widths=(8, 8))
     key = jax.random.PRNGKey(0)

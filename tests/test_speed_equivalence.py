@@ -129,16 +129,10 @@ def test_map_in_threads_keeps_the_order():
 
 
 def _swing(q0, gam=0.3, mu=0.8, w2=50.0, dt=0.01, seconds=9.0):
-    """A pendulum θ̈ = −w2 sin θ − γ θ̇ − μ sign(θ̇) from rest at q0, sticking when |w2 sin θ| ≤ μ at a stop (as
-    tests/test_stuck.py): (q, t)."""
-    q, v, qs = q0, 0.0, [q0]
-    for _ in range(int(seconds / dt)):
-        f = -w2 * np.sin(q) - gam * v - mu * np.sign(v) if abs(v) > 1e-9 or abs(w2 * np.sin(q)) > mu else 0.0
-        v_new = v + f * dt
-        v = 0.0 if v != 0 and np.sign(v_new) != np.sign(v) and abs(w2 * np.sin(q)) <= mu else v_new
-        q += v * dt
-        qs.append(q)
-    return np.asarray(qs)[:, None], dt * np.arange(len(qs))
+    """The stick-slip pendulum of tests/test_stuck.py from rest at q0: (q, t)."""
+    from tests.fixtures.friction import stick_slip_euler
+
+    return stick_slip_euler(q0, gam, mu, w2, dt, seconds)
 
 
 @pytest.mark.parametrize("with_fc", [False, True])

@@ -125,17 +125,11 @@ def _swing(gam, mu, *, q0=0.3, w2=A, dt=0.01, seconds=9.0, step=0.0):
     rounded to ``step`` (an encoder). Returns (data, traj, info, period)."""
     from types import SimpleNamespace
 
-    q, v, qs = q0, 0.0, [q0]
-    for _ in range(int(seconds / dt)):
-        f = -w2 * math.sin(q) - gam * v - mu * np.sign(v) if abs(v) > 1e-9 or abs(w2 * math.sin(q)) > mu else 0.0
-        v_new = v + f * dt
-        v = 0.0 if v != 0 and np.sign(v_new) != np.sign(v) and abs(w2 * math.sin(q)) <= mu else v_new
-        q += v * dt
-        qs.append(q)
-    q = np.asarray(qs)[:, None]
+    from tests.fixtures.friction import stick_slip_euler
+
+    q, t = stick_slip_euler(q0, gam, mu, w2, dt, seconds)
     if step:
         q = step * np.round(q / step)
-    t = dt * np.arange(len(q))
     data = SimpleNamespace(q=q, qd=np.gradient(q, dt, axis=0), qdd=np.zeros_like(q), t=t)
     info = {"per_coordinate": {"th": {"noise": 1e-4, "quantization_step": step, "qdd": {"windows": [4]}}}}
     return data, np.zeros(len(q), int), info, 2 * np.pi / math.sqrt(w2)

@@ -106,6 +106,7 @@ def test_lambda_p_verdicts_and_files(lp):
     assert LambdaPResult.from_dict(saved) == res  # results.json reads back as the result returned
 
 
+@pytest.mark.slow  # needs the λ/p study run (~40 s): slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_p_subrun_is_nnphd_sweep(lp):
     """Same seed → same numbers: a sub-run reproduces `nnphd sweep` (run_sweep) exactly."""
     _, res, _ = lp
@@ -153,6 +154,7 @@ def dq(tmp_path_factory):
     return out, data_quality_study(out=out, **DQ)
 
 
+@pytest.mark.slow  # needs the data-quality study run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_data_quality_coverage_and_imbalance(dq):
     out, res = dq
     assert isinstance(res, DataQualityResult)
@@ -194,6 +196,7 @@ def test_data_quality_coverage_and_imbalance(dq):
     assert saved == res.to_dict() and DataQualityResult.from_dict(saved) == res
 
 
+@pytest.mark.slow  # needs the data-quality study run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_data_quality_cached_rerun(dq):
     out, res = dq
     again = data_quality_study(out=out, **DQ)

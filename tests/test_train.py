@@ -44,6 +44,7 @@ def test_parse_p_accepts():
     assert parse_p("mse") == "mse" and parse_p("2") == 2.0 and parse_p(1) == 1.0
 
 
+@pytest.mark.slow  # a training run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_loss_terms_match_forces():
     d = gaussian_dataset("ho+ld", 64, seed=0)
     params = init_nnphd(jax.random.PRNGKey(0), SMALL)
@@ -77,6 +78,7 @@ def test_learning_rate_schedule_is_the_papers():
     )
 
 
+@pytest.mark.slow  # a vmapped sweep and its independent runs: slow tier (`python3 dev.py test --slow`, and CI)
 def test_vmapped_sweep_equals_independent_runs():
     tr = gaussian_dataset("ho+ld", 200, seed=0)
     tcfg = TrainConfig(steps=40)
@@ -91,6 +93,7 @@ def test_vmapped_sweep_equals_independent_runs():
     assert abs(evaluate(p, tr, SMALL, 1.0).L_e - pts[1].L_e) < 1e-8
 
 
+@pytest.mark.slow  # an interrupted and resumed sweep: slow tier (`python3 dev.py test --slow`, and CI)
 def test_sweep_resumes_after_interruption(tmp_path):
     kw = dict(p=1.0, steps=40, seed=1, lambdas=(0.1, 0.5, 2.0, 10.0), model_cfg=SMALL, n_train=100, n_test=100)
     full = run_sweep("ho+ld", **kw)
@@ -153,7 +156,11 @@ def test_verdict_needs_both_sides():
 REDUCED_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
 
 
-@pytest.mark.parametrize("name", ["ho+ld", "ho+cd", "ho+pf", "ho+mf", "ho+cg"])
+# ho+ld and ho+mf (a jump and none) in the fast tier; the other three in the slow tier
+@pytest.mark.parametrize(
+    "name",
+    ["ho+ld", "ho+mf", *(pytest.param(n, marks=pytest.mark.slow) for n in ("ho+cd", "ho+pf", "ho+cg"))],
+)
 def test_phase_transition_reduced(name):
     s = get_system(name)
     res = run_sweep(s, p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000)
@@ -187,6 +194,7 @@ def test_verdict_exact_fit_below_one():
     assert v.L_below == 0.0 and v.new_physics and v.ratio > 1e9
 
 
+@pytest.mark.slow  # three λ-sweeps: slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_sweep_modes():
     """The one λ-sweep: "scratch" equals "vmap" (every λ from the same start and key), "warm" chains, ``accept``
     chooses what the chain keeps, ``resume`` skips finished λ."""

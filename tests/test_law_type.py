@@ -99,6 +99,21 @@ def test_from_report_checks_as_before():
     assert Law.from_report({"law": {"law": None}}) is None and Law.from_report({}) is None
 
 
+def test_from_report_checks_the_values_too():
+    """An untrusted report.json's law is checked value by value, as Law.from_dict checks a law file."""
+    good = _row("quadratic", 1, -5.0).to_dict()
+    with pytest.raises(ValueError, match=r"^r: law.law.params\['c'\] must be a number, got 'x'$"):
+        Law.from_report({"law": {"law": {**good, "params": {"c": "x"}}}}, "r")
+    with pytest.raises(ValueError, match=r"^r: law.law.formula\['x_ddot'\] must be a string, got 3$"):
+        Law.from_report({"law": {"law": {**good, "formula": {"x_ddot": 3}}}}, "r")
+    with pytest.raises(ValueError, match="^r: law.status must be one of"):
+        Law.from_report({"law": {"law": good, "status": "[red]won[/red]"}}, "r")
+    with pytest.raises(ValueError, match="^r: law.candidates must be a list of objects$"):
+        Law.from_report({"law": {"law": good, "candidates": [1]}}, "r")
+    law = Law.from_report({"law": {"law": {**good, "stderr": {"c": float("nan")}}, "status": "tie"}}, "r")
+    assert law.status == "tie" and law.params == {k: float(v) for k, v in good["params"].items()}
+
+
 def test_linear_friction_exact_case_is_a_candidate_law():
     qd = np.random.default_rng(0).normal(size=(200, 1))
     law = fit_linear_friction(qd, -0.3 * qd)  # f_n = −0.3 q̇ exactly

@@ -97,7 +97,8 @@ class Law:
     def from_report(cls, report: dict, where: str = "report") -> Law | None:
         """The law of a report.json dict (its ``law`` object, :meth:`nnphd.explain.table.LawTable.to_dict`): None
         without one; with one, of status "claimed" or "tie", carrying the candidates and ties. Checked as untrusted
-        input: ValueError ``"<where>: law.…"`` naming what is wrong."""
+        input, value by value as :meth:`from_dict` (formulas strings, parameters numbers, the status one of
+        :data:`STATUSES`, the candidates and ties objects): ValueError ``"<where>: law.…"`` naming what is wrong."""
         table = report.get("law") or {}
         if not isinstance(table, dict):
             raise _error(where, "law must be an object")
@@ -109,20 +110,17 @@ class Law:
         for k, typ in _REPORT_KEYS.items():
             if not isinstance(w.get(k), typ):
                 raise _error(where, f"law.law.{k} must be a {typ.__name__}")
-        cands, ties = table.get("candidates", []), table.get("ties", [])
-        if not isinstance(cands, list) or not isinstance(ties, list):
-            raise _error(where, "law.candidates and law.ties must be lists")
+        cands = _rows(table.get("candidates", []), "law.candidates", where)
+        ties = _rows(table.get("ties", []), "law.ties", where)
+        status = _status(table.get("status", "claimed"), "law.status", where)
         return cls(
             w["law"],
             w["title"],
-            w["formula"],
-            w["latex"],
-            w["params"],
-            w["stderr"],
+            *(_READ[k](w[k], f"law.law.{k}", where) for k in ("formula", "latex", "params", "stderr")),
             w["method"],
-            tuple(cands),
-            status=str(table.get("status", "claimed")),
-            ties=tuple(ties),
+            cands,
+            status=status,
+            ties=ties,
         )
 
     def to_fit_dict(self) -> dict:

@@ -900,6 +900,365 @@ def speed() -> str:
     return "\n".join(out) + "\n"
 
 
+# ---- the paper's experiments: `nnphd reproduce` (results/reproduce.json, benchmarks/condense_results.py) ----------
+SYSTEM_NAMES = {"ho+ld": "HO+LD", "ho+cd": "HO+CD", "ho+pf": "HO+PF", "ho+mf": "HO+MF", "ho+cg": "HO+CG"}
+
+
+def _repro() -> dict:
+    return _load("reproduce.json")
+
+
+def _lp_verdict(system: str, p: str) -> dict:
+    return next(v for v in _repro()["lambda_p"]["verdicts"] if v["system"] == system and str(v["p"]) == p)
+
+
+def _at(curve: list[dict], lam: float) -> dict:
+    return next(x for x in curve if abs(x["lam"] - lam) < 1e-12)
+
+
+def _run_note(key: str, s: dict) -> str:
+    """'(this unit: N s of compute on a one-thread worker, of them M s compiling)' from the summary's run log."""
+    r = s["runs"][key]
+    where = "a one-thread Dask worker" if r.get("where", "in-process") != "in-process" else "the calling process"
+    return f"{r['compute_time_s']:.0f} s of compute on {where} ({r.get('compile_time_s', 0.0):.0f} s compiling)"
+
+
+def phase_transition() -> str:
+    """The five toy systems at the paper's settings, p = 1: the λ/p study's p = 1 sweeps of `nnphd reproduce`
+    (each is `nnphd sweep --system <name>`: 13 λ, 2000 steps per λ, warm start)."""
+    d = _repro()
+    lp = d["lambda_p"]
+    out = [
+        "| system | truth | L_e below λ=1 | L_e above λ=1 | statistic | verdict | m_c / m_n at λ=0.2 | sweep s |",
+        "|---" * 8 + "|",
+    ]
+    for v in sorted(lp["verdicts"], key=lambda v: list(SYSTEM_NAMES).index(v["system"])):
+        if str(v["p"]) != "1":
+            continue
+        at = _at(lp["curves"][v["system"]]["1"], 0.2)
+        out.append(
+            f"| {v['system']} | {'conservative' if v['truth_conservative'] else 'non-conservative'} | "
+            f"{v['L_below']:.5f} | {v['L_above']:.5f} | {_g(v['ratio'], 3)} | {_verdict(v['new_physics'])} | "
+            f"{at['m_c']:.4f} / {at['m_n']:.4f} | {v['train_wall_time_s']:.1f} |"
+        )
+    right = sum(v["correct"] for v in lp["verdicts"] if str(v["p"]) == "1")
+    out.append("")
+    out.append(
+        f"{right} of 5 verdicts right (seed {d['summary']['seed']}, {lp['settings']['steps_per_lambda']} steps per λ; "
+        f"sweep s: the training time of each sweep inside `nnphd reproduce`, {d['summary']['workers']} workers)."
+    )
+    return "\n".join(out) + "\n"
+
+
+def _disc_row(r: dict) -> str:
+    t, v = r["trajectory"], r["verdict"]
+    steps = f"{t['n_steps']}" + (" (paper)" if t["n_steps"] == t["paper_n_steps"] else "")
+    return (
+        f"| {r['system']} | {steps} | {v['L_below']:.5f} | {v['L_above']:.5f} | {v['ratio']:.1f} | "
+        f"{_verdict(r['new_physics'])} | {100 * v['relative_size']:.1f} % | {r['wall_time_s']:.0f} |"
+    )
+
+
+def discover() -> str:
+    """`nnphd discover` of the three Table I systems inside `nnphd reproduce`, and the pendulum on the paper's
+    300 steps (`nnphd discover --system double-pendulum --n-steps 300`, results/reproduce.json's "extra")."""
+    d = _repro()
+    out = [
+        "| system | steps | L_e below λ=1 | L_e above λ=1 | statistic | verdict | f_n / f (L1) | s |",
+        "|---" * 8 + "|",
+    ]
+    rows = list(d["discover"])
+    short = d["extra"].get("discover_paper_length")
+    if short:
+        rows.insert(1, short)
+    out += [_disc_row(r) for r in rows]
+    return "\n".join(out) + "\n"
+
+
+# the label of each Table II quantity, then the formats of the joint fit and of the post-hoc fit ('dN': N decimals,
+# 'eN': N significant digits in scientific notation); a post-hoc stderr has its value's decimals
+PAPER_TABLE2 = {
+    "Gamma_11": ("friction Γ₁₁", "d7", "d5"),
+    "Gamma_12": ("friction Γ₁₂", "e1", "d6"),
+    "Gamma_21": ("friction Γ₂₁", "e2", "d5"),
+    "Gamma_22": ("friction Γ₂₂", "d7", "d5"),
+    "GM": ("Neptune GM", "d10", "d6"),
+    "R": ("Neptune r_n", "d7", "d4"),
+    "omega": ("Neptune ω_n", "d7", "d5"),
+    "k": ("GW k", "d9", "d6"),
+    "m": ("GW m (of v²)", "d6", "d3"),
+}
+
+
+def table_ii() -> str:
+    """Table II: the joint law fit and the post-hoc fit of each discovery in `nnphd reproduce`."""
+    out = [
+        "| quantity | truth | paper | ours, joint fit (± stderr) | goal | met | post hoc (± stderr) |",
+        "|---" * 7 + "|",
+    ]
+    for r in _repro()["discover"]:
+        for q in r["table2"]:
+            label, ours, post = PAPER_TABLE2.get(q["quantity"], (q["quantity"], "e4", "e4"))
+            goal = re.sub(r"(\d)%", r"\1 %", q["goal"].replace("|·| ", ""))
+            n = int(post[1:])
+            out.append(
+                f"| {label} | {_g(q['truth'], 5)} | {_g(q['paper'], 4)} | {_num(ours, q['ours'])} ± "
+                f"{_g(q['stderr'], 1)} | {goal} | {'yes' if q['goal_met'] else '**no**'} | "
+                f"{_num(post, q['posthoc'])} ± {_f(q['posthoc_stderr'], n)} |"
+            )
+    s = _repro()["summary"]
+    secs = " / ".join(f"{s['runs']['discover/' + r['system']]['compute_time_s']:.0f}" for r in _repro()["discover"])
+    out.append("")
+    out.append(f"(seed {s['seed']}; {secs} s for the three systems inside `nnphd reproduce`)")
+    return "\n".join(out) + "\n"
+
+
+def _align_cells(curve: list[dict], tol: float) -> tuple[str, str]:
+    cells = " | ".join(f"{_at(curve, lam)['m_c']:.3f} / {_at(curve, lam)['m_n']:.3f}" for lam in (0.05, 0.1, 0.2, 0.5))
+    on = [x for x in curve if 0.1 - 1e-12 <= x["lam"] <= 0.5 + 1e-12]
+    worst = max(on, key=lambda x: max(x["m_c"], x["m_n"]))
+    m = max(worst["m_c"], worst["m_n"])
+    goal = "yes" if m <= tol else f"no (λ = {worst['lam']:g} is {m / tol:.1f}× over)"
+    return cells, goal
+
+
+def alignment() -> str:
+    """HO+LD's misalignment m_c / m_n: the p = 1 sweep of the λ/p study (`nnphd reproduce`) and the same sweep at
+    8000 steps per λ (`nnphd sweep --system ho+ld --steps 8000`, results/reproduce.json's "extra")."""
+    d = _repro()
+    lp = d["lambda_p"]
+    tol = lp["settings"].get("align_tol", 0.05)
+    out = [
+        "| steps per λ | m_c / m_n at λ=0.05 | λ=0.1 | λ=0.2 | λ=0.5 | goal met on [0.1, 0.5]? | sweep s |",
+        "|---" * 7 + "|",
+    ]
+    cells, goal = _align_cells(lp["curves"]["ho+ld"]["1"], tol)
+    v = _lp_verdict("ho+ld", "1")
+    out.append(f"| {lp['settings']['steps_per_lambda']} (paper) | {cells} | {goal} | {v['train_wall_time_s']:.1f} |")
+    long = d["extra"].get("sweep_8000")
+    if long:
+        cells, goal = _align_cells(long["table"], tol)
+        out.append(
+            f"| {long['steps_per_lambda']} (`--steps {long['steps_per_lambda']}`) | {cells} | {goal} | "
+            f"{long['train_wall_time_s']:.1f} |"
+        )
+    return "\n".join(out) + "\n"
+
+
+PREDICT_MODELS = {"nnphd": "NNPhD", "lnn": "LNN", "blackbox": "black box"}
+
+
+def predict() -> str:
+    """Fig. 4: the rollout errors of `nnphd predict` inside `nnphd reproduce`, and its judged claims."""
+    d = _repro()
+    p = d["predict"]
+    out = [
+        "| model | θ₁ RMSE [30, 40] | θ₁ RMSE [30, 200] | E RMSE [30, 200] | \\|Δθ₁\\| > 0.1 first at t |",
+        "|---" * 5 + "|",
+    ]
+    for k, label in PREDICT_MODELS.items():
+        m = p["metrics"][k]
+        t = m.get("t_error_exceeds_0.1")
+        out.append(
+            f"| {label} | {m['theta1_rmse_30_40']:.3f} | {m['theta1_rmse_30_200']:.3f} | "
+            f"{m['energy_rmse_30_200']:.3f} | {'never' if t is None else f'{t:.1f}'} |"
+        )
+    out.append("")
+    out.append(
+        f"(seed {d['summary']['seed']}, {p['steps']} steps per model, {p['wall_time_s']:.0f} s inside "
+        f"`nnphd reproduce`.) Claims:"
+    )
+    out.append("")
+    for c in p["claims"]:
+        out.append(f"- {c['claim']}: {c['ours']} — {_met(c['met'])}")
+    b, f = p["energy_balance"], p["decomposition"]
+    out.append("")
+    out.append(
+        f"Energy balance along the NNPhD rollout: dH/dt of the learned energy against the learned dissipated power "
+        f"q̇ᵀ(∂²L/∂q̇²)f_n, {100 * b['dHdt_vs_power_rel_rms']:.1f} % rms apart (correlation "
+        f"{b['dHdt_vs_power_corr']:.4f}); the learned dissipated power against the true one: correlation "
+        f"{b['learned_vs_true_power_corr']:.3f}; the learned f_n against the true friction on the test states: "
+        f"{f['fn_rel_error_test']:.0f}× its rms; dH/dt against the plain f_n·q̇: {b['dHdt_vs_naive_fn_dot_qd_rel_rms']:.0f}× "
+        "off."
+    )
+    return "\n".join(out) + "\n"
+
+
+def _lp_cell(v: dict) -> str:
+    """'187, jump (3.36)' for a right jump; '0.21, none'; a wrong verdict in bold with '(wrong)'."""
+    if not v["correct"]:
+        return f"**{v['ratio']:.2f}, {_verdict(v['new_physics'])} (wrong)**"
+    if not v["new_physics"]:
+        return f"{v['ratio']:.2f}, none"
+    sharp = f" ({_g(v['sharpness'], 3)})" if v.get("sharpness") is not None else ""
+    return f"{_g(v['ratio'], 3)}, {v['transition']}{sharp}"
+
+
+def lambda_p() -> str:
+    """Fig. 5: the λ/p study of `nnphd reproduce` (`nnphd study lambda-p`): the statistic (median L_e above λ = 1
+    over below), and for a jump the transition's kind and sharpness."""
+    d = _repro()
+    lp = d["lambda_p"]
+    ps = [str(p) for p in lp["settings"]["ps"]]
+    head = " | ".join("MSE" if p == "mse" else f"p = {p}" for p in ps)
+    out = [f"| system | {head} |", "|---" * (1 + len(ps)) + "|"]
+    for s in sorted(lp["settings"]["systems"], key=list(SYSTEM_NAMES).index):
+        out.append(f"| {SYSTEM_NAMES.get(s, s)} | " + " | ".join(_lp_cell(_lp_verdict(s, p)) for p in ps) + " |")
+    sm = d["summary"]
+    out.append("")
+    out.append(
+        f"(seed {sm['seed']}, {lp['settings']['steps_per_lambda']} steps per λ; the 20 sweeps took "
+        f"{lp['train_wall_time_s']:.0f} s of training in all, inside `nnphd reproduce` on {sm['workers']} workers.) "
+        "Claims:"
+    )
+    out.append("")
+    for c in lp["claims"]:
+        out.append(f"- {c['claim']}: {_met(c['met'])}")
+    return "\n".join(out) + "\n"
+
+
+def data_quality() -> str:
+    """Fig. 6: `nnphd study data-quality` inside `nnphd reproduce`: L_e against the pie coverage α, m_c against the
+    imbalance β."""
+    d = _repro()
+    q = d["data_quality"]
+    st = q["settings"]
+    a, b = q["alpha"], q["beta"]
+    out = [
+        f"| α (pie coverage, {SYSTEM_NAMES.get(st['alpha_system'])}, λ = {st['lam_alpha']:g}) | "
+        + " | ".join(f"{r['alpha']:g}" for r in a)
+        + " |",
+        "|---" * (1 + len(a)) + "|",
+        "| L_e (test set of the same α) | " + " | ".join(_g(r["L_e"], 2, True) for r in a) + " |",
+        "",
+        f"| β (imbalance, {SYSTEM_NAMES.get(st['beta_system'])}, λ = {st['lam_beta']:g}) | "
+        + " | ".join(f"{r['beta']:g}" for r in b)
+        + " |",
+        "|---" * (1 + len(b)) + "|",
+        "| m_c | " + " | ".join(f"{r['m_c']:.3f}" for r in b) + " |",
+        "",
+        f"(seed {st['seed']}, {st['steps']} steps, {q['wall_time_s']:.0f} s inside `nnphd reproduce`.) Claims:",
+        "",
+    ]
+    for c in q["claims"]:
+        out.append(f"- {c['claim']}: {c['ours']} — {_met(c['met'])}")
+    return "\n".join(out) + "\n"
+
+
+def reproduce_claims() -> str:
+    """The summary of the full `nnphd reproduce` (results/reproduce.json): wall time, units, claims met."""
+    s = _repro()["summary"]
+    out = ["| unit | s of compute | of them compiling | where |", "|---" * 4 + "|"]
+    for k, r in s["runs"].items():
+        out.append(
+            f"| {k} | {r['compute_time_s']:.1f} | {r.get('compile_time_s', 0.0):.1f} | "
+            f"{r.get('where', '—').split(' pid')[0]} |"
+        )
+    out.append(f"| **wall** | **{s['wall_time_s']:.1f}** | {s['compile_time_s']:.1f} | {s['workers']} workers |")
+    missed = [c for c in s["claims"] if not c["met"]]
+    out.append("")
+    out.append(
+        f"{s['claims_met']} of {s['claims_total']} judged claims met (mode {s['mode']}, seed {s['seed']}); "
+        f"not met: " + "; ".join(f"{c['experiment']}: {c['claim']}" for c in missed) + "."
+    )
+    if s.get("failed"):
+        out.append("")
+        out.append("Failed units: " + "; ".join(f"{k}: {v}" for k, v in s["failed"].items()))
+    return "\n".join(out) + "\n"
+
+
+# ---- Neptune from Uranus' real orbit (results/demo_neptune.json) ---------------------------------------------------
+def _sg(x: float, decimals: int) -> str:
+    """A signed number ('+0.86', '−1.7')."""
+    return _neg(f"{x:+.{decimals}f}")
+
+
+def demo_neptune() -> str:
+    """`nnphd demo neptune` (benchmarks/condense_results.py neptune): seed 0's fit against DE405, the other seeds'
+    errors below."""
+    runs = _load("demo_neptune.json")["runs"]
+    r = next(x for x in runs if x["seed"] == 0)
+    f, t, e, g, se = r["fit"], r["truth"], r["errors"], r["goals"], r["fit"]["stderr"]
+    met = lambda k, unit: f"± {g[k]['goal'] * (100 if unit == ' %' else 1):g}{unit} {_met(g[k]['met'])}"
+    out = [
+        "| | NNPhD (fit of the learned f_n) | DE405 Neptune | error | goal |",
+        "|---" * 5 + "|",
+        f"| verdict | L_e jumps {r['verdict']['ratio']:.0f}× across λ = 1 | | | "
+        f"{'new physics' if r['verdict']['new_physics'] else '**no new physics**'} |",
+        f"| GM / GM_sun | {_g(f['gm_ratio'], 5)} ± {_g(se['gm_ratio'], 2)} | {_g(t['gm_ratio'], 5)} | "
+        f"{_sg(100 * e['gm_rel'], 2)} % | {met('gm_rel', ' %')} |",
+        f"| orbit radius | {f['radius_au']:.3f} ± {se['radius_au']:.3f} AU | {t['radius_au']:.3f} AU | "
+        f"{_sg(100 * e['radius_rel'], 3)} % | {met('radius_rel', ' %')} |",
+        f"| period | {f['period_yr']:.2f} ± {se['period_yr']:.2f} yr | {t['period_yr']:.2f} yr | "
+        f"{_sg(100 * e['period_rel'], 3)} % | {met('period_rel', ' %')} |",
+        f"| longitude at J2000 | {f['longitude_j2000_deg']:.2f}° | {t['longitude_j2000_deg']:.2f}° | "
+        f"{_sg(e['longitude_deg'], 2)}° | {met('longitude_deg', '°')} |",
+    ]
+    out.append("")
+    out.append(
+        f"(seed 0, {r['wall_time_s']:.0f} s.) On 1846-09-23, the night Galle found Neptune, the fit puts it at "
+        f"{f['longitude_1846_09_23_deg']:.2f}° (true {t['longitude_1846_09_23_deg']:.2f}°). The learned Lagrangian: "
+        f"{r['learned_lagrangian']['formula']}."
+    )
+    direct = (r.get("diagnostics") or {}).get("direct_fit_of_a_res")
+    if direct:
+        de = direct["errors"]
+        out.append(
+            f"A direct fit to the ephemeris residual (no networks, `nnphd.astro.ephemeris.fit_neptune`): GM "
+            f"{_sg(100 * de['gm_rel'], 1)} %, radius {_sg(100 * de['radius_rel'], 2)} %, longitude {_sg(de['longitude_deg'], 2)}°."
+        )
+    for x in runs:
+        if x["seed"] == 0:
+            continue
+        ex = x["errors"]
+        out.append(
+            f"Seed {x['seed']}: GM {_sg(100 * ex['gm_rel'], 2)} %, radius {_sg(100 * ex['radius_rel'], 3)} %, longitude "
+            f"{_sg(ex['longitude_deg'], 2)}° ({'all goals met' if x['all_goals_met'] else '**a goal missed**'}, "
+            f"{x['wall_time_s']:.0f} s)."
+        )
+    return "\n".join(out) + "\n"
+
+
+# ---- the recording look-alikes, all cases (results/detect_recordings_all.json) -------------------------------------
+def _rec_rate(r: dict) -> str:
+    if r["rate"] is None:
+        return "—"
+    if r["rate_truth"]:
+        err = 100 * (r["rate"] / r["rate_truth"] - 1)
+        e = f"{_sg(err, 1)} %"
+        return f"{r['rate']:.4g} / {r['rate_truth']:.4g} ({'**' + e + '**' if abs(err) > 10 else e})"
+    se = abs(r["rate"] / r["energy_z"]) if r.get("energy_z") else None
+    return f"{_g(r['rate'], 2)}" + (f" ± {_g(se, 1)}" if se else "") + " / 0"
+
+
+def recordings_stress() -> str:
+    """results/detect_recordings_all.json (benchmarks/detect_recordings.py, one case a run, seed 0, condensed):
+    every recording look-alike through `nnphd detect` at its default settings."""
+    rows = _load("detect_recordings_all.json")
+    out = [
+        "| case | samples | truth | expected | ours (confidence) | energy-decay rate: ours / truth | energy z "
+        "| shooting z | law (or best candidate, not claimed) | s |",
+        "|---" * 10 + "|",
+    ]
+    for r in rows:
+        z = [_f(x, 1) if x is not None else "—" for x in (r["energy_z"], r["shooting_z"])]
+        st = f"{r['status']} ({r['confidence']:.2f})"
+        seed = "" if r["seed"] == 0 else f" (seed {r['seed']})"
+        law = r["law"].replace("|", "\\|")
+        if r.get("law_status") == "tie":  # the script's law is the tie's first; "ties" names the others
+            law = "tie: " + " / ".join([law, *r.get("ties", [])])
+        exp = "none or inconclusive" if r["expected"] == "not-detected" else r["expected"]
+        out.append(
+            f"| {r['name']}{seed} | "
+            f"{r['samples']} | {r['truth']} | {exp} | "
+            f"{st if r['right'] else '**' + st + '**'} | {_rec_rate(r)} | {z[0]} | {z[1]} | "
+            f"{law} | {r['wall_s']:.0f} |"
+        )
+    out.append("")
+    out.append(f"{sum(r['right'] for r in rows)} of {len(rows)} verdicts right.")
+    return "\n".join(out) + "\n"
+
+
 TABLES = {
     "stage_times": stage_times,
     "cluster_scaling": cluster_scaling,
@@ -919,6 +1278,16 @@ TABLES = {
     "workers_detect": workers_detect,
     "flops": flops,
     "speed": speed,
+    "phase_transition": phase_transition,
+    "discover": discover,
+    "table_ii": table_ii,
+    "alignment": alignment,
+    "predict": predict,
+    "lambda_p": lambda_p,
+    "data_quality": data_quality,
+    "reproduce_claims": reproduce_claims,
+    "demo_neptune": demo_neptune,
+    "recordings_stress": recordings_stress,
 }
 
 

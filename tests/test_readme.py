@@ -357,7 +357,7 @@ def test_every_number_at_a_glance_is_one_a_test_checks():
         ("right on 10 of 10", "right on 9 of 10"),
         ("0.2001 cos 0.69996t", "0.2001 cos 0.69997t"),
         ("peer on 6 of 10", "peer on 7 of 10"),
-        ("5 right (laws within 7 %)", "6 right (laws within 7 %)"),
+        ("6 right (laws within 7 %)", "5 right (laws within 7 %)"),
         ("(laws within 7 %)", "(laws within 10 %)"),
         ("4 ties holding", "3 ties holding"),
         ("(four sources)", "(five sources)"),

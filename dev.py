@@ -2,7 +2,7 @@
 """Set up the project in ./.venv (if needed) and run the demo or the tests. Needs only python3 (≥ 3.11).
 
 python3 dev.py demo    # λ-sweeps on HO+LD (friction: a jump at λ=1) and HO+MF (conservative: no jump)
-python3 dev.py test    # the test suite (pytest), without the end-to-end runs marked slow (under 10 min on 2 cores)
+python3 dev.py test    # the test suite (pytest), without the end-to-end runs marked slow (under 5 min on 2 cores)
 python3 dev.py test --slow   # only the slow ones (CI, .ci/run, runs both)
 """
 

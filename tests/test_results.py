@@ -90,7 +90,7 @@ def test_a_report_file_is_read_back_and_checked(tmp_path):
         json.dumps(dict(REPORT, confidence=True)): "confidence must be a number in [0, 1], got True",
         json.dumps(dict(REPORT, reasons="one")): "reasons must be a list of strings",
         json.dumps(dict(REPORT, law={"law": dict(LAW, title=7)})): "law.law.title must be a str",
-        json.dumps(dict(REPORT, law={"law": LAW, "ties": {}})): "law.candidates and law.ties must be lists",
+        json.dumps(dict(REPORT, law={"law": LAW, "ties": {}})): "law.ties must be a list of objects",
         json.dumps(dict(REPORT, warnings=[1])): "warnings must be a list of strings",
         json.dumps(dict(REPORT, timings=[])): "timings must be an object",
         b"\xff\xfe": "not a readable report.json (UnicodeDecodeError",

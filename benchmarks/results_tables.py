@@ -918,13 +918,6 @@ def _at(curve: list[dict], lam: float) -> dict:
     return next(x for x in curve if abs(x["lam"] - lam) < 1e-12)
 
 
-def _run_note(key: str, s: dict) -> str:
-    """'(this unit: N s of compute on a one-thread worker, of them M s compiling)' from the summary's run log."""
-    r = s["runs"][key]
-    where = "a one-thread Dask worker" if r.get("where", "in-process") != "in-process" else "the calling process"
-    return f"{r['compute_time_s']:.0f} s of compute on {where} ({r.get('compile_time_s', 0.0):.0f} s compiling)"
-
-
 def phase_transition() -> str:
     """The five toy systems at the paper's settings, p = 1: the λ/p study's p = 1 sweeps of `nnphd reproduce`
     (each is `nnphd sweep --system <name>`: 13 λ, 2000 steps per λ, warm start)."""

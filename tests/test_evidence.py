@@ -9,7 +9,15 @@ from scipy.integrate import solve_ivp
 import nnphd  # noqa: F401  (float64)
 from nnphd.engine.evidence import dominant_period, energy_trend, period_blocks
 from nnphd.engine.shooting import shooting_fit, shooting_windows
-from nnphd.user.checks import Z_BOTH, Z_ONE, clock_testable, seed_status, trajectory_evidence
+from nnphd.user.checks import (
+    EFFECT_MIN,
+    Z_BOTH,
+    Z_ONE,
+    clock_testable,
+    effect_text,
+    seed_status,
+    trajectory_evidence,
+)
 
 W0 = 1.1
 
@@ -152,6 +160,31 @@ def test_trajectory_evidence_rules():
     assert not trajectory_evidence({"valid": False}, {"valid": False})["valid"]
     none = trajectory_evidence(tr | {"z": 0.5, "rate": 0.0005}, sh)
     assert not none["significant"] and abs(none["rate_bound"] - 0.0025) < 1e-12
+
+
+def test_a_significant_but_negligible_energy_change_counts_as_none():
+    """One trajectory of the conservative Morse oscillator (trust table, 2026-11-27): the learned energy trended
+    1.2e-7 per period at z = 16.9 and the seeds' "detected" came from it. Below EFFECT_MIN per period a statistic
+    counts as z = 0, however significant; just above it, the same z detects."""
+    good = {"usable": True, "pointwise_ok": True, "reason": ""}
+    period = 6.3
+    trend = {"valid": True, "z": 16.9, "rate": 1.2e-7 / period, "se": 1e-9, "rate_per_period": 1.2e-7,
+             "period": period, "n_blocks": 15, "_bootstrap_z": [16.0] * 50}  # fmt: skip
+    shoot = {"valid": True, "z": 0.1, "d_mean": 4e-7, "se_d_mean": 3e-6, "n_windows": 21, "_bootstrap_z": [0.1] * 50}
+    tiny = trajectory_evidence(trend, shoot)
+    assert not tiny["significant"] and tiny["negligible"] == ["energy", "shooting"] and tiny["z_energy"] == 0.0
+    assert tiny["bootstrap_fraction"] is None  # no replica to judge: both statistics count as zero
+    tiny["effect"] = effect_text(tiny, trend, shoot)
+    assert "too small to count" in tiny["effect"] and "0.001%/period" in tiny["effect"]
+    assert seed_status(*_checks(), tiny, good, 1)[0] == "none"
+    # the same z at 2× the floor (energy) is a detection; so is a damping whose 2·d·period is above it
+    above = trajectory_evidence(trend | {"rate_per_period": 2 * EFFECT_MIN}, shoot)
+    assert above["significant"] and above["negligible"] == ["shooting"]
+    damp = trajectory_evidence(trend, shoot | {"z": 16.9, "d_mean": EFFECT_MIN / period})
+    assert damp["significant"] and damp["negligible"] == ["energy"] and damp["z_shooting"] == 16.9
+    # a throw has no period: no floor
+    throw = trajectory_evidence(trend | {"period": float("inf"), "oscillating": False}, shoot)
+    assert throw["negligible"] == [] and throw["z_energy"] == 16.9
 
 
 def _checks(rho=0.0, sig=False):

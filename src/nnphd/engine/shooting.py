@@ -172,7 +172,8 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
         r, jac = np.asarray(res(s, theta)), np.asarray(jac_fn(s, theta))
     else:
         r, jac = (np.asarray(a) for a in resjac(s, theta))
-    cost = float(np.sum(r * r))
+    with np.errstate(over="ignore", invalid="ignore"):  # a start that blows up gives NaN, below
+        cost = float(np.sum(r * r))
     if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
         return s, theta, r, jac, float("nan")
     for _ in range(iters):

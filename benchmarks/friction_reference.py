@@ -1,6 +1,9 @@
 """Independent reference for the friction law of each real recording: a whole-trajectory ODE fit of the positions.
 
-    .venv/bin/python benchmarks/friction_reference.py [file.csv ...] [--json out.json]
+    .venv/bin/python benchmarks/friction_reference.py [file.csv ...] [--json out.json] [--cubic]
+
+``--cubic`` adds a cubic term − g q'^3 (the cubic of nnphd's Rayleigh family) to the friction library: 16 subsets
+instead of 8 (results/friction_reference_cubic.json holds that run for the two string pendulums).
 
 Reads every CSV in ``data/real/`` and ``../shared/data/real/servo_sts3250_drop.csv`` (header ``t,<coord>[,traj]``;
 the coordinate is an angle when its name starts with ``theta``/``phi``/``angle``) with its own CSV reader, not
@@ -69,8 +72,8 @@ SHARED = os.path.join(ROOT, "..", "shared", "data", "real")
 DATA = os.path.join(ROOT, "data", "real")
 OUT = os.path.join(ROOT, "benchmarks", "results", "friction_reference.json")
 
-TERMS = ("c", "d", "e")
-PHYS = ("a", "q0", "b", "c", "d", "e")  # sensitivity order
+TERMS = ("c", "d", "e")  # with --cubic also "g" (a cubic term g q'^3: the Rayleigh family's)
+PHYS = ("a", "q0", "b", "c", "d", "e", "g")  # sensitivity order
 RTOL = 1e-6  # solve_ivp relative tolerance (the data are good to ~1e-3 of their range)
 MAX_RHS = 40_000  # right-hand-side calls allowed for one integration of all windows
 MAX_NFEV = 60  # least-squares evaluations per fit
@@ -234,7 +237,7 @@ class Record:
         ``sens`` (a subset of PHYS, in PHYS order) and to the window's own initial (q, q').  Returns the states and
         sensitivities at the data samples (component, sample) and at each window's end (component, window); the
         components are q, q', dq/d(sens..., q_k, v_k), dq'/d(sens..., q_k, v_k)."""
-        a, q0, b, c, d, e = phys
+        a, q0, b, c, d, e, gc = phys
         K, eps = self.K, self.eps
         ns = len(sens)
         m = ns + 2  # sensitivity columns
@@ -258,9 +261,9 @@ class Record:
                 cub, dcub = u**3, 3 * u**2
             th = np.tanh(v / eps) if d else 0.0
             av = np.abs(v)
-            g = -a * s - b * cub - c * v - d * th - e * av * v
+            g = -a * s - b * cub - c * v - d * th - e * av * v - gc * v**3
             gq = -a * ds - b * dcub
-            gv = -c - (d / eps) * (1 - th**2) - 2 * e * av
+            gv = -c - (d / eps) * (1 - th**2) - 2 * e * av - 3 * gc * v**2
             dSv = gq * Sq + gv * Sv
             for i, j in enumerate(forcing):
                 if j == 0:
@@ -273,8 +276,10 @@ class Record:
                     dSv[i] -= v
                 elif j == 4:
                     dSv[i] -= np.tanh(v / eps) if not d else th
-                else:
+                elif j == 5:
                     dSv[i] -= av * v
+                else:
+                    dSv[i] -= v**3
             return np.concatenate([v[None], g[None], Sv, dSv]).ravel()
 
         y0 = np.zeros((2 + 2 * m, K))
@@ -324,6 +329,7 @@ class Record:
             "c": (0.0, 10 * self.omega),
             "d": (0.0, 2 * a0 * A),
             "e": (0.0, 12 / A),
+            "g": (0.0, 10 / (self.omega * A**2)),
         }
         for i, p in enumerate(free):
             if p in limits:
@@ -444,12 +450,17 @@ def guesses(rec):
     if rec.pendulum:  # the period lengthens with amplitude: T ~ T0 (1 + A^2/16)
         a *= (1 + A**2 / 16) ** 2
     c_eq = 2 * gamma
-    equiv = {"c": c_eq, "d": c_eq * math.pi * w0 * A / 4, "e": c_eq * 3 * math.pi / (8 * w0 * max(A, 1e-12))}
+    equiv = {
+        "c": c_eq,
+        "d": c_eq * math.pi * w0 * A / 4,
+        "e": c_eq * 3 * math.pi / (8 * w0 * max(A, 1e-12)),
+        "g": c_eq * 4 / (3 * (w0 * max(A, 1e-12)) ** 2),  # the same energy loss per period at amplitude A
+    }
     return {"a": a, "q0": q0, "b": 0.0}, equiv
 
 
 def subsets():
-    for k in range(0, 4):
+    for k in range(0, len(TERMS) + 1):
         yield from itertools.combinations(TERMS, k)
 
 
@@ -508,7 +519,13 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("files", nargs="*")
     ap.add_argument("--json", default=OUT)
+    ap.add_argument(
+        "--cubic", action="store_true", help="also a cubic term g q'^3 (write the result to another --json)"
+    )
     args = ap.parse_args()
+    global TERMS
+    if args.cubic:
+        TERMS = ("c", "d", "e", "g")
     files = args.files or (
         [os.path.join(SHARED, "servo_sts3250_drop.csv")] + sorted(glob.glob(os.path.join(DATA, "*.csv")))
     )
@@ -541,9 +558,9 @@ def main():
             "rule": f"necessary: R(full minus term) >= {RATIO} R(full); best: fewest terms with R < {RATIO} R(full)",
             "seconds": round(time.time() - t0, 1),
         }
-        if rec.pendulum:
-            entry["full_params"].pop("b")
-            entry["best_params"].pop("b")
+        for k in ("b",) * rec.pendulum + ("g",) * ("g" not in TERMS):
+            entry["full_params"].pop(k)
+            entry["best_params"].pop(k)
         results.append(entry)
         print(
             f"{entry['file']}: {entry['seconds']} s, necessary {entry['necessary']}, best {label(best)}",
@@ -556,15 +573,17 @@ def main():
 
 
 def print_table(results):
+    subs = list(subsets())
     print(
-        "| file | model | rows fitted | necessary | best | best params (a, q0, b, c, d, e) | rms {} | rms {c} | rms {d}"
-        " | rms {e} | rms {c,d} | rms {c,e} | rms {d,e} | rms {c,d,e} |"
+        f"| file | model | rows fitted | necessary | best | best params (a, q0, b, {', '.join(TERMS)}) | "
+        + " | ".join(f"rms {label(S)}" for S in subs)
+        + " |"
     )
-    print("|" + "---|" * 14)
+    print("|" + "---|" * (6 + len(subs)))
     for e in results:
         p = e["best_params"]
-        ps = ", ".join(f"{k}={p[k]:.4g}" for k in ("a", "q0", "b", "c", "d", "e") if k in p)
-        rms = " | ".join(f"{e['rms'][label(S)]:.3g}" for S in subsets())
+        ps = ", ".join(f"{k}={p[k]:.4g}" for k in ("a", "q0", "b", *TERMS) if k in p)
+        rms = " | ".join(f"{e['rms'][label(S)]:.3g}" for S in subs)
         nec = label(e["necessary"])
         print(
             f"| {os.path.basename(e['file'])} | {e['model']} | {e['rows_fitted']} | {nec} | {label(e['best_subset'])}"

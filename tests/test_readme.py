@@ -417,6 +417,9 @@ def test_the_readme_commands_run_as_written(tmp_path):
             assert rep["status"] == "detected", (line, rep["reasons"])
             assert law["status"] == "claimed" and law["law"]["law"] == "linear", (line, law["law"])
             assert abs(law["law"]["params"]["gamma"] - 0.1) < 0.01, (line, law["law"]["params"])
+            if "out/mydata" in line:  # the picture's caption: the same data and defaults (benchmarks/readme_figure.py)
+                cap = re.search(r"linear friction, γ = ([\d.]+) \(truth 0\.1\)", _readme())
+                assert cap and f"{law['law']['params']['gamma']:.4f}" == cap[1], (cap, law["law"]["params"])
     ld = json.loads((out / "ld" / "results.json").read_text())
     assert ld["verdict"]["new_physics"] is True and ld["verdict"]["ratio"] > 10, ld["verdict"]
     mf = json.loads((out / "mf" / "results.json").read_text())

@@ -190,6 +190,8 @@ class FastInfo:
     first: tuple[float, ...]
     doubts: list[str]
     paper_protocol: bool
+    chain: tuple[tuple[float, float, float], ...] = ()  # the first chain's (λ, L_e, L_b), also when it fell back
+    chain_verdict: tuple[bool, float] | None = None  # the first chain's (new physics, L_e ratio)
 
     def to_dict(self) -> dict:
         return {
@@ -199,6 +201,10 @@ class FastInfo:
             "ran_paper_protocol": self.paper_protocol,
             "steps_by_lambda": {f"{k:g}": v for k, v in sorted(self.steps.items())},
             "steps_total": sum(self.steps.values()),
+            "chain": [{"lambda": lam, "L_e": le, "L_b": lb} for lam, le, lb in self.chain],
+            "chain_verdict": None
+            if self.chain_verdict is None
+            else {"new_physics": self.chain_verdict[0], "ratio": self.chain_verdict[1]},
         }
 
 
@@ -252,8 +258,11 @@ def fast_sweep(
         points.append(sweep_point(lam, params, train_data, test_data, cfg, tcfg.p))
         if progress:
             progress(j + 1, len(first), f"λ = {lam:g} ({steps[lam]} steps)")
-    doubts = undecided(verdict(points, force_norm(eval_data.qdd, tcfg.p)), points)
+    v = verdict(points, force_norm(eval_data.qdd, tcfg.p))
+    doubts = undecided(v, points)
+    chain = tuple((p.lam, float(p.L_e), float(p.L_b)) for p in points)
+    said = (bool(v.new_physics), float(v.ratio))
     if not doubts:
-        return points, FastInfo(steps, first, [], False)
+        return points, FastInfo(steps, first, [], False, chain, said)
     steps.update({lam: steps.get(lam, 0) + tcfg.steps for lam in pool})
-    return paper(), FastInfo(steps, first, doubts, True)
+    return paper(), FastInfo(steps, first, doubts, True, chain, said)

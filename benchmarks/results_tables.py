@@ -1254,6 +1254,97 @@ def recordings_stress() -> str:
     return "\n".join(out) + "\n"
 
 
+TRUST_CASES = {
+    "anharmonic": "anharmonic q⁴",
+    "morse": "Morse",
+    "pendulum": "pendulum, large amplitude",
+    "kepler2d": "Kepler 2-D",
+    "kepler2d-eccentric": "Kepler 2-D, eccentric",
+    "double-well": "double well",
+    "magnetic2d": "magnetic 2-D (velocity-dependent)",
+    "anharmonic+drag": "anharmonic + drag",
+    "pendulum+drag": "pendulum + drag",
+    "kepler2d+drag": "Kepler + drag",
+    "anharmonic+drive": "anharmonic + drive cos ωt",
+    "vanderpol": "van der Pol (self-excitation)",
+}
+
+
+def _trust_naive(r) -> str:
+    nv = r["naive_paper"]
+    if nv["new_physics"] is None:
+        return "not run"
+    said = "new" if nv["new_physics"] else "none"
+    if nv["new_physics"] == r["conservative"]:
+        said = "**false**" if r["conservative"] else "**missed**"
+    return f"{said} ({_g(nv['ratio'], 3)})"
+
+
+def _trust_ours(r) -> str:
+    st = f"{r['status']}, {r['confidence']:.2f}"
+    return st if r["correct"] and r["status"] != "inconclusive" else f"**{st}**"
+
+
+def trust_table() -> str:
+    """results/trust_table.json (benchmarks/trust_table.py --single): the naive ratio and nnphd's assess, per case
+    on 8 trajectories and on one; a wrong or undecided answer in bold."""
+    doc = _load("trust_table.json")
+    rows = {(r["case"], r["n_traj"]): r for r in doc["rows"]}
+    k = doc["config"]["ntraj"]
+    out = [
+        f"| case | truth | f_n / f | naive ({k} traj.) | ours ({k} traj.) | naive (1 traj.) | ours (1 traj.) | s ({k} / 1) |",
+        "|---" * 8 + "|",
+    ]
+    for name, label in TRUST_CASES.items():
+        many, one = rows.get((name, k)), rows.get((name, 1))
+        ref = many or one
+        if ref is None:
+            continue
+        cells = []
+        for r in (many, one):
+            cells += ["not run", "not run"] if r is None else [_trust_naive(r), _trust_ours(r)]
+        secs = " / ".join("—" if r is None else f"{r['time_s']:.0f}" for r in (many, one))
+        truth = "conservative" if ref["conservative"] else "non-cons."
+        frac = "0" if ref["conservative"] else f"{100 * ref['fn_fraction']:.1f}%"
+        out.append(f"| {label} | {truth} | {frac} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} | {secs} |")
+    done = doc["rows"]
+    right = sum(r["correct"] and r["status"] != "inconclusive" for r in done)
+    undecided = sum(r["status"] == "inconclusive" for r in done)
+    wrong = sum(r["status"] == ("detected" if r["conservative"] else "none") for r in done)
+    out.append("")
+    out.append(
+        f"Ours: {right} of {len(done)} runs right, {undecided} inconclusive, {wrong} wrong (a conservative case "
+        f'"detected" or a non-conservative one "none"). The naive ratio: '
+        f"{sum(_trust_naive(r).startswith('**') for r in done)} of {len(done)} wrong."
+    )
+    return "\n".join(out) + "\n"
+
+
+def uan_settled() -> str:
+    """results/uan_settled.json (benchmarks/uan_settled.py): --mode fast's first chain, max/min of L_b below λ = 1."""
+    doc = _load("uan_settled.json")
+    out = ["| case | truth | chain: verdict, ratio | L_b below λ = 1: max / min | then |", "|---" * 5 + "|"]
+    for r in doc["rows"]:
+        cv = r["chain_verdict"]
+        said = f"{_verdict(cv['new_physics'])}, ×{_g(cv['ratio'], 3)}"
+        if cv["new_physics"] != r["truth_new_physics"]:
+            said = f"**{said}**"
+        then = (
+            "kept"
+            if not r["ran_paper_protocol"]
+            else "paper protocol (" + "; ".join(d.split(":")[0] for d in r["doubts"]) + ")"
+        )
+        fin = r["final"]
+        if r["ran_paper_protocol"]:
+            then += f" → {_verdict(fin['new_physics'])}, ×{_g(fin['ratio'], 3)}"
+        truth = "new physics" if r["truth_new_physics"] else "none"
+        out.append(
+            f"| {r['system']} seed {r['seed']}, {r['steps']} steps, {r['samples']} samples | {truth} | {said} | "
+            f"{r['lb_ratio']:.2f} | {then} |"
+        )
+    return "\n".join(out) + "\n"
+
+
 TABLES = {
     "stage_times": stage_times,
     "cluster_scaling": cluster_scaling,
@@ -1283,6 +1374,8 @@ TABLES = {
     "reproduce_claims": reproduce_claims,
     "demo_neptune": demo_neptune,
     "recordings_stress": recordings_stress,
+    "trust_table": trust_table,
+    "uan_settled": uan_settled,
 }
 
 

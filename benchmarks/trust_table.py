@@ -60,6 +60,25 @@ def naive_paper(d, seed):
     return verdict(pts, force_norm(d.qdd, 1.0))
 
 
+def _write_json(rows):
+    """Write the rows so far (a temporary file renamed over the target: a stopped run leaves a whole file)."""
+    doc = {
+        "config": {
+            "steps": args.steps,
+            "width": args.width,
+            "n_seeds": args.seeds,
+            "seed": args.seed,
+            "ntraj": args.ntraj,
+            "naive": not args.no_naive,
+        },
+        "rows": rows,
+    }
+    tmp = args.json + ".tmp"
+    with open(tmp, "w") as fh:
+        json.dump(doc, fh, indent=1, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+    os.replace(tmp, args.json)
+
+
 hdr = (
     f"{'case':20s} {'K':>2s} {'truth':>9s} {'fn/f':>6s} | {'naive':>5s} {'ratio':>6s} {'ho-ratio':>8s} | "
     f"{'status':12s} {'call':5s} {'conf':>4s} {'stat':>5s} {'drift':>6s} {'t-gain':>6s} {'gap_tr':>6s} | "
@@ -112,13 +131,13 @@ for name, K, T in runs:
             "correct": ok,
         }
     )
+    _write_json(out)
 print()
 for name, K, rs in reasons:
     print(f"{name} (K={K}):")
     for x in rs:
         print("    " + x)
-with open(args.json, "w") as fh:
-    json.dump(out, fh, indent=1, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
+_write_json(out)
 print(
     f"\nconfig: steps={args.steps} width={args.width} n_seeds={args.seeds} seed={args.seed} ntraj={args.ntraj}; "
     f"correct {sum(o['correct'] for o in out)}/{len(out)}",

@@ -61,7 +61,7 @@ The constructed cases (tests/fixtures/cases.py; conservative: anharmonic, Morse,
 Kepler, double well, magnetic; non-conservative: drag on the anharmonic oscillator / pendulum / Kepler orbit, a drive,
 van der Pol) were first run at steps=1000, width=64 and at steps=300, width=32 with every statistic printed; the
 thresholds were placed in the gaps of those runs, then checked on other seeds, single trajectories and the table
-script (benchmarks/trust_table.py, 24 runs at each of the two configs, all correct). So they are tuned on these cases:
+script (benchmarks/trust_table.py, 24 runs at each of the two configs, none wrong). So they are tuned on these cases:
 
 * RHO_MIN = 0.5: conservative medians ≤ 0.03 with 8 trajectories, ≤ 0.39 with one (2D rosettes); drag on the 1D
   oscillators and van der Pol ≥ 0.95; Kepler + 0.6 % drag 0.40–1.0.

@@ -191,10 +191,29 @@ def test_drive_frequencies_do_not_depend_on_the_lomb_scargle_chunking(monkeypatc
     t = np.sort(rng.uniform(0, 60, 400))
     r = np.c_[np.sin(1.7 * t) + 0.1 * rng.normal(size=400), 0.3 * np.cos(0.4 * t)]
     whole = laws._drive_omegas(t, r, [np.arange(400)])
-    monkeypatch.setattr(laws, "LS_CELLS", 1000)  # 2 frequencies per call
+    monkeypatch.setattr(laws, "LS_CELLS", 1000)  # the samples summed in chunks of a few
     chunked = laws._drive_omegas(t, r, [np.arange(400)])
     np.testing.assert_allclose(chunked, whole, rtol=1e-12)
     assert abs(whole[0] - 1.7) < 0.02
+
+
+@pytest.mark.parametrize("n, m, uneven", [(400, 3200, True), (1179, 9432, False), (37, 200, True), (5, 7, True)])
+def test_the_lomb_scargle_grid_is_scipys_periodogram(n, m, uneven):
+    """lomb_scargle_grid's factored sums give scipy.signal.lombscargle's unnormalised power at every frequency
+    of the grid (uneven samples, or a jittered clock up to the Nyquist frequency)."""
+    from scipy.signal import lombscargle
+
+    from nnphd.explain.laws import lomb_scargle_grid
+
+    rng = np.random.default_rng(n)
+    t = np.sort(rng.uniform(0, 60, n)) if uneven else np.arange(n) * 0.1 + rng.normal(0, 0.002, n)
+    y = np.sin(1.7 * t) + 0.3 * rng.normal(size=n)
+    y -= y.mean()
+    w = np.linspace(2 * np.pi / np.ptp(t), np.pi / np.median(np.diff(t)), m)
+    ref = lombscargle(t, y, w, normalize=False)
+    got = lomb_scargle_grid(t, y, w[0], (w[-1] - w[0]) / (m - 1), m)
+    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * ref.max())
+    assert np.argmax(got) == np.argmax(ref)
 
 
 # ---- units -------------------------------------------------------------------------------------------------------

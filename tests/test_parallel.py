@@ -10,7 +10,16 @@ import threading
 import pytest
 
 from nnphd.paper.sweep import run_sweep
-from nnphd.parallel import Outcome, Unit, local_cluster, n_workers, run_units, runs_here
+from nnphd.parallel import (
+    CompileClock,
+    Outcome,
+    Unit,
+    local_cluster,
+    n_workers,
+    run_units,
+    runs_here,
+    runs_in_this_process,
+)
 
 GRID = [("ho+ld", 0), ("ho+mf", 0), ("ho+ld", 1), ("ho+pf", 2)]
 SMALL = dict(p=1, steps=60, lambdas=(0.5, 2.0), n_train=64, n_test=64)
@@ -46,6 +55,46 @@ def test_in_process_failures_are_contained():
     assert not bad.ok and bad.value is None
     assert bad.error == "ValueError: unit two is broken"  # one line
     assert [o.key for o in seen] == ["u0", "u1", "u2", "u3"]
+
+
+def _jitted(x):
+    import jax
+    import jax.numpy as jnp
+
+    return float(jax.jit(lambda a: jnp.sum(jnp.sin(a) * a**2) + x)(jnp.arange(5.0)))
+
+
+def test_threads_same_numbers_and_failures_contained():
+    """``threads=True``: the units on threads of this process give the numbers of the run one after another, in the
+    units' order, with a failing unit's one-line error and each thread named in ``where``."""
+    units = [*(Unit(f"j{i}", _jitted, {"x": i}) for i in range(3)), Unit("boom", _boom, {"x": 2})]
+    here = run_units(units, workers=1)
+    seen = []
+    outs = run_units(units, workers=2, threads=True, on_outcome=seen.append)
+    assert list(outs) == ["j0", "j1", "j2", "boom"] and sorted(o.key for o in seen) == sorted(outs)
+    assert [outs[k].value for k in ("j0", "j1", "j2")] == [here[k].value for k in ("j0", "j1", "j2")]
+    assert outs["j1"].value == pytest.approx(here["j0"].value + 1, rel=1e-12)
+    assert not outs["boom"].ok and outs["boom"].error == "ValueError: unit two is broken"
+    assert {o.where for o in outs.values()} <= {"thread 1 of 2", "thread 2 of 2"}
+    assert all(runs_in_this_process(o.where) for o in outs.values()) and not runs_in_this_process("worker pid 7")
+
+
+def test_a_thread_only_compile_clock_sees_its_own_thread():
+    """A compilation in another thread counts on a process-wide clock, not on a thread-only one."""
+    import jax
+    import jax.numpy as jnp
+
+    def compile_elsewhere():
+        jax.jit(lambda a: jnp.cos(a) * 3.25 + a**3)(jnp.arange(7.0)).block_until_ready()
+
+    with CompileClock() as everywhere, CompileClock(thread_only=True) as mine:
+        th = threading.Thread(target=compile_elsewhere)
+        th.start()
+        th.join()
+    assert everywhere.seconds > 0 and mine.seconds == 0
+    with CompileClock(thread_only=True) as mine:
+        compile_elsewhere()
+    assert mine.seconds > 0
 
 
 def test_argument_checks():

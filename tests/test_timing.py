@@ -69,3 +69,8 @@ def test_compilation_on_worker_processes_is_added_to_the_training_stage():
     assert tm["compile_s"] == 1.0 and tm["stages"][1]["compile_s"] == 1.0 and "worker" not in tm["note"]  # unchanged
     here = [{"seed": 0, "compile_s": 3.0, "where": "in-process"}]  # seen by this process's listener already
     assert _with_workers(tm, here)["compile_s"] == 1.0
+    threads = [
+        {"seed": 0, "compile_s": 0.5, "where": "thread 1 of 2"},
+        {"seed": 1, "compile_s": 3.0, "where": "thread 2 of 2"},
+    ]
+    assert _with_workers(tm, threads)["compile_s"] == 1.0  # threads of this process: seen already

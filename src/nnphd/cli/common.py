@@ -111,7 +111,7 @@ def workers_option():
         "--workers",
         min=1,
         max=4096,
-        help="local Dask worker processes, one XLA thread each (default: one per core; 1: all in this process)",
+        help="local Dask worker processes, one XLA thread each (default: one per core, and a single file's seeds on one thread per core of this process; 1: all in this process, one after another)",
     )
 
 

@@ -47,6 +47,8 @@ status = final status] × the share of window/block bootstrap replicas of that s
 
 from __future__ import annotations
 
+import os
+import threading
 import time
 from collections.abc import Sequence
 
@@ -155,8 +157,8 @@ def assess(
     error of the estimated q̈ (from :func:`nnphd.user.derivatives.to_dataset`; None: q̈ assumed exact);
     ``progress(done, total, message)``: called after every training round. The method: module docstring.
     ``workers`` / ``scheduler``: the seeds are independent units of :func:`nnphd.parallel.run_units` (1: one after
-    another here; None: one local worker process per core; or an existing Dask scheduler) — the same numbers either
-    way.
+    another here; None: side by side on one thread per core of this process, sharing their compiled programs; N: N
+    local Dask worker processes; or an existing Dask scheduler) — the same numbers either way.
 
     Returns a dict:
 
@@ -216,17 +218,23 @@ def assess(
     }
     total = n_seeds * (len(lambdas) + 2 * long_factor + 1)
     done = [0]
+    lock = threading.Lock()
 
     def tick():
-        done[0] += 1
-        if progress:
-            progress(done[0], total, "training")
+        with lock:
+            done[0] += 1
+            if progress:
+                progress(done[0], total, "training")
 
-    here = runs_here(workers, scheduler, n_seeds)
+    # default: the seeds on threads of this process, which trace and compile their programs once for all seeds
+    threads = workers is None and scheduler is None
+    if threads and os.environ.get("NNPHD_WORKER"):  # a Dask worker of nnphd owns one core: one seed after another
+        workers = 1
+    here = threads or runs_here(workers, scheduler, n_seeds)
     units = [Unit(f"seed {seed + i}", one_seed, dict(ctx=ctx, seed=seed + i, tick=tick if here else None)) for i in range(n_seeds)]  # fmt: skip
     if not here and progress:
         progress(0, n_seeds, f"training {n_seeds} seeds on Dask workers")
-    outs = run_units(units, workers, scheduler, progress=None if here else progress)
+    outs = run_units(units, workers, scheduler, progress=None if here else progress, threads=threads)
     bad = [o for o in outs.values() if not o.ok]
     if bad:
         raise UnitsFailed(f"the training of {bad[0].key} failed: {bad[0].error}")

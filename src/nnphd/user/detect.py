@@ -20,6 +20,7 @@ from nnphd._config import release_compiled_if_crowded
 from nnphd.io.errors import DataError
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.timing import StageTimer
+from nnphd.parallel import runs_in_this_process
 from nnphd.user.limits import MIN_ROWS
 from nnphd.user.report import write_report
 from nnphd.user.rules import (
@@ -313,8 +314,9 @@ def detect_data(
 def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
     """The run's timings with each seed's (``per_seed``); compilation on worker processes, which this process's
     listener does not see, is added to the training stage (compile seconds are then summed over processes, and
-    workers run side by side: they can exceed the stage's wall time)."""
-    elsewhere = sum(p.get("compile_s", 0.0) for p in per_seed if p.get("where", "in-process") != "in-process")
+    workers run side by side: they can exceed the stage's wall time; so can the seeds on threads of this process,
+    whose compilation it saw already)."""
+    elsewhere = sum(p.get("compile_s", 0.0) for p in per_seed if not runs_in_this_process(p.get("where", "in-process")))
     stages = [
         st | {"compile_s": st["compile_s"] + elsewhere} if st["stage"] == "training and trust checks" else dict(st)
         for st in tm["stages"]

@@ -154,7 +154,7 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, 
     return lm_windows(resjac, s, theta, free, iters, tol, res=res)
 
 
-def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None, mu0=1e-3):
+def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None):
     """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
     ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
     window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²).
@@ -167,7 +167,7 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
     ``resjac``). The numbers are those of ``resjac`` (:func:`model_residuals` and :func:`model_jac` give
     :func:`model_residuals_and_jac`'s, bit for bit: tests/test_speed_equivalence.py)."""
     P_loc = s.shape[1]
-    mu = mu0
+    mu = 1e-3
     if jac_fn is not None:
         r, jac = np.asarray(res(s, theta)), np.asarray(jac_fn(s, theta))
     else:

@@ -123,7 +123,7 @@ def _draws(mean, cov, rng, n: int) -> np.ndarray:
 
 
 def _compiled(fc_fn):
-    """``fc_fn`` compiled (``jax.jit``), or None: :func:`_integrate` calls it four times a step on one batch shape,
+    """``fc_fn`` compiled (``jax.jit``), or None: :func:`_integrator` calls it four times a step on one batch shape,
     and called as it comes — an LNN's f_c, a hundred JAX operations each dispatched on its own — those calls were
     most of a stop's cost (130 ms each: 58 s of 60 on a dry-friction look-alike ending in three rests)."""
     if fc_fn is None:
@@ -133,42 +133,69 @@ def _compiled(fc_fn):
     return jax.jit(fc_fn)
 
 
-def _integrate(rows, A, B, q0: float, t0: float, t1: float, period: float, fc_fn, angles, center, library):
-    """(grid (S,), x (S, len(rows)·N_DRAWS)): each candidate's joint fit, with its coefficient draws ``A``
-    (conservative) and ``B`` (law), integrated from rest at q0 (time t0) to t1 — all draws of all candidates as one
-    batch (one call of ``fc_fn`` per stage); RK4, 100 steps a period."""
+def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
+    """``run(q0, t0, h, steps)`` → x (max_steps + 1, len(rows)·N_DRAWS), rows past ``steps`` NaN: each candidate's
+    joint fit, with its coefficient draws ``A`` (conservative) and ``B`` (law), integrated from rest at q0 (time t0)
+    by ``steps`` RK4 steps of h — all draws of all candidates as one batch, the whole integration one compiled
+    program (compiled once for all the rests of a record: ``steps`` is data). In numpy, step by step, it was most
+    of the stage: 8.9 s of a dry-friction look-alike's 43 s."""
+    import jax
+    import jax.numpy as jnp
+
     from nnphd.explain.conservative import conservative_basis
 
-    def force(x, v, tt):
-        fc = None if fc_fn is None else np.asarray(fc_fn(x, v), float).reshape(x.shape)
-        C = np.asarray(conservative_basis(np, x, v, angles, fc, center, library), float)
-        out = []
-        for i, r in enumerate(rows):
-            sl = slice(i * N_DRAWS, (i + 1) * N_DRAWS)
-            th = np.asarray(r.theta, float)
-            f = np.einsum("dk,dk->d", C[sl, 0], A[i])[:, None]
-            f = f + np.einsum("dnk,dk->dn", r.family.basis(np, th, x[sl], v[sl], tt[sl]), B[i])
-            if r.family.fixed is not None:
-                f = f + r.family.fixed(np, th, x[sl], v[sl], tt[sl])
-            out.append(f)
-        return np.concatenate(out, axis=0)
-
+    fams = [r.family for r in rows]
+    thetas = [jnp.asarray(np.asarray(r.theta, float)) for r in rows]
+    A_j = [jnp.asarray(a) for a in A]
+    B_j = [jnp.asarray(b) for b in B]
     M = len(rows) * N_DRAWS
-    x, v = np.full((M, 1), q0), np.zeros((M, 1))
-    steps = max(int(np.ceil((t1 - t0) / (period / 100))), 1)
-    h = (t1 - t0) / steps
-    xs = np.empty((steps + 1, M))
-    xs[0] = x[:, 0]
-    with np.errstate(all="ignore"):
-        for k in range(steps):
-            tt = np.full(M, t0 + k * h)
+
+    def force(x, v, tt):
+        fc = None if fc_fn is None else jnp.reshape(fc_fn(x, v), x.shape)
+        C = conservative_basis(jnp, x, v, angles, fc, center, library)
+        out = []
+        for i, fam in enumerate(fams):
+            sl = slice(i * N_DRAWS, (i + 1) * N_DRAWS)
+            f = jnp.einsum("dk,dk->d", C[sl, 0], A_j[i])[:, None]
+            f = f + jnp.einsum("dnk,dk->dn", fam.basis(jnp, thetas[i], x[sl], v[sl], tt[sl]), B_j[i])
+            if fam.fixed is not None:
+                f = f + fam.fixed(jnp, thetas[i], x[sl], v[sl], tt[sl])
+            out.append(f)
+        return jnp.concatenate(out, axis=0)
+
+    @jax.jit
+    def run(q0, t0, h, steps):
+        x = jnp.full((M, 1), q0)
+        v = jnp.zeros((M, 1), x.dtype)
+        xs = jnp.full((max_steps + 1, M), jnp.nan, x.dtype).at[0].set(x[:, 0])
+
+        def step(k, c):
+            x, v, xs = c
+            tt = jnp.full(M, t0 + k * h)
             k1v, k1x = force(x, v, tt), v
             k2v, k2x = force(x + h / 2 * k1x, v + h / 2 * k1v, tt + h / 2), v + h / 2 * k1v
             k3v, k3x = force(x + h / 2 * k2x, v + h / 2 * k2v, tt + h / 2), v + h / 2 * k2v
             k4v, k4x = force(x + h * k3x, v + h * k3v, tt + h), v + h * k3v
             x = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
             v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
-            xs[k + 1] = x[:, 0]
+            return x, v, xs.at[k + 1].set(x[:, 0])
+
+        return jax.lax.fori_loop(0, steps, step, (x, v, xs))[2]
+
+    return run
+
+
+def _steps(t0: float, t1: float, period: float) -> int:
+    """RK4 steps from t0 to t1: 100 a period."""
+    return max(int(np.ceil((t1 - t0) / (period / 100))), 1)
+
+
+def _integrate(run, q0: float, t0: float, t1: float, period: float):
+    """(grid (S,), x (S, len(rows)·N_DRAWS)): ``run`` (:func:`_integrator`) from rest at q0 (time t0) to t1; RK4,
+    100 steps a period."""
+    steps = _steps(t0, t1, period)
+    h = (t1 - t0) / steps
+    xs = np.asarray(run(float(q0), float(t0), float(h), steps), float)[: steps + 1]
     return t0 + h * np.arange(steps + 1), xs
 
 
@@ -235,14 +262,21 @@ def stop_contradictions(
     B = [_draws(r.beta, r.cov, rng, N_DRAWS) for r in rows]
     swings = [(s, w) for s in stretches if (w := _last_swing(s, q, qd, t, traj, period, window_periods)) is not None]
 
+    if not swings:
+        return {}
+    max_steps = max(_steps(w["ends"][1], w["ends"][2], period) for _, w in swings)
+    run = _integrator(rows, A, B, fc_fn, (bool(angles[0]),), center, library, max_steps)
+
     def integrate(swing):
         _, w = swing
-        return _integrate(rows, A, B, *w["ends"], period, fc_fn, (bool(angles[0]),), center, library)
+        return _integrate(run, *w["ends"], period)
 
     from nnphd.explain.trajectory import map_in_threads
 
+    # the first compiles the program; the others run it side by side
+    ends = [integrate(swings[0]), *map_in_threads(integrate, swings[1:], threads)]
     out = {}
-    for (s, w), (grid, xs) in zip(swings, map_in_threads(integrate, swings, threads)):
+    for (s, w), (grid, xs) in zip(swings, ends):
         _judge_stop(rows, s, w, np.std(xs[grid >= s["t0"]], axis=0), out)
     return out
 

@@ -79,6 +79,33 @@ def test_threads_same_numbers_and_failures_contained():
     assert all(runs_in_this_process(o.where) for o in outs.values()) and not runs_in_this_process("worker pid 7")
 
 
+def _until(flag, seen, started):
+    seen.append("started")
+    started.set()
+    if flag.wait(60):  # a unit that watches the cancel event, as assess's seeds do after each round
+        seen.append("cancelled")
+    return 0
+
+
+def _after(started):
+    return started.wait(60)
+
+
+def test_threads_an_interrupt_sets_cancel_and_goes_on():
+    """An interrupt while units run on threads (here raised by ``on_outcome`` as the first unit finishes): the event
+    the running units watch is set, and the interrupt reaches the caller once they have returned."""
+    flag, started, seen = threading.Event(), threading.Event(), []
+
+    def interrupt(_oc):
+        raise KeyboardInterrupt
+
+    watch = {"flag": flag, "seen": seen, "started": started}
+    units = [Unit("watching", _until, watch), Unit("quick", _after, {"started": started})]
+    with pytest.raises(KeyboardInterrupt):
+        run_units(units, workers=2, threads=True, on_outcome=interrupt, cancel=flag)
+    assert flag.is_set() and seen == ["started", "cancelled"]
+
+
 def test_a_thread_only_compile_clock_sees_its_own_thread():
     """A compilation in another thread counts on a process-wide clock, not on a thread-only one."""
     import jax

@@ -240,6 +240,7 @@ def run_units(
     retries: int = 2,
     on_outcome: Callable[[Outcome], None] | None = None,
     threads: bool = False,
+    cancel: threading.Event | None = None,
 ) -> dict[str, Outcome]:
     """Run every unit; return {key: :class:`Outcome`} in the units' order.
 
@@ -253,7 +254,9 @@ def run_units(
     numbers) — for units that run the same JAX programs, which then are traced and compiled once for all of them,
     and whose time is spent in compiled XLA code, which runs outside Python's global lock (a ``detect``'s seeds:
     7.9–10.0 s on 2 threads against 12.0–12.5 s on 2 worker processes and 13.5 s one after another, identical
-    reports). Failures are contained as on workers; a unit's ``compile_time_s`` counts its own thread's.
+    reports). Failures are contained as on workers; a unit's ``compile_time_s`` counts its own thread's. A thread
+    cannot be stopped from outside: on an interrupt ``cancel`` (an Event the units watch) is set, and the units not
+    started are not started.
     """
     units = list(units)
     keys = [u.key for u in units]
@@ -267,7 +270,7 @@ def run_units(
     if n == 1:
         return _run_here(units, progress, on_outcome)
     if threads and scheduler is None:
-        return _run_threads(units, n, progress, on_outcome)
+        return _run_threads(units, n, progress, on_outcome, cancel)
     return _run_dask(units, n, scheduler, progress, retries, on_outcome)
 
 
@@ -326,9 +329,10 @@ def runs_in_this_process(where: str) -> bool:
     return where == "in-process" or where.startswith("thread ")
 
 
-def _run_threads(units, n, progress, on_outcome) -> dict[str, Outcome]:
+def _run_threads(units, n, progress, on_outcome, cancel=None) -> dict[str, Outcome]:
     """The units on ``n`` threads of this process (:func:`run_units`' ``threads``), handed out in order; an
-    interrupt cancels the units not started and goes on to the caller."""
+    interrupt (or any error here) sets ``cancel``, cancels the units not started and goes on to the caller once the
+    running ones have returned."""
     from concurrent.futures import ThreadPoolExecutor, as_completed
 
     out: dict[str, Outcome] = {}
@@ -345,6 +349,8 @@ def _run_threads(units, n, progress, on_outcome) -> dict[str, Outcome]:
                 if progress:
                     progress(len(out), len(units), f"{oc.key}: {'done' if oc.ok else 'failed'}")
         except BaseException:
+            if cancel is not None:
+                cancel.set()
             ex.shutdown(cancel_futures=True)
             raise
     return {u.key: out[u.key] for u in units}

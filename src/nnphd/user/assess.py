@@ -218,9 +218,11 @@ def assess(
     }
     total = n_seeds * (len(lambdas) + 2 * long_factor + 1)
     done = [0]
-    lock = threading.Lock()
+    lock, stop = threading.Lock(), threading.Event()
 
     def tick():
+        if stop.is_set():  # interrupted while the seeds train on threads: each stops after its round
+            raise KeyboardInterrupt
         with lock:
             done[0] += 1
             if progress:
@@ -234,7 +236,7 @@ def assess(
     units = [Unit(f"seed {seed + i}", one_seed, dict(ctx=ctx, seed=seed + i, tick=tick if here else None)) for i in range(n_seeds)]  # fmt: skip
     if not here and progress:
         progress(0, n_seeds, f"training {n_seeds} seeds on Dask workers")
-    outs = run_units(units, workers, scheduler, progress=None if here else progress, threads=threads)
+    outs = run_units(units, workers, scheduler, progress=None if here else progress, threads=threads, cancel=stop)
     bad = [o for o in outs.values() if not o.ok]
     if bad:
         raise UnitsFailed(f"the training of {bad[0].key} failed: {bad[0].error}")

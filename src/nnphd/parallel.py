@@ -306,8 +306,11 @@ def list_schedule(durations: Sequence[float], workers: int, overhead_s: float = 
     }
 
 
-def _run_one(u: Unit, thread_only: bool = False, where: str = "in-process") -> Outcome:
-    """``u`` run in this process (its error contained in the outcome)."""
+def _run_one(u: Unit, thread_only: bool = False, where: str = "in-process", n_threads: int = 0) -> Outcome:
+    """``u`` run in this process (its error contained in the outcome); with ``n_threads``, on a thread of
+    :func:`_run_threads`' pool, named in ``where`` ("thread k of n")."""
+    if n_threads:
+        where = f"thread {int(threading.current_thread().name.rsplit('_', 1)[-1]) + 1} of {n_threads}"
     t0 = time.perf_counter()
     clock = CompileClock(thread_only)
     try:
@@ -338,7 +341,7 @@ def _run_threads(units, n, progress, on_outcome, cancel=None) -> dict[str, Outco
     out: dict[str, Outcome] = {}
     with ThreadPoolExecutor(max_workers=n, thread_name_prefix="nnphd-unit") as ex:
         try:
-            futures = {ex.submit(_run_one, u, True, f"thread {i % n + 1} of {n}"): u.key for i, u in enumerate(units)}
+            futures = {ex.submit(_run_one, u, True, n_threads=n): u.key for u in units}
             if progress:
                 progress(0, len(units), f"{len(units)} units on {n} threads")
             for fut in as_completed(futures):

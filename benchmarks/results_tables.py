@@ -38,6 +38,7 @@ STAGE_COLUMNS = (
     ("law, pointwise", "law table: pointwise fits"),
     ("law, trajectory level", "law table: trajectory-level fits"),
     ("rests, stops, envelope", "law table: rests, stops and envelope"),
+    ("library base ∥ (beside the training)", "law table: library base (alongside training)"),
 )
 REAL_FILES = ("servo_sts3250_drop", "seismometer_blow")
 
@@ -65,7 +66,8 @@ def stage_times() -> str:
     same = sum(r["same_verdict"] for r in rows)
     out.append("")
     out.append(
-        f"Same verdict and law cold and warm on {same} of {len(rows)}. (Seconds; in brackets, of them compiling.)"
+        f"Same verdict and law cold and warm on {same} of {len(rows)}. (Seconds; in brackets, of them compiling; ∥: "
+        "on another thread, beside the others — its seconds overlap theirs.)"
     )
     return "\n".join(out) + "\n"
 

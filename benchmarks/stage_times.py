@@ -9,7 +9,9 @@ report.json (``timings``: wall and JAX-compile seconds per stage, :mod:`nnphd.io
 Cases: the look-alikes of tests/fixtures/friction.py (default: viscous-dry, heavy-damping, jitter-clock,
 linear-quadratic) and the real recordings of benchmarks/results/friction_reference.json (default:
 servo_sts3250_drop, seismometer_blow; file names without .csv). Prints per file and run the wall seconds per stage, of them compiling, and the totals;
-the same verdict cold and warm is checked (the same seed gives the same numbers).
+the same verdict cold and warm is checked (the same seed gives the same numbers). A stage marked ∥ ran on another
+thread beside the others (the law table on the conservative library beside the training, the figures of the
+training beside the law table): its seconds overlap theirs.
 """
 
 from __future__ import annotations
@@ -34,7 +36,10 @@ STAGES = (
     "law table: pointwise fits",
     "law table: trajectory-level fits",
     "law table: rests, stops and envelope",
+    "law table: library base (alongside training)",
+    "law table: library base, waited for",
     "blind formula",
+    "figures (alongside the law table)",
     "figures",
 )
 SHORT = {
@@ -44,7 +49,10 @@ SHORT = {
     "law table: pointwise fits": "law pw",
     "law table: trajectory-level fits": "law traj",
     "law table: rests, stops and envelope": "law rest",
+    "law table: library base (alongside training)": "library ∥",
+    "law table: library base, waited for": "library wait",
     "blind formula": "blind",
+    "figures (alongside the law table)": "figures ∥",
     "figures": "figures",
 }
 

@@ -192,6 +192,43 @@ class CompileClock:
         jax.monitoring.unregister_event_duration_listener(self._listen)
 
 
+def as_here(fn: Callable) -> Callable:
+    """``fn`` made to run on another thread as it would on this one: under this thread's JAX float64 setting and in
+    a copy of its context variables (taken now, copied again per call). ``jax.enable_x64`` is thread-local: a pool
+    thread started inside ``with jax.enable_x64(True)`` — as :class:`nnphd.NNPhD` runs — computed in float32, and
+    the trajectory-level law fits of ``NNPhD.fit`` failed on a damped pendulum (a float64 carry met a float32 one).
+    The context variables carry the stage :class:`nnphd.io.timing.StageTimer` counts compilation in. Every thread
+    pool of nnphd runs its work through this."""
+    import contextvars
+
+    import jax
+
+    x64 = bool(jax.config.jax_enable_x64)
+    ctx = contextvars.copy_context()
+
+    def run(*args, **kwargs):
+        with jax.enable_x64(x64):
+            return ctx.copy().run(fn, *args, **kwargs)
+
+    return run
+
+
+def alongside(fn: Callable, /, *args, **kwargs):
+    """Start ``fn(*args, cancel=event, **kwargs)`` on a thread of its own, beside the caller's work (:func:`as_here`:
+    the caller's float64 setting and context). Returns (future, cancel): ``future.result()`` waits for it and raises
+    its error; ``cancel.set()`` asks it to stop where it looks at the event. Nothing waits for the thread here: left
+    alone, it ends by itself (a process exits once it has)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    cancel = threading.Event()
+    ex = ThreadPoolExecutor(max_workers=1, thread_name_prefix="nnphd-alongside")
+    try:
+        future = ex.submit(as_here(fn), *args, cancel=cancel, **kwargs)
+    finally:
+        ex.shutdown(wait=False)
+    return future, cancel
+
+
 def default_workers() -> int:
     """One worker per core this process may use."""
     try:
@@ -341,7 +378,8 @@ def _run_threads(units, n, progress, on_outcome, cancel=None) -> dict[str, Outco
     out: dict[str, Outcome] = {}
     with ThreadPoolExecutor(max_workers=n, thread_name_prefix="nnphd-unit") as ex:
         try:
-            futures = {ex.submit(_run_one, u, True, n_threads=n): u.key for u in units}
+            run = as_here(_run_one)
+            futures = {ex.submit(run, u, True, n_threads=n): u.key for u in units}
             if progress:
                 progress(0, len(units), f"{len(units)} units on {n} threads")
             for fut in as_completed(futures):

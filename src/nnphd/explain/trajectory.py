@@ -342,11 +342,13 @@ def map_in_threads(fn, items: list, threads: int | None = None) -> list:
     runs the same programs on the same data as one after another: the numbers do not depend on the threads."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from nnphd.parallel import as_here
+
     threads = min(default_threads() if threads is None else int(threads), len(items))
     if threads <= 1:
         return [fn(x) for x in items]
     with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nnphd") as ex:
-        return list(ex.map(fn, items))
+        return list(ex.map(as_here(fn), items))
 
 
 def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
@@ -358,6 +360,8 @@ def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
     fit runs the same programs on the same data as one after another: the numbers do not depend on the threads."""
     import threading
     from concurrent.futures import ThreadPoolExecutor
+
+    from nnphd.parallel import as_here
 
     threads = min(default_threads() if threads is None else int(threads), len(cands) + 1)
     if threads <= 1:
@@ -375,9 +379,10 @@ def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
 
     with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nnphd-shooting") as ex:
         try:
-            first = ex.submit(fit_zero)
+            first = ex.submit(as_here(fit_zero))
             ready.wait()
-            rest = [ex.submit(fit, ci, r) for ci, r in enumerate(cands, 1)]
+            fit_here = as_here(fit)
+            rest = [ex.submit(fit_here, ci, r) for ci, r in enumerate(cands, 1)]
             if first.result() is None:
                 ex.shutdown(cancel_futures=True)
                 return None

@@ -6,10 +6,18 @@ global state outlives it); ``with timer.stage("the law table"):`` adds the wall 
 tracing, lowering to MLIR and the XLA compilation, or the retrieval from the persistent compilation cache when it
 hits. Stages do not nest: a stage entered inside another is counted for the inner one only, and the outer one's
 wall time excludes it. Compilations in other processes (Dask workers) are not seen; ``to_dict`` says so.
+
+Work on another thread beside the run's own (``with timer.alongside(name):`` on that thread) is a stage of its own,
+marked ``alongside``: its wall seconds overlap the other stages', and are not part of their sum. A compilation
+counts in the stage of the thread that asked for it — the stage is a context variable, which the thread pools of
+:mod:`nnphd.parallel` carry to their threads (:func:`nnphd.parallel.as_here`); a thread without one counts in the
+run's current stage.
 """
 
 from __future__ import annotations
 
+import contextvars
+import threading
 import time
 from contextlib import contextmanager
 
@@ -23,6 +31,7 @@ COMPILE_PARTS = {
 }
 COMPILE_EVENTS = frozenset(COMPILE_PARTS)
 CACHE_RETRIEVAL_EVENT = "/jax/compilation_cache/cache_retrieval_time_sec"  # part of "xla" already: shown, not added
+_STAGE: contextvars.ContextVar[str | None] = contextvars.ContextVar("nnphd_stage", default=None)
 
 
 class StageTimer:
@@ -37,16 +46,20 @@ class StageTimer:
         self._end: float | None = None
         self._listening = False
         self._before = 0.0  # seconds measured elsewhere (add), part of the run
+        self._alongside: set[str] = set()  # stages run on another thread, beside the others
+        self._lock = threading.Lock()  # compilations are reported by the threads that ask for them
 
     # the listener: jax calls it with (event, seconds, **metadata)
     def _on_event(self, event: str, duration: float, **_kw) -> None:
         if event in COMPILE_EVENTS:
-            name = self._stack[-1][0] if self._stack else "other"
-            self.compile[name] = self.compile.get(name, 0.0) + float(duration)
+            name = _STAGE.get() or (self._stack[-1][0] if self._stack else "other")
             part = COMPILE_PARTS[event]
-            self.parts[part] = self.parts.get(part, 0.0) + float(duration)
+            with self._lock:
+                self.compile[name] = self.compile.get(name, 0.0) + float(duration)
+                self.parts[part] = self.parts.get(part, 0.0) + float(duration)
         elif event == CACHE_RETRIEVAL_EVENT:
-            self.parts["cache"] = self.parts.get("cache", 0.0) + float(duration)
+            with self._lock:
+                self.parts["cache"] = self.parts.get("cache", 0.0) + float(duration)
 
     def __enter__(self) -> StageTimer:
         import jax.monitoring
@@ -71,14 +84,29 @@ class StageTimer:
             outer, since = self._stack[-1]
             self.wall[outer] = self.wall.get(outer, 0.0) + now - since
         self._stack.append((name, now))
+        token = _STAGE.set(name)
         try:
             yield
         finally:
+            _STAGE.reset(token)
             end = time.perf_counter()
             _, since = self._stack.pop()
             self.wall[name] = self.wall.get(name, 0.0) + end - since
             if self._stack:  # the outer stage resumes
                 self._stack[-1] = (self._stack[-1][0], end)
+
+    @contextmanager
+    def alongside(self, name: str):
+        """A stage run on another thread, beside the run's own stages (enter it on that thread): its wall seconds
+        and the compilations of its thread (and of the pools it starts, :func:`nnphd.parallel.as_here`)."""
+        t0 = time.perf_counter()
+        self._alongside.add(name)
+        token = _STAGE.set(name)
+        try:
+            yield
+        finally:
+            _STAGE.reset(token)
+            self.wall[name] = self.wall.get(name, 0.0) + time.perf_counter() - t0
 
     def add(self, name: str, seconds: float) -> None:
         """Wall seconds of a stage measured elsewhere (e.g. reading the file before the run began): they count in
@@ -90,12 +118,14 @@ class StageTimer:
         """{"total_s", "compile_s", "compile_parts_s" (trace: to a jaxpr, lower: to MLIR — both also on a hit of
         the persistent cache —, xla: the XLA compilation or the retrieval from the persistent cache; cache: of xla,
         the retrieval), "stages":
-        [{"stage", "s", "compile_s"}] in the order they first ran, "other_s" (the run's time in no stage), "note"}."""
+        [{"stage", "s", "compile_s"}] in the order they first ran (a stage run beside the others, :meth:`alongside`,
+        marked ``"alongside": True``), "other_s" (the run's time in no stage), "note"}."""
         end = self._end if self._end is not None else time.perf_counter()
         total = end - self._t0 + self._before
         names = list(dict.fromkeys([*self.wall, *self.compile]))
         stages = [
             {"stage": n, "s": self.wall.get(n, 0.0), "compile_s": self.compile.get(n, 0.0)}
+            | ({"alongside": True} if n in self._alongside else {})
             for n in names
             if n != "other"
         ]
@@ -104,9 +134,10 @@ class StageTimer:
             "compile_s": sum(self.compile.values()),
             "compile_parts_s": {k: self.parts.get(k, 0.0) for k in ("trace", "lower", "xla", "cache")},
             "stages": stages,
-            "other_s": max(total - sum(s["s"] for s in stages), 0.0),
+            "other_s": max(total - sum(s["s"] for s in stages if not s.get("alongside")), 0.0),
             "note": (
                 "wall seconds on this machine; compile_s: JAX tracing, lowering and XLA compilation (or retrieval "
-                "from the persistent compilation cache) in this process — work on other worker processes is not seen"
+                "from the persistent compilation cache) in this process — work on other worker processes is not seen; "
+                "a stage marked alongside ran on another thread beside the others: its seconds overlap theirs"
             ),
         }

@@ -260,13 +260,20 @@ def detect_data(
         with timer.stage("derivatives"):
             data, info, trim, row_err, traj = _prepared(ud, trim, derivative_method)
             _check_declared_field(field, data, traj, ud, info)
-        say("λ-sweep and trust checks")
-        with timer.stage("training and trust checks"):
-            res = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler, assess_kw)
         coords = list(ud.coords)
-        fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
-        law, law_row = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_fit, seed,
-                                  lambda d, t, m: say(m), field, timer, families)  # fmt: skip
+        library = _library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer)
+        try:
+            say("λ-sweep and trust checks")
+            with timer.stage("training and trust checks"):
+                res = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler,
+                                assess_kw)  # fmt: skip
+            fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
+            figures = _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer)
+            law, law_row = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_fit, seed,
+                                      lambda d, t, m: say(m), field, timer, families, library)  # fmt: skip
+        finally:  # not needed (no law is fitted), or an error or an interrupt here: it stops at its next stage
+            if library is not None:
+                library[1].set()
         status, new_physics, confidence, reasons = reconcile(res, law, field)
         unclaim_against_evidence(res, law)
         declared, fitted, fc, fn = _declared_forces(law, data, ud, fc, fn)
@@ -294,7 +301,7 @@ def detect_data(
             report["wall_time_s"] = report["timings"]["total_s"]
 
         if out is not None:
-            write_report(out, report, data, traj, coords, fc, fn, timer=timer, before_writing=stamp)
+            write_report(out, report, data, traj, coords, fc, fn, timer=timer, before_writing=stamp, made=figures)
         else:
             stamp()
     model = {
@@ -309,6 +316,55 @@ def detect_data(
         "field": fitted,
     }
     return report, model
+
+
+LIBRARY_ALONGSIDE = "law table: library base (alongside training)"
+LIBRARY_WAIT = "law table: library base, waited for"
+
+
+def _library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer):
+    """The law table on the conservative library base (:func:`_law_table`), started beside the training on a thread
+    of its own — it needs no network — when it will be wanted: one coordinate, the learned field, a trajectory-level
+    fit. (future, cancel) of :func:`nnphd.parallel.alongside`, or None: then it is fitted after the training, as
+    before — also in a worker of a ``detect`` batch, which owns one core. The numbers are the same either way (the
+    same programs on the same data); on 2 cores the cores the training leaves idle (tracing, Python) fit it."""
+    import os
+
+    from nnphd.parallel import alongside
+
+    if field != "learned" or len(ud.coords) != 1 or law_fit == "pointwise" or os.environ.get("NNPHD_WORKER"):
+        return None
+    angles = [bool(a) for a in ud.is_angle]
+
+    def library(cancel):
+        with timer.alongside(LIBRARY_ALONGSIDE):
+            return find_law(data, traj, list(ud.coords), angles, info, row_err, laws=laws, level=law_fit, seed=seed,
+                            families=families, cancel=cancel)  # fmt: skip
+
+    return alongside(library)
+
+
+FIGURES_ALONGSIDE = "figures (alongside the law table)"
+
+
+def _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer):
+    """The figures that need the training only (:func:`nnphd.user.report.training_figures`), made on a thread of
+    their own while the law is fitted — the learned field, a report to write, not in a worker of a ``detect`` batch
+    (which owns one core). A future of them, or None (then they are made with the others, as before)."""
+    import os
+
+    from nnphd.parallel import alongside
+    from nnphd.user.report import training_figures
+
+    if out is None or field != "learned" or os.environ.get("NNPHD_WORKER"):
+        return None
+    view = {k: res[k] for k in ("checks", "evidence", "table", "lambda_forces")} | {"field": {"kind": field}}
+
+    def figures(cancel):  # noqa: ARG001 — nothing to stop early: a few seconds of drawing
+        with timer.alongside(FIGURES_ALONGSIDE):
+            return training_figures(view, data, traj, coords, fc, fn)
+
+    return alongside(figures)[0]
 
 
 def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
@@ -430,7 +486,21 @@ def _law_formula(law: dict) -> dict | None:
 
 
 def _law_table(
-    res, data, traj, coords, ud, info, row_err, laws, level, seed, progress, field="learned", timer=None, families=None
+    res,
+    data,
+    traj,
+    coords,
+    ud,
+    info,
+    row_err,
+    laws,
+    level,
+    seed,
+    progress,
+    field="learned",
+    timer=None,
+    families=None,
+    library=None,
 ) -> tuple[dict, object]:
     """The ranked candidate laws with the LNN's f_c as the conservative base — and, for one coordinate, with the
     conservative library alone (no network, so no seed), the two combined by
@@ -476,8 +546,12 @@ def _law_table(
     if ok and (len(coords) == 1 or arcs) and level != "pointwise":
         from nnphd.explain.table import combine_bases
 
-        lib = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, laws=laws, level=level,
-                       seed=seed, progress=progress, timer=timer, families=families)  # fmt: skip
+        if library is not None:  # started beside the training (:func:`_library_alongside`)
+            with timer.stage(LIBRARY_WAIT) if timer is not None else nullcontext():
+                lib = library[0].result()
+        else:
+            lib = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, laws=laws, level=level,
+                           seed=seed, progress=progress, timer=timer, families=families)  # fmt: skip
         if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
             table = combine_bases([(LIBRARY_BASE, lib), (f"seed {seed}'s LNN", table)])
     out = table.to_dict()
@@ -566,6 +640,7 @@ def find_law(
     field: str = "learned",
     timer: StageTimer | None = None,
     families: Sequence[str] | None = None,
+    cancel=None,
 ):
     """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
     (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
@@ -575,18 +650,27 @@ def find_law(
     ``field`` is "uniform" (declared: nothing oscillates). ``timer``: the stages are timed on it (law table:
     pointwise fits, trajectory-level fits, rests, stops and envelope). ``families``: the keys of the candidate
     families to rank (:func:`nnphd.explain.laws.rank_laws`' ``include``; None: all); your ``laws`` are always ranked.
-    Returns a LawTable."""
+    ``cancel`` (a threading.Event): once set, the next stage is not begun (CancelledError). Returns a LawTable."""
+    from concurrent.futures import CancelledError
+
     timed = timer.stage if timer is not None else (lambda _name: nullcontext())
     say = Stages(progress, 2)
+
+    def go_on() -> None:
+        if cancel is not None and cancel.is_set():
+            raise CancelledError("the law table was no longer wanted")
+
     say("candidate laws (pointwise joint fits)")
     with timed("law table: pointwise fits"):
         table, data, traj, rest, whole, period = _pointwise_table(
             data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families
         )
     if level != "pointwise":
+        go_on()
         say("candidate laws (trajectory level: multiple shooting on the positions)")
         with timed("law table: trajectory-level fits"):
             table = _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed)
+    go_on()
     with timed("law table: rests, stops and envelope"):
         return _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level,
                                   seed)  # fmt: skip

@@ -183,15 +183,16 @@ def plot_forces(data, traj, coords, fc, fn, lam=None, declared: bool = False) ->
 
 
 # ---------------------------------------------------------------------------------------------------- output
-def write_report(out, report: dict, data, traj, coords, fc, fn, timer=None, before_writing=None) -> None:
+def write_report(out, report: dict, data, traj, coords, fc, fn, timer=None, before_writing=None, made=None) -> None:
     """report.json, the figures and a self-contained report.html (each atomic). ``timer``: the figures are timed on
     it (:class:`nnphd.io.timing.StageTimer`); ``before_writing()`` is called after them, before any file is written
-    (to put the timings into the report)."""
+    (to put the timings into the report). ``made``: a future of :func:`training_figures` made already (on another
+    thread, while the law was fitted); its wait counts in the figures stage."""
     from contextlib import nullcontext
 
     outdir = ensure_writable_dir(out)
     with timer.stage("figures") if timer is not None else nullcontext():
-        figs = _figures(report, data, traj, coords, fc, fn)
+        figs = _figures(report, data, traj, coords, fc, fn, None if made is None else made.result())
     if before_writing is not None:
         before_writing()
     for name, png in figs.items():
@@ -200,7 +201,9 @@ def write_report(out, report: dict, data, traj, coords, fc, fn, timer=None, befo
     atomic_write_bytes(outdir / "report.html", render_html(report, figs).encode())
 
 
-def _figures(report: dict, data, traj, coords, fc, fn) -> dict[str, bytes]:
+def training_figures(report: dict, data, traj, coords, fc, fn) -> dict[str, bytes]:
+    """The figures that need the training only: the data, the energy trend, L_e(λ) and the forces (of
+    ``report`` they read checks, evidence, table, lambda_forces and field). PNG bytes by file name."""
     naive = [x for x in report["checks"]["naive"]["ratio"] if x is not None]
     figs = {"data.png": plot_data(data, traj, coords)}
     energy = plot_energy(report["evidence"]["energy_trend"])
@@ -211,6 +214,12 @@ def _figures(report: dict, data, traj, coords, fc, fn) -> dict[str, bytes]:
         figs["forces.png"] = plot_forces(
             data, traj, coords, fc, fn, report.get("lambda_forces"), declared_field(report) is not None
         )
+    return figs
+
+
+def _figures(report: dict, data, traj, coords, fc, fn, made: dict | None = None) -> dict[str, bytes]:
+    """Every figure of the report: :func:`training_figures` (``made``: made already) and the law's envelope."""
+    figs = dict(made) if made is not None else training_figures(report, data, traj, coords, fc, fn)
     env = fig_envelope((report.get("law") or {}).get("envelope"), coords[0])
     if env is not None:
         figs["envelope.png"] = _png(env)

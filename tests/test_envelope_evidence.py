@@ -76,6 +76,18 @@ def test_the_envelope_of_an_amplitude_equation_is_its_closed_form():
     assert A[2] == pytest.approx(0.5, rel=0.01)
 
 
+def test_a_rate_too_small_to_invert_stalls_the_envelope_without_a_warning():
+    """A decay rate of ~1e-310 (a hypothesis example of the test below): the time to cross a grid interval
+    overflows to infinity — the envelope stays where it is, and numpy's overflow warning is not let out."""
+    import warnings
+
+    grid = np.geomspace(0.01, 2.0, 300)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        A = _envelope_curve(np.full(len(grid), -1e-310), grid, 0.7, np.linspace(0, 20, 9))
+    assert np.all(A == 0.7)
+
+
 def _decay(gamma, mu, c, A0=2.5, w2=9.0, T=40.0, fs=200.0):
     """A pendulum θ̈ = −w² sin θ − γθ̇ − μ sign(θ̇) − c|θ̇|θ̇ released from A0 (large: the orbit is no sine)."""
 

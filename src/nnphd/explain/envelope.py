@@ -250,7 +250,8 @@ def _envelope_curve(rate: np.ndarray, grid: np.ndarray, A0: float, dt: np.ndarra
     gg, rr = gg[:stop], rr[:stop]
     if len(gg) < 2:
         return np.full(len(dt), A0)
-    seg = 0.5 * (1 / rr[1:] + 1 / rr[:-1]) * np.diff(gg)  # time to cross each grid interval (> 0)
+    with np.errstate(over="ignore", divide="ignore"):  # a rate of ~1e-308: an infinite crossing time, a stall
+        seg = 0.5 * (1 / rr[1:] + 1 / rr[:-1]) * np.diff(gg)  # time to cross each grid interval (> 0)
     tau = np.concatenate([[0.0], np.cumsum(seg)])
     return np.interp(dt, tau, gg)
 

@@ -16,11 +16,9 @@ Run:  .venv/bin/python benchmarks/bench_speed.py [--quick] [--reps 50] [--blocks
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
-import tempfile
 import time
 from functools import partial
 from pathlib import Path
@@ -157,15 +155,11 @@ def bench_sweeps() -> dict:
 
 
 def write_json(path: Path, obj: dict) -> None:
+    """``obj`` as JSON at ``path`` (its folder made), written atomically (:func:`nnphd.io.results.write_json`)."""
+    from nnphd.io.results import write_json as _write
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".speed-", suffix=".json")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            json.dump(obj, fh, indent=2)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
+    _write(path, obj)
 
 
 def main() -> None:

@@ -11,7 +11,6 @@ paper's protocol), detect.verdict. "naive(held-out)" is the ratio of assess's ow
 """
 
 import argparse
-import json
 import os
 import sys
 import time
@@ -25,9 +24,10 @@ import nnphd
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
-from nnphd.engine.models import ModelConfig
+from nnphd.engine.models import ModelConfig  # noqa: E402
 from nnphd.engine.train import PAPER_LAMBDAS, TrainConfig, sweep
 from nnphd.engine.verdict import force_norm, verdict
+from nnphd.io.results import write_json
 from nnphd.user.assess import assess
 from tests.fixtures.cases import CASES, make_case
 
@@ -73,10 +73,7 @@ def _write_json(rows):
         },
         "rows": rows,
     }
-    tmp = args.json + ".tmp"
-    with open(tmp, "w") as fh:
-        json.dump(doc, fh, indent=1, default=lambda o: o.tolist() if hasattr(o, "tolist") else str(o))
-    os.replace(tmp, args.json)
+    write_json(args.json, doc)  # numpy values as numbers; anything else JSON cannot hold is an error, not a string
 
 
 hdr = (

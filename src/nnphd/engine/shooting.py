@@ -53,7 +53,7 @@ def shooting_windows(
 
 
 def rowwise_jvp(f):
-    """``f(aux, q, v)`` → (W, n), each row a function of its own row of (q, v) only, with forward derivatives taken
+    """``f(aux, q, v)`` → (W, …), each row a function of its own row of (q, v) only, with forward derivatives taken
     through the per-row Jacobian ∂f/∂(q, v): computed once per call from 2n directions and applied to every tangent.
     A shooting Jacobian pushes P_loc + P_glob tangent directions through the conservative force (35 for a law ranked
     at trajectory level), all at the same point: JAX's own jvp would differentiate the LNN's Euler–Lagrange solve
@@ -74,8 +74,8 @@ def rowwise_jvp(f):
         def column(e):  # ∂f/∂(q, v)_j of every row: the same unit direction j in every row
             return lin(jnp.broadcast_to(e[:n], q.shape), jnp.broadcast_to(e[n:], v.shape))
 
-        J = jax.vmap(column)(jnp.eye(2 * n, dtype=q.dtype))  # (2n, W, n)
-        return y, jnp.einsum("jwi,wj->wi", J, jnp.concatenate([dq, dv], axis=-1))
+        J = jax.vmap(column)(jnp.eye(2 * n, dtype=q.dtype))  # (2n, W, …)
+        return y, jnp.einsum("jw...,wj->w...", J, jnp.concatenate([dq, dv], axis=-1))
 
     return g
 

@@ -41,8 +41,13 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
     from nnphd.engine.shooting import rowwise_jvp
 
     sizes = [(len(f.coef_names), len(f.nl_names)) for f in fams]
-    # the LNN's f_c is differentiated once per row (2n directions), not once per fitted parameter
-    fc_rows = None if fc_fn is None else rowwise_jvp(lambda _, q, v: fc_fn(q, v))
+
+    # the conservative columns — the LNN's f_c among them — are differentiated once per row (2n directions), not
+    # once per fitted parameter: a shooting Jacobian pushes 2n + P directions through them (53 on a double pendulum)
+    def columns(_, q, v):
+        return conservative_basis(jnp, q, v, angles, None if fc_fn is None else fc_fn(q, v), center, library)
+
+    columns_rows = rowwise_jvp(columns)
 
     def family_term(f, off, K, m):
         def term(theta, q, v, t):
@@ -62,8 +67,7 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
     def rhs(u, q, v, t, aux):
         base, D, which = aux
         theta = base + u @ D
-        fc = None if fc_rows is None else fc_rows(None, q, v)
-        out = jnp.einsum("wnk,k->wn", conservative_basis(jnp, q, v, angles, fc, center, library), theta[:Kc])
+        out = jnp.einsum("wnk,k->wn", columns_rows(None, q, v), theta[:Kc])
         return out + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs

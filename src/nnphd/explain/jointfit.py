@@ -194,33 +194,39 @@ def linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     """Held-out MSE by one Gauss–Newton step per fold, bootstrap and model covariance of the law parameters."""
     N, rows2, P = J.shape
     n = rows2 // 2
-    Gs = np.einsum("sri,srj->sij", J, J)
-    hs = np.einsum("sri,sr->si", J, R)
+    Jt = J.transpose(0, 2, 1)
+    Gs = np.matmul(Jt, J)  # per row J_sᵀJ_s, J_sᵀR_s — batched BLAS (einsum's loops took 14 s of a 4509-row table)
+    hs = np.matmul(Jt, R[..., None])[..., 0]
     G, h = Gs.sum(0), hs.sum(0)
     sse = 0.0
     m = 0
     for f in folds:
         Gf, hf = Gs[f].sum(0), hs[f].sum(0)
         d = solve_or_lstsq(ridge_regularised(G - Gf), h - hf)
-        pred = R[f, :n] - np.einsum("sri,i->sr", J[f, :n], d)
+        pred = R[f, :n] - J[f, :n] @ d
         sse += float(np.sum(pred**2))
         m += pred.size
     mse = sse / max(m, 1)
-    # moving-block bootstrap over rows within trajectories
+    # moving-block bootstrap over rows within trajectories: each block's sums at once (np.add.reduceat), every
+    # replicate's as its blocks' counts times them (one product; the same draws as one replicate after another)
     L = max(1, math.ceil(2 * tau))
-    blocks = [s[i : i + L] for s in segs for i in range(0, len(s), L)]
-    Gb = np.stack([Gs[b].sum(0) for b in blocks])
-    hb = np.stack([hs[b].sum(0) for b in blocks])
-    rng = np.random.default_rng(seed)
+    blocks = [s[i : i + L] for s in segs for i in range(0, len(s), L)] if n_boot > 0 else []
     reps = []
-    Gi = ridge_regularised(G)
-    for _ in range(n_boot):
-        idx = rng.integers(0, len(blocks), len(blocks))
-        reps.append(solve_or_lstsq(ridge_regularised(Gb[idx].sum(0)), hb[idx].sum(0)))
+    if blocks:
+        B = len(blocks)
+        starts = np.concatenate([[0], np.cumsum([len(b) for b in blocks])[:-1]]).astype(np.intp)
+        order = np.concatenate(blocks).astype(np.intp)
+        Gb = np.add.reduceat(Gs[order], starts, axis=0).reshape(B, -1)
+        hb = np.add.reduceat(hs[order], starts, axis=0)
+        draws = np.random.default_rng(seed).integers(0, B, (n_boot, B))
+        counts = np.zeros((n_boot, B))
+        np.add.at(counts, (np.repeat(np.arange(n_boot), B), draws.ravel()), 1.0)
+        Grep, hrep = (counts @ Gb).reshape(n_boot, P, P), counts @ hb
+        reps = [solve_or_lstsq(ridge_regularised(Grep[k]), hrep[k]) for k in range(n_boot)]
     reps = np.asarray(reps)[:, P_law_idx] if len(P_law_idx) else np.zeros((n_boot, 0))
     se_boot = reps.std(axis=0) if n_boot > 1 else np.full(len(P_law_idx), np.inf)
     dof = max(N * n - P, 1)
     s2 = float(np.sum(R[:, :n] ** 2)) / dof
-    cov = s2 * np.linalg.pinv(Gi)
+    cov = s2 * np.linalg.pinv(ridge_regularised(G))
     se_model = np.sqrt(np.maximum(np.diag(cov)[P_law_idx], 0.0) * tau) if len(P_law_idx) else np.zeros(0)
     return mse, se_boot, se_model

@@ -82,26 +82,25 @@ def test_the_search_that_keeps_its_trials_residuals_takes_the_same_steps():
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_the_candidates_fits_come_back_in_order_whatever_the_threads(threads):
     """_fit_rows: the zero law's entry first, then the candidates' in their order (those without one left out); the
-    candidates start only once the zero law's fit has compiled the shooting functions (its ``compiled`` call)."""
+    candidates start only once the zero law's fit is done, from it (its ``warm`` value)."""
     from nnphd.explain.trajectory import _fit_rows
 
-    ready = threading.Event()
+    done = threading.Event()
     started = []
 
-    def fit(ci, row, compiled=None):
+    def fit(ci, row, warm=None):
         if ci == 0:
-            if threads > 1:
-                assert not started  # nothing started before the zero law's first point
-            (compiled or ready.set)()
-            ready.set()
-        else:
-            started.append(ci)
-            assert ready.is_set()
-        return None if row == "bad" else (ci, row)
+            assert warm is None and not started
+            done.set()
+            return (0, row), "zero's fit"
+        started.append(ci)
+        assert done.is_set() and warm == "zero's fit"
+        return (None if row == "bad" else (ci, row)), ("unused", ci)
 
     cands = ["a", "bad", "c", "d", "bad", "f"]
     out = _fit_rows(fit, "zero", cands, threads)
     assert out == [(0, "zero"), (1, "a"), (3, "c"), (4, "d"), (6, "f")]
+    assert sorted(started) == [1, 2, 3, 4, 5, 6]
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -110,13 +109,29 @@ def test_without_the_zero_laws_fit_nothing_is_ranked(threads):
 
     seen = []
 
-    def fit(ci, row, compiled=None):
+    def fit(ci, row, warm=None):
         seen.append(ci)
-        return None
+        return None, None
 
     assert _fit_rows(fit, "zero", ["a", "b"], threads) is None
-    if threads == 1:
-        assert seen == [0]  # one after another: the candidates are not fitted at all
+    assert seen == [0]  # the candidates are not fitted at all
+
+
+def test_map_in_threads_does_not_start_the_rest_after_an_error():
+    from nnphd.explain.trajectory import map_in_threads
+
+    ran = []
+
+    def fn(x):
+        ran.append(x)
+        if x == 0:
+            raise ValueError("bad piece")
+        threading.Event().wait(0.05)
+        return x
+
+    with pytest.raises(ValueError, match="bad piece"):
+        map_in_threads(fn, list(range(40)), 2)
+    assert len(ran) < 40
 
 
 def test_map_in_threads_keeps_the_order():
@@ -174,3 +189,15 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
     outs = [stop_contradictions(table, rest["final"], q, qd, t, traj, period, angles=(True,), fc_fn=fc_fn,
                                 threads=k) for k in (1, 2)]  # fmt: skip
     assert "linear" in outs[0] and outs[0] == outs[1]
+
+
+def test_lowest_first_orders_the_starts_by_their_chi2():
+    """The candidates' starts (the zero law's fit with the law at zero, at its pointwise values, the pointwise fit):
+    the lowest χ² first, a start that blows up last, ties in their order."""
+    from nnphd.explain.trajectory import _lowest_first
+
+    def res(s, u):
+        return np.array([s, u]) if u != "inf" else np.array([np.inf])
+
+    starts = [(1.0, 3.0, "a"), (0.0, 1.0, "b"), (1.0, "inf", "c"), (1.0, 0.0, "d"), (0.0, 1.0, "e")]
+    assert [x[2] for x in _lowest_first(res, starts)] == ["b", "d", "e", "a", "c"]

@@ -80,6 +80,39 @@ def rowwise_jvp(f):
     return g
 
 
+def rowwise_combination(f):
+    """``g(aux, c, q, v) = Σ_k f(aux, q, v)[..., k] c_k`` — a linear combination of columns ``f`` (W, …, K), each row
+    a function of its own row of (q, v) only — with forward derivatives taken through the per-row Jacobian of the
+    *combination*: ∂f/∂(q, v) from 2n directions, contracted with c once, applied to every tangent; plus f · dc. A
+    shooting Jacobian pushes every direction through it (53 on a double pendulum's 43 conservative columns):
+    :func:`rowwise_jvp` of f and then the combination carried each direction's (W, n, K) tangent of the columns,
+    this carries its (W, n). The same values; the derivatives to rounding (the sums in another order). ``aux`` is
+    data, not differentiated."""
+
+    def combine(cols, c):
+        return jnp.einsum("w...k,k->w...", cols, c)
+
+    @jax.custom_jvp
+    def g(aux, c, q, v):
+        return combine(f(aux, q, v), c)
+
+    @g.defjvp
+    def g_jvp(primals, tangents):
+        aux, c, q, v = primals
+        _, dc, dq, dv = tangents
+        n = q.shape[-1]
+        cols, lin = jax.linearize(lambda q_, v_: f(aux, q_, v_), q, v)
+
+        def column(e):  # ∂(f·c)/∂(q, v)_j of every row: the same unit direction j in every row
+            return combine(lin(jnp.broadcast_to(e[:n], q.shape), jnp.broadcast_to(e[n:], v.shape)), c)
+
+        J = jax.vmap(column)(jnp.eye(2 * n, dtype=q.dtype))  # (2n, W, …)
+        dy = jnp.einsum("jw...,wj->w...", J, jnp.concatenate([dq, dv], axis=-1)) + combine(cols, dc)
+        return combine(cols, c), dy
+
+    return g
+
+
 @functools.lru_cache(maxsize=64)
 def _damping_rhs(accel):
     """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
@@ -96,9 +129,11 @@ def _damping_rhs(accel):
 def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
     """Residuals (W, L, n) of the windows under the damping probe and their forward derivatives along every local
     direction (one direction perturbs the same component of every window's initial state; windows are independent)
-    and every global one (see :func:`model_residuals_and_jac`)."""
-    t0w = jnp.zeros(tw.shape[0], tw.dtype)
-    return model_residuals_and_jac(s, theta, params, tw, t0w, qw, mask, inv_sigma, rhs=_damping_rhs(accel), nsub=nsub)
+    and every global one (see :func:`model_residuals_and_jac`) — by the two programs :func:`_lm` runs (the numbers
+    of :func:`model_residuals_and_jac`, bit for bit), so that no third is compiled."""
+    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), _damping_rhs(accel)
+    args = (params, tw, t0w, qw, mask, inv_sigma)
+    return model_residuals(s, theta, *args, rhs=rhs, nsub=nsub), model_jac(s, theta, *args, rhs=rhs, nsub=nsub)
 
 
 def _solve(A, b):
@@ -145,16 +180,16 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, 
 
     t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), _damping_rhs(accel)
 
-    def resjac(s_, th_):
-        return model_residuals_and_jac(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
+    def jac(s_, th_):  # at an accepted point: its trial's residuals are kept, the simulation not run again
+        return model_jac(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
 
     def res(s_, th_):
         return model_residuals(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
 
-    return lm_windows(resjac, s, theta, free, iters, tol, res=res)
+    return lm_windows(None, s, theta, free, iters, tol, res=res, jac_fn=jac)
 
 
-def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None):
+def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None, mu0=1e-3):
     """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
     ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
     window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²).
@@ -165,9 +200,10 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
     ``jac_fn(s, theta)`` → the derivatives alone (with ``res``; ``resjac`` may then be None): at an accepted point
     the residuals of its trial are kept, and the simulation is not run a second time (a seventh of the time of
     ``resjac``). The numbers are those of ``resjac`` (:func:`model_residuals` and :func:`model_jac` give
-    :func:`model_residuals_and_jac`'s, bit for bit: tests/test_speed_equivalence.py)."""
+    :func:`model_residuals_and_jac`'s, bit for bit: tests/test_speed_equivalence.py). ``mu0``: the first damping
+    (relative to the normal matrix's diagonal); smaller where the start is known to be near an optimum."""
     P_loc = s.shape[1]
-    mu = 1e-3
+    mu = mu0
     if jac_fn is not None:
         r, jac = np.asarray(res(s, theta)), np.asarray(jac_fn(s, theta))
     else:

@@ -38,16 +38,17 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
     import jax
     import jax.numpy as jnp
 
-    from nnphd.engine.shooting import rowwise_jvp
+    from nnphd.engine.shooting import rowwise_combination
 
     sizes = [(len(f.coef_names), len(f.nl_names)) for f in fams]
 
-    # the conservative columns — the LNN's f_c among them — are differentiated once per row (2n directions), not
-    # once per fitted parameter: a shooting Jacobian pushes 2n + P directions through them (53 on a double pendulum)
+    # the conservative part Σ α_k column_k — the LNN's f_c among the columns — is differentiated once per row (2n
+    # directions), not once per fitted parameter: a shooting Jacobian pushes 2n + P directions through it (53 on a
+    # double pendulum), each a (W, n) tangent
     def columns(_, q, v):
         return conservative_basis(jnp, q, v, angles, None if fc_fn is None else fc_fn(q, v), center, library)
 
-    columns_rows = rowwise_jvp(columns)
+    conservative = rowwise_combination(columns)
 
     def family_term(f, off, K, m):
         def term(theta, q, v, t):
@@ -67,12 +68,13 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
     def rhs(u, q, v, t, aux):
         base, D, which = aux
         theta = base + u @ D
-        out = jnp.einsum("wnk,k->wn", columns_rows(None, q, v), theta[:Kc])
-        return out + jax.lax.switch(which, branches, theta, q, v, t)
+        return conservative(None, theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs
 
 
+MU_WARM = 1e-5  # LM's first damping from a start at (or next to) the zero law's optimum: its quadratic model holds
+# there (1e-3, LM's default, took 10 Jacobians per candidate on a double pendulum, 1e-5 took 7–8 to the same χ²)
 HELDOUT_FLOOR = 0.5  # a group's held-out χ² below this share of its in-sample χ²: the fit is no optimum
 
 
@@ -184,18 +186,18 @@ def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: i
     return base, D, u0, len(idx)
 
 
-def _shoot_candidate(model, s0, starts, free, fam: Family | None, Kc: int, n_fit: int):
-    """Levenberg–Marquardt of the windows from each of ``starts`` until one gives a finite χ²; a family's nonlinear
-    parameters out of their bounds are clipped, fixed (in ``free``, in place) and the fit repeated. ``model``: the
-    residuals and the derivatives (res, jac_fn) of :func:`nnphd.engine.shooting.lm_windows`. Returns (θ, r, jac,
-    χ²), or None when no fit is finite."""
+def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: int):
+    """Levenberg–Marquardt of the windows from each of ``starts`` ((window states, u, LM's first damping)) until one
+    gives a finite χ²; a family's nonlinear parameters out of their bounds are clipped, fixed (in ``free``, in place)
+    and the fit repeated. ``model``: the residuals and the derivatives (res, jac_fn) of
+    :func:`nnphd.engine.shooting.lm_windows`. Returns (s, θ, r, jac, χ²), or None when no fit is finite."""
     from nnphd.engine.shooting import lm_windows
 
     res, jac_fn = model
     chi2 = np.nan
-    for u_start in starts:
+    for s_start, u_start, mu0 in starts:
         try:
-            s, th, r, jac, chi2 = lm_windows(None, s0, u_start, free, iters=15, res=res, jac_fn=jac_fn)
+            s, th, r, jac, chi2 = lm_windows(None, s_start, u_start, free, iters=15, res=res, jac_fn=jac_fn, mu0=mu0)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             continue
         if np.isfinite(chi2):
@@ -213,7 +215,20 @@ def _shoot_candidate(model, s0, starts, free, fam: Family | None, Kc: int, n_fit
             s, th, r, jac, chi2 = lm_windows(None, s, th1, free, iters=15, res=res, jac_fn=jac_fn)
             if not np.isfinite(chi2):
                 return None
-    return th, r, jac, chi2
+    return s, th, r, jac, chi2
+
+
+def _lowest_first(res, starts: list) -> list:
+    """``starts`` ((window states, u, …)) by their χ² (``res(s, u)``), the lowest first (a start whose χ² is not
+    finite last; ties in their order)."""
+
+    def chi2(st):
+        with np.errstate(over="ignore", invalid="ignore"):
+            c = float(np.sum(np.asarray(res(*st[:2])) ** 2))
+        return c if np.isfinite(c) else np.inf
+
+    costs = [chi2(st) for st in starts]
+    return [starts[i] for i in sorted(range(len(starts)), key=costs.__getitem__)]
 
 
 def _window_bootstrap(th, fi, S, g, W: int, n_boot: int, seed: int) -> list:
@@ -294,12 +309,18 @@ def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
     return rows, n_eff, tau
 
 
-def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, compiled=None, **stats):
+def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **stats):
     """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``cands``; :func:`_candidate_statistics`):
-    its joint fit by multiple shooting from its pointwise fit, or None when no fit is finite or it is not at an
-    optimum. ``layout``: the universal θ (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of
-    every row; Kc), ``model``: the shooting functions' data, the right-hand side and the RK4 substeps;
-    ``compiled()``, if given, is called once both shooting functions have run (and so are compiled)."""
+    its joint fit by multiple shooting, or None when no fit is finite or it is not at an optimum; and the fit's
+    window states and conservative α (the candidates' ``warm`` start), or None. ``layout``: the universal θ
+    (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of every row; Kc), ``model``: the shooting
+    functions' data, the right-hand side and the RK4 substeps.
+
+    Starts: the row's pointwise fit (window states ``s0`` from the data) and, given ``warm`` (the zero law's
+    trajectory-level fit), the zero law's window states and α with this row's law at zero and at its pointwise values
+    — the lowest χ² first (:func:`_lowest_first`). The pointwise α is far from the trajectory-level optimum (χ² 100×
+    the optimum's on a double pendulum's 43 conservative columns): LM spent a third of its Jacobians getting from
+    there to where the zero law's fit already is."""
     import jax.numpy as jnp
 
     from nnphd.engine.shooting import model_jac, model_residuals
@@ -313,21 +334,29 @@ def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, compiled=None
     def res(s_, u_):
         return model_residuals(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
 
-    def jac(s_, u_):  # (the LM's first point computes the residuals, then the derivatives)
-        out = model_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
-        if compiled is not None:
-            compiled()
-        return out
+    def jac(s_, u_):
+        return model_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
 
     free = np.zeros(P_dir, bool)
     free[:n_fit] = True
     # the conservative starts: this row's own, then (the zero law, whole trajectories) the other rows' — the
     # zero law's pointwise f_c soaks up what it can of the friction and can run away over a long window
-    starts = [u0] + [np.concatenate([alpha0[id(c)], u0[Kc:]]) for c in (cands[:2] if fam is None and in_sample else [])]
-    fit = _shoot_candidate((res, jac), s0, starts, free, fam, Kc, n_fit)
+    starts = [(s0, u0, 1e-3)] + [
+        (s0, np.concatenate([alpha0[id(c)], u0[Kc:]]), 1e-3) for c in (cands[:2] if fam is None and in_sample else [])
+    ]
+    if warm is not None:  # the zero law's fit, with this row's law at zero (the zero law's χ²) and pointwise
+        s_w, a_w = warm
+        u_w = np.concatenate([a_w, u0[Kc:]])
+        u_z = u_w.copy()
+        if fam is not None:
+            u_z[Kc : Kc + len(fam.coef_names)] = 0.0
+        starts = _lowest_first(res, [(s_w, u_z, MU_WARM), (s_w, u_w, MU_WARM), *starts])
+    fit = _shoot_candidate((res, jac), starts, free, fam, Kc, n_fit)
     if fit is None:
-        return None
-    return _candidate_statistics(row, *fit, free, n_fit, Kc=Kc, in_sample=in_sample, **stats)
+        return None, None
+    s, th = fit[0], fit[1]
+    entry = _candidate_statistics(row, *fit[1:], free, n_fit, Kc=Kc, in_sample=in_sample, **stats)
+    return entry, (np.asarray(s), np.asarray(th[:Kc]))
 
 
 def default_threads() -> int:
@@ -343,7 +372,8 @@ def default_threads() -> int:
 def map_in_threads(fn, items: list, threads: int | None = None) -> list:
     """``[fn(x) for x in items]`` on ``threads`` threads (None: :func:`default_threads`): for independent pieces of
     work whose time is spent in compiled XLA programs (or numpy), which run outside Python's global lock. Each piece
-    runs the same programs on the same data as one after another: the numbers do not depend on the threads."""
+    runs the same programs on the same data as one after another: the numbers do not depend on the threads. On an
+    error or an interrupt the pieces not started are not started."""
     from concurrent.futures import ThreadPoolExecutor
 
     from nnphd.parallel import as_here
@@ -352,48 +382,26 @@ def map_in_threads(fn, items: list, threads: int | None = None) -> list:
     if threads <= 1:
         return [fn(x) for x in items]
     with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nnphd") as ex:
-        return list(ex.map(as_here(fn), items))
+        futures = [ex.submit(as_here(fn), x) for x in items]
+        try:
+            return [f.result() for f in futures]
+        except BaseException:
+            ex.shutdown(cancel_futures=True)
+            raise
 
 
 def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
-    """The ranking entries of the zero law and ``cands`` (``fit(ci, row)``: :func:`_fit_row`; a candidate without
-    one left out), or None when the zero law has none — nothing is ranked against it then, and the candidates are
-    not fitted (or no further). The fits are independent and their time is spent in compiled XLA programs, which
-    run outside Python's global lock: on ``threads`` threads (None: :func:`default_threads`) they run side by side —
-    the candidates once the zero law's fit has compiled the shooting functions they share (its first point). Each
-    fit runs the same programs on the same data as one after another: the numbers do not depend on the threads."""
-    import threading
-    from concurrent.futures import ThreadPoolExecutor
-
-    from nnphd.parallel import as_here
-
-    threads = min(default_threads() if threads is None else int(threads), len(cands) + 1)
-    if threads <= 1:
-        first = fit(0, zero)
-        if first is None:
-            return None
-        return [first, *(x for x in (fit(ci, r) for ci, r in enumerate(cands, 1)) if x is not None)]
-    ready = threading.Event()
-
-    def fit_zero():
-        try:
-            return fit(0, zero, compiled=ready.set)
-        finally:
-            ready.set()
-
-    with ThreadPoolExecutor(max_workers=threads, thread_name_prefix="nnphd-shooting") as ex:
-        try:
-            first = ex.submit(as_here(fit_zero))
-            ready.wait()
-            fit_here = as_here(fit)
-            rest = [ex.submit(fit_here, ci, r) for ci, r in enumerate(cands, 1)]
-            if first.result() is None:
-                ex.shutdown(cancel_futures=True)
-                return None
-            return [first.result(), *(x for x in (f.result() for f in rest) if x is not None)]
-        except BaseException:  # an error or an interrupt: the fits not started are not started
-            ex.shutdown(cancel_futures=True)
-            raise
+    """The ranking entries of the zero law and ``cands`` (``fit(ci, row, warm=…)`` → (entry, warm):
+    :func:`_fit_row`; a candidate without an entry left out), or None when the zero law has none — nothing is
+    ranked against it then, and the candidates are not fitted. The zero law is fitted first; the candidates start
+    from its fit (``warm``), side by side on ``threads`` threads (None: :func:`default_threads`) — their time is
+    spent in compiled XLA programs, which run outside Python's global lock. Each fit runs the same programs on the
+    same data as one after another: the numbers do not depend on the threads."""
+    first, warm = fit(0, zero)
+    if first is None:
+        return None
+    rest = map_in_threads(lambda item: fit(*item, warm=warm)[0], list(enumerate(cands, 1)), threads)
+    return [first, *(x for x in rest if x is not None)]
 
 
 def rank_trajectory(

@@ -201,3 +201,23 @@ def test_lowest_first_orders_the_starts_by_their_chi2():
 
     starts = [(1.0, 3.0, "a"), (0.0, 1.0, "b"), (1.0, "inf", "c"), (1.0, 0.0, "d"), (0.0, 1.0, "e")]
     assert [x[2] for x in _lowest_first(res, starts)] == ["b", "d", "e", "a", "c"]
+
+
+def test_lm_says_whether_it_converged():
+    """lm_windows's ``info``: converged once χ² stops falling by more than ``tol``; not when the iterations run out
+    first — the trajectory-level law fits start the candidates from the zero law's fit only where it converged."""
+    args, s0 = _windows()
+    rhs = _damping_rhs(_accel)
+
+    def res(s, th):
+        return model_residuals(s, th, *args, rhs=rhs, nsub=2)
+
+    def jac(s, th):
+        return model_jac(s, th, *args, rhs=rhs, nsub=2)
+
+    start, free = np.array([-0.5, 1.0]), np.ones(2, bool)
+    done, capped = {}, {}
+    full = lm_windows(None, s0, start, free, iters=40, res=res, jac_fn=jac, info=done)
+    short = lm_windows(None, s0, start, free, iters=2, res=res, jac_fn=jac, info=capped)
+    assert done == {"converged": True} and capped == {"converged": False}
+    assert short[4] > full[4] * (1 + 1e-6)  # two iterations were not enough: χ² was still falling

@@ -189,7 +189,7 @@ def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, 
     return lm_windows(None, s, theta, free, iters, tol, res=res, jac_fn=jac)
 
 
-def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None, mu0=1e-3):
+def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None, mu0=1e-3, info=None):
     """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
     ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
     window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²).
@@ -201,7 +201,8 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
     the residuals of its trial are kept, and the simulation is not run a second time (a seventh of the time of
     ``resjac``). The numbers are those of ``resjac`` (:func:`model_residuals` and :func:`model_jac` give
     :func:`model_residuals_and_jac`'s, bit for bit: tests/test_speed_equivalence.py). ``mu0``: the first damping
-    (relative to the normal matrix's diagonal); smaller where the start is known to be near an optimum."""
+    (relative to the normal matrix's diagonal); smaller where the start is known to be near an optimum. ``info``: a
+    dict, given, gets ``converged`` — False when the iterations ran out with χ² still falling by more than ``tol``."""
     P_loc = s.shape[1]
     mu = mu0
     if jac_fn is not None:
@@ -212,6 +213,7 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
         cost = float(np.sum(r * r))
     if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
         return s, theta, r, jac, float("nan")
+    converged = False
     for _ in range(iters):
         AtA, AtB, BtB, Atr, Btr, _ = normal_blocks(r, jac, P_loc)
         improved = False
@@ -243,7 +245,10 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
                 break
             mu *= 10.0
         if not improved or rel < tol:
+            converged = True
             break
+    if info is not None:
+        info["converged"] = converged
     return s, theta, r, jac, cost
 
 

@@ -190,14 +190,18 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
     """Levenberg–Marquardt of the windows from each of ``starts`` ((window states, u, LM's first damping)) until one
     gives a finite χ²; a family's nonlinear parameters out of their bounds are clipped, fixed (in ``free``, in place)
     and the fit repeated. ``model``: the residuals and the derivatives (res, jac_fn) of
-    :func:`nnphd.engine.shooting.lm_windows`. Returns (s, θ, r, jac, χ²), or None when no fit is finite."""
+    :func:`nnphd.engine.shooting.lm_windows`. Returns (s, θ, r, jac, χ², converged: whether LM stopped with χ² no
+    longer falling), or None when no fit is finite."""
     from nnphd.engine.shooting import lm_windows
 
     res, jac_fn = model
     chi2 = np.nan
+    info = {}
     for s_start, u_start, mu0 in starts:
         try:
-            s, th, r, jac, chi2 = lm_windows(None, s_start, u_start, free, iters=15, res=res, jac_fn=jac_fn, mu0=mu0)
+            s, th, r, jac, chi2 = lm_windows(
+                None, s_start, u_start, free, iters=15, res=res, jac_fn=jac_fn, mu0=mu0, info=info
+            )
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             continue
         if np.isfinite(chi2):
@@ -212,10 +216,10 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
             th1 = th.copy()
             th1[Kc + K : n_fit] = np.clip(nl, lo, hi)
             free[Kc + K : n_fit] = False
-            s, th, r, jac, chi2 = lm_windows(None, s, th1, free, iters=15, res=res, jac_fn=jac_fn)
+            s, th, r, jac, chi2 = lm_windows(None, s, th1, free, iters=15, res=res, jac_fn=jac_fn, info=info)
             if not np.isfinite(chi2):
                 return None
-    return s, th, r, jac, chi2
+    return s, th, r, jac, chi2, bool(info.get("converged"))
 
 
 def _lowest_first(res, starts: list) -> list:
@@ -312,12 +316,12 @@ def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
 def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **stats):
     """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``cands``; :func:`_candidate_statistics`):
     its joint fit by multiple shooting, or None when no fit is finite or it is not at an optimum; and the fit's
-    window states and conservative α (the candidates' ``warm`` start), or None. ``layout``: the universal θ
+    window states and conservative α (the candidates' ``warm`` start), or None (no fit, or LM did not converge). ``layout``: the universal θ
     (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of every row; Kc), ``model``: the shooting
     functions' data, the right-hand side and the RK4 substeps.
 
     Starts: the row's pointwise fit (window states ``s0`` from the data) and, given ``warm`` (the zero law's
-    trajectory-level fit), the zero law's window states and α with this row's law at zero and at its pointwise values
+    trajectory-level fit, where LM converged), the zero law's window states and α with this row's law at zero and at its pointwise values
     — the lowest χ² first (:func:`_lowest_first`). The pointwise α is far from the trajectory-level optimum (χ² 100×
     the optimum's on a double pendulum's 43 conservative columns): LM spent a third of its Jacobians getting from
     there to where the zero law's fit already is."""
@@ -354,9 +358,12 @@ def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **
     fit = _shoot_candidate((res, jac), starts, free, fam, Kc, n_fit)
     if fit is None:
         return None, None
-    s, th = fit[0], fit[1]
-    entry = _candidate_statistics(row, *fit[1:], free, n_fit, Kc=Kc, in_sample=in_sample, **stats)
-    return entry, (np.asarray(s), np.asarray(th[:Kc]))
+    s, th, r, J, chi2, converged = fit
+    entry = _candidate_statistics(row, th, r, J, chi2, free, n_fit, Kc=Kc, in_sample=in_sample, **stats)
+    # a start for the others only where LM converged: a fit stopped by the iteration cap is no optimum to start from
+    # (a seismometer's LNN base: its zero law's χ² still falling after 15 iterations; candidates started from it
+    # ended, at their own cap, where the pointwise starts ended lower)
+    return entry, ((np.asarray(s), np.asarray(th[:Kc])) if converged else None)
 
 
 def default_threads() -> int:
@@ -394,7 +401,7 @@ def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
     """The ranking entries of the zero law and ``cands`` (``fit(ci, row, warm=…)`` → (entry, warm):
     :func:`_fit_row`; a candidate without an entry left out), or None when the zero law has none — nothing is
     ranked against it then, and the candidates are not fitted. The zero law is fitted first; the candidates start
-    from its fit (``warm``), side by side on ``threads`` threads (None: :func:`default_threads`) — their time is
+    from its fit (``warm``; None where it did not converge), side by side on ``threads`` threads (None: :func:`default_threads`) — their time is
     spent in compiled XLA programs, which run outside Python's global lock. Each fit runs the same programs on the
     same data as one after another: the numbers do not depend on the threads."""
     first, warm = fit(0, zero)

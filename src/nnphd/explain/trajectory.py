@@ -316,9 +316,9 @@ def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
 def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **stats):
     """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``cands``; :func:`_candidate_statistics`):
     its joint fit by multiple shooting, or None when no fit is finite or it is not at an optimum; and the fit's
-    window states and conservative α (the candidates' ``warm`` start), or None (no fit, or LM did not converge). ``layout``: the universal θ
-    (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of every row; Kc), ``model``: the shooting
-    functions' data, the right-hand side and the RK4 substeps.
+    window states and conservative α (the candidates' ``warm`` start), or None (no fit, or LM did not converge).
+    ``layout``: the universal θ (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of every row;
+    Kc), ``model``: the shooting functions' data, the right-hand side and the RK4 substeps.
 
     Starts: the row's pointwise fit (window states ``s0`` from the data) and, given ``warm`` (the zero law's
     trajectory-level fit, where LM converged), the zero law's window states and α with this row's law at zero and at its pointwise values
@@ -401,9 +401,10 @@ def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
     """The ranking entries of the zero law and ``cands`` (``fit(ci, row, warm=…)`` → (entry, warm):
     :func:`_fit_row`; a candidate without an entry left out), or None when the zero law has none — nothing is
     ranked against it then, and the candidates are not fitted. The zero law is fitted first; the candidates start
-    from its fit (``warm``; None where it did not converge), side by side on ``threads`` threads (None: :func:`default_threads`) — their time is
-    spent in compiled XLA programs, which run outside Python's global lock. Each fit runs the same programs on the
-    same data as one after another: the numbers do not depend on the threads."""
+    from its fit (``warm``; None where it did not converge), side by side on ``threads`` threads (None:
+    :func:`default_threads`) — their time is spent in compiled XLA programs, which run outside Python's global lock.
+    Each fit runs the same programs on the same data as one after another: the numbers do not depend on the
+    threads."""
     first, warm = fit(0, zero)
     if first is None:
         return None

@@ -107,13 +107,16 @@ def test_the_strategy_objects_survive_save_and_load(model_file, tmp_path):
     """A model with a non-default derivative method and a restricted law library loads with both (a default one
     writes neither, so its file is what it always was)."""
     path, _ = model_file
-    assert {"derivative_method", "families"}.isdisjoint(_parts(path)[0]["settings"])
+    assert {"derivative_method", "families", "thin"}.isdisjoint(_parts(path)[0]["settings"])
     m = nnphd.load(path)
-    m.derivatives = nnphd.Derivatives(method="spline", trim=m.derivatives.trim)
+    assert m.derivatives.thin is True
+    m.derivatives = nnphd.Derivatives(method="spline", trim=m.derivatives.trim, thin=False)
     m.library = nnphd.LawLibrary(families=("linear", "coulomb"), laws=m.library.laws, fit=m.library.fit)
     again = nnphd.load(m.save(tmp_path / "s.npz"))
     assert again.derivatives.method == "spline" and again.library.families == ("linear", "coulomb")
+    assert again.derivatives.thin is False
     assert _refused(_variant(model_file, tmp_path, _set(["settings", "families"], ["warp"])), "warp")
+    assert _refused(_variant(model_file, tmp_path, _set(["settings", "thin"], "no")), "thin")
 
 
 def test_the_cfg_table_names_every_model_config_field():

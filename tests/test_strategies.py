@@ -40,6 +40,7 @@ def _same(a, b) -> None:
         ({"method": None}, ["method", "None"]),
         ({"trim": "yes"}, ["trim", "'yes'", "'auto', True or False"]),
         ({"trim": 1}, ["trim", "got 1"]),
+        ({"thin": "no"}, ["thin", "'no'", "True or False"]),
     ],
 )
 def test_derivatives_refuses_bad_fields(kw, words):

@@ -306,6 +306,7 @@ class NNPhD:
                 progress=progress,
                 trim=self.derivatives.trim,
                 derivative_method=self.derivatives.method,
+                thin=self.derivatives.thin,
                 laws=self.library.laws,
                 law_fit=self.library.fit,
                 families=self.library.families,
@@ -495,6 +496,7 @@ class NNPhD:
                 "field": self.field,
                 # the strategy objects' other fields, where not the default (older files have neither)
                 **({"derivative_method": self.derivatives.method} if self.derivatives.method != "auto" else {}),
+                **({"thin": False} if not self.derivatives.thin else {}),
                 **({"families": list(self.library.families)} if family_filter(self.library.families) else {}),
             },
         }
@@ -544,7 +546,9 @@ def load(path) -> NNPhD:
             seed=st["seed"],
             steps=st["steps"],
             n_seeds=st["n_seeds"],
-            derivatives=Derivatives(method=st.get("derivative_method", "auto"), trim=st["trim"]),
+            derivatives=Derivatives(
+                method=st.get("derivative_method", "auto"), trim=st["trim"], thin=st.get("thin", True)
+            ),
             library=LawLibrary(families=st.get("families", FAMILIES), laws=st["laws"], fit=st["law_fit"]),
             sr_time=st["sr_time"],
             field=st.get("field", "learned"),

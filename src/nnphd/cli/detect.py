@@ -93,6 +93,12 @@ def detect(
         "--trim",
         help="drop the ends of each trajectory, where the one-sided derivative estimates are ~20x worse",
     ),
+    thin: bool = typer.Option(
+        True,
+        "--thin/--no-thin",
+        help="use every k-th row of a dense record (over 5000 rows, over 80 per period), its derivatives estimated "
+        "at the full rate first",
+    ),
     workers: int | None = workers_option(),
     scheduler: str | None = scheduler_option(),
 ):
@@ -101,6 +107,8 @@ def detect(
     ang, extra, trim_v, paths = _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, width)
     extra |= fams
     settings = _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra)
+    if not thin:
+        settings["thin"] = False
     if paths is not None:
         return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
     ud, t_read = _read_file(files[0], ang, max_rows, law, out)
@@ -220,6 +228,8 @@ def _print_report(rep: dict) -> None:
         console.print(f"  effect: {_r(rep['effect'])}", highlight=False)
     for w in rep.get("warnings") or []:
         console.print(f"  [yellow]warning:[/] {_r(w)}", highlight=False)
+    if (rep.get("data") or {}).get("thinned"):
+        console.print(f"  data: {_r(rep['data']['thinned']['text'])}", highlight=False)
     for c, why in rep.get("angle_suggestions") or []:
         console.print(
             f"  note: {_r(repr(c))} looks like an angle ({_r(why)}); rerun with --angles to treat it as one",

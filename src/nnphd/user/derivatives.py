@@ -477,12 +477,15 @@ class Derivatives:
     (local polynomials in the recorded times) or "spline" (:func:`estimate_derivatives`).  ``trim``: drop the first
     and last half-window rows of each trajectory, where the one-sided estimates are ~20x worse — True, False, or
     "auto" (the default: True unless that leaves a trajectory less than :data:`TRIM_KEEP_MIN` of its rows or fewer
-    than :data:`TRIM_KEEP_ROWS` rows).  ``Derivatives()`` is what ``nnphd detect`` does (``--trim``).  A bad field is a
-    ValueError naming it and what is expected.
+    than :data:`TRIM_KEEP_ROWS` rows).  ``thin``: a dense record (over :data:`nnphd.user.detect.THIN_ROWS` rows) is
+    thinned once its derivatives are estimated at the full rate (:func:`nnphd.user.detect.dense_thinned`; False:
+    every row is used).  ``Derivatives()`` is what ``nnphd detect`` does (``--trim``, ``--thin/--no-thin``).  A bad
+    field is a ValueError naming it and what is expected.
     """
 
     method: str = "auto"
     trim: bool | str = "auto"
+    thin: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.method, str) or self.method not in METHODS:
@@ -493,6 +496,10 @@ class Derivatives:
             object.__setattr__(self, "trim", bool(self.trim))
         if not (isinstance(self.trim, bool) or (isinstance(self.trim, str) and self.trim == "auto")):
             raise ValueError(f"Derivatives: trim must be 'auto', True or False, got {self.trim!r:.60}")
+        if isinstance(self.thin, np.bool_):
+            object.__setattr__(self, "thin", bool(self.thin))
+        if not isinstance(self.thin, bool):
+            raise ValueError(f"Derivatives: thin must be True or False, got {self.thin!r:.60}")
 
     def estimate(self, t, q) -> DerivativeEstimate:
         """q̇ and q̈ of ONE trajectory (t (N,), q (N,) or (N, n)): :func:`estimate_derivatives` with this method and

@@ -236,6 +236,7 @@ def detect_data(
     read_s: float | None = None,
     derivative_method: str = "auto",
     families: Sequence[str] | None = None,
+    thin: bool = True,
     **assess_kw,
 ) -> tuple[dict, dict]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
@@ -246,7 +247,8 @@ def detect_data(
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`).
     ``derivative_method``: how q̇, q̈ are estimated (:data:`nnphd.user.derivatives.METHODS`); ``families``: the
     candidate law families ranked (None: all, :data:`nnphd.user.strategies.FAMILIES`) — the report's settings name
-    them only when they are not the defaults."""
+    them only when they are not the defaults; ``thin``: a dense record of more than THIN_ROWS rows is thinned after
+    its derivatives are estimated (:func:`dense_thinned`; False: every row is used)."""
     from nnphd.user.strategies import family_filter
 
     say = _Say(progress)
@@ -260,6 +262,8 @@ def detect_data(
         with timer.stage("derivatives"):
             data, info, trim, row_err, traj = _prepared(ud, trim, derivative_method)
             _check_declared_field(field, data, traj, ud, info)
+            if thin:
+                data, row_err, traj = dense_thinned(data, info, row_err, traj, ud)
         coords = list(ud.coords)
         library = _library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer)
         try:
@@ -291,6 +295,7 @@ def detect_data(
             "field": field,
             **({"derivative_method": derivative_method} if derivative_method != "auto" else {}),
             **({"families": list(families)} if families is not None else {}),
+            **({"thin": False} if not thin else {}),
             **assess_kw,
         }
         verdict = (status, new_physics, confidence, reasons)
@@ -440,6 +445,58 @@ def _warnings(info: dict, coords) -> list[str]:
             "the ends of the trajectories were not trimmed (too short): their derivatives are the least accurate rows"
         )
     return out
+
+
+# A dense record is thinned once its derivatives are estimated at the full rate: a record of more than THIN_ROWS rows
+# (after trimming) keeps every k-th row of each trajectory, k the smallest that brings it to ≤ THIN_ROWS rows, but
+# never fewer than THIN_MIN_PER_PERIOD rows per period and never more than half the shortest derivative window (so
+# every dropped row's q̇ and q̈ come from a smoothing window that a kept row's window mostly shares: neighbouring
+# estimates are strongly correlated, and the dropped rows add little). The real double pendulum at its full 400 Hz
+# (18 038 rows, Savitzky–Golay windows of 21–31 rows, 333 rows per period) took 221 s, 133 of them in the
+# trajectory-level fits; thinned to every 4th row it takes about what its 100-Hz record takes, with better
+# derivatives. Records with given q̇ or q̈ (no window) and records that do not oscillate are not thinned.
+THIN_ROWS = 5000
+THIN_MIN_PER_PERIOD = 80
+
+
+def dense_thinned(data, info: dict, row_err, traj, ud):
+    """(data, row errors, trajectory ids) of a dense record thinned as the comment above says, or as given; the
+    thinning, when there is one, is recorded in ``info["thinned"]`` (every, rows_before, rows, period_rows,
+    text)."""
+    from nnphd.explain.jointfit import trajectory_segments
+    from nnphd.user.assess import motion_period
+
+    n = len(data)
+    if n <= THIN_ROWS:
+        return data, row_err, traj
+    pc = info["per_coordinate"]
+    wins = [pc[c][k].get("windows") for c in ud.coords for k in ("qd", "qdd")]
+    if not all(wins):
+        return data, row_err, traj
+    period = motion_period(data, traj, [bool(a) for a in ud.is_angle], [pc[c]["noise"] for c in ud.coords])
+    segs = trajectory_segments(traj)
+    dts = np.concatenate([np.diff(data.t[s]) for s in segs if len(s) > 1] or [np.ones(1)])
+    dt = float(np.median(dts))
+    if not (np.isfinite(period) and dt > 0):
+        return data, row_err, traj
+    per_period = period / dt
+    k = min(-(-n // THIN_ROWS), int(per_period // THIN_MIN_PER_PERIOD), min(min(w) for w in wins) // 2)
+    if k <= 1:
+        return data, row_err, traj
+    keep = np.concatenate([s[::k] for s in segs])
+    info["thinned"] = {
+        "every": k,
+        "rows_before": n,
+        "rows": len(keep),
+        "period_rows": per_period,
+        "text": (
+            f"a dense record: one row in {k} of its {n} is used ({len(keep)} rows, {per_period / k:.0f} per "
+            f"period), its derivatives estimated at the full rate first (windows of {min(min(w) for w in wins)} "
+            f"rows or more)"
+        ),
+    }
+    errs = None if row_err is None else {name: np.asarray(v)[keep] for name, v in row_err.items()}
+    return data.subset(keep), errs, np.asarray(traj)[keep]
 
 
 def _dataset(ud, trim, method: str = "auto"):
@@ -840,6 +897,8 @@ def _moving_rows(data, traj, coords, info, err, fc, period, margin: bool = True)
 
     pc = info["per_coordinate"]
     margin = max((max(pc[c]["qdd"].get("windows") or [0]) for c in coords), default=0) // 2 if margin else 0
+    every = info.get("thinned", {}).get("every", 1)  # the q̈ windows count the rows before a dense record's thinning
+    margin = -(-margin // every)
     rest = rest_mask(
         data.q,
         data.t,

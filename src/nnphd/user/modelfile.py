@@ -234,7 +234,7 @@ REPORT = {  # the fields NNPhD reads; the report may hold more
     ),
 }
 
-OPTIONAL_SETTINGS = ("field", "derivative_method", "families")  # absent from older files, or at their default
+OPTIONAL_SETTINGS = ("field", "derivative_method", "families", "thin")  # absent from older files, or at their default
 SETTINGS = {  # NNPhD's arguments
     "seed": integer(-(2**63), 2**63 - 1),
     "steps": integer(0, 2**31),
@@ -247,6 +247,7 @@ SETTINGS = {  # NNPhD's arguments
     # written only when not the default (nnphd.Derivatives' method "auto"; nnphd.LawLibrary's families: all)
     "derivative_method": one_of(*DERIVATIVE_METHODS),
     "families": list_of(string(nonempty=True, max_len=100), max_len=100),
+    "thin": boolean,  # (nnphd.Derivatives' thin: written only when False)
 }
 
 FIELD = {  # a declared uniform field as fitted (nnphd.user.detect._fitted_field)

@@ -407,6 +407,7 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         f"{_e(TIME_SCALES.get(q.get('time_scale', 'oscillation'), 'oscillation'))}; "
         f"data usable: {'yes' if q['usable'] else 'no'}, pointwise test possible: "
         f"{'yes' if q['pointwise_ok'] else 'no'}{(' — ' + _e(q['reason'])) if q['reason'] else ''}</p>"
+        + (f"<p>{_e(report['data']['thinned']['text'])}</p>" if report["data"].get("thinned") else "")
         + table(["coordinate", "noise σ", "σ / std", "q̇", "q̈"], noise, left=1)
         + _field_html(report)
     )

@@ -183,3 +183,19 @@ def test_a_viscous_swing_fading_below_the_encoder_steps_is_no_stop():
     assert _stop(_table([true, _row("linear+coulomb", [0.5, 0.01], -18.0)]), data, traj, final, period) == {}
     # nor a law 20× too weak: from the last turning point a few steps off, no swing it predicts could be told
     assert _stop(_table([_row("linear", [0.025], -20.0)]), data, traj, final, period) == {}
+
+
+def test_a_draw_that_runs_away_gives_nan_and_no_warning():
+    """The stop check's std over the rest window: each finite draw's own std; NaN, silently, for a draw that reached
+    inf or NaN (before, numpy printed "invalid value encountered in subtract" on the user's console)."""
+    import warnings
+
+    from nnphd.explain.stuck import window_std
+
+    grid = np.linspace(0.0, 1.0, 11)
+    xs = np.stack([np.sin(3 * grid), np.where(grid > 0.7, np.inf, grid), np.where(grid > 0.8, np.nan, 1.0)], axis=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = window_std(grid, xs, 0.5)
+    assert out[0] == pytest.approx(np.std(np.sin(3 * grid[grid >= 0.5])), rel=1e-15)
+    assert np.isnan(out[1]) and np.isnan(out[2])

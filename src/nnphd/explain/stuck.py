@@ -277,8 +277,18 @@ def stop_contradictions(
     ends = [integrate(swings[0]), *map_in_threads(integrate, swings[1:], threads)]
     out = {}
     for (s, w), (grid, xs) in zip(swings, ends):
-        _judge_stop(rows, s, w, np.std(xs[grid >= s["t0"]], axis=0), out)
+        _judge_stop(rows, s, w, window_std(grid, xs, s["t0"]), out)
     return out
+
+
+def window_std(grid, xs, t0: float) -> np.ndarray:
+    """The std over the rest window (``grid`` ≥ ``t0``) of each draw's predicted motion ``xs`` (steps, draws): NaN,
+    without a RuntimeWarning on the user's console, for a draw that ran away (inf or NaN on the way; :func:`_judge_stop`
+    skips those)."""
+    x = np.asarray(xs)[np.asarray(grid) >= t0]
+    with np.errstate(invalid="ignore", over="ignore"):
+        out = np.std(x, axis=0)
+    return np.where(np.all(np.isfinite(x), axis=0), out, np.nan)
 
 
 def _last_swing(s, q, qd, t, traj, period: float, window_periods: float) -> dict | None:

@@ -5,7 +5,7 @@ throw with the uniform field its user knows declared (DECLARED; ``--undeclared``
 the verdict, the winning family and its coefficients, the runner-up, their ΔIC and the law's error.
 
     .venv/bin/python benchmarks/friction_laws.py [name,name,...] [--seeds 0,1] [--json out.json] [--sindy]
-                                                 [--undeclared]
+                                                 [--undeclared] [--duration name=seconds,...]
 
 Columns: **truth** (family key and coefficients, nnphd's names and signs: g = −γ q̇ − μ sign(q̇) − c |q̇| q̇ per unit
 mass, in the file's units); **verdict** (``detect``'s status); **winner** (the claimed family and its coefficients
@@ -44,7 +44,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import nnphd
-from tests.fixtures.friction import NAMES, make
+from tests.fixtures.friction import _PARAMS, NAMES, make
 
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
@@ -339,11 +339,18 @@ def main() -> None:
     ap.add_argument("--json", default=None, help="write the rows to this JSON file")
     ap.add_argument("--sindy", action="store_true", help="add the PySINDy peer's law and error")
     ap.add_argument("--undeclared", action="store_true", help="no declared field (DECLARED): every case at defaults")
+    ap.add_argument("--duration", default="", help="name=seconds,... : record these cases for longer (or shorter)")
     a = ap.parse_args()
     names = [n for n in a.names.split(",") if n]
     bad = [n for n in names if n not in NAMES]
     if bad:
         ap.error(f"unknown case(s) {', '.join(bad)}; expected some of {', '.join(NAMES)}")
+    durations = {}
+    for item in filter(None, a.duration.split(",")):
+        name, _, sec = item.partition("=")
+        if name not in _PARAMS or "duration" not in _PARAMS[name]:
+            ap.error(f"--duration: {name!r} is not a case recorded for a set duration")
+        durations[name] = _PARAMS[name]["duration"] = float(sec)
     head = "| case | rows | truth | verdict | winner (coefficients, error) | runner-up | ΔIC | err kept / moving (floor) | family | s |"
     sep = "|---|---|---|---|---|---|---|---|---|---|"
     if a.sindy:
@@ -361,6 +368,8 @@ def main() -> None:
                 print(f"| {name} | **failed**: {r['error']} |", flush=True)
             else:
                 print(line(r), flush=True)
+            if name in durations:
+                r["duration_s"] = durations[name]
             rows.append(r)
             if a.json:  # after every case: a long run keeps what it has
                 with open(a.json, "w") as fh:

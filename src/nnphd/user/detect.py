@@ -612,7 +612,8 @@ def _law_table(
         if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
             table = combine_bases([(LIBRARY_BASE, lib), (f"seed {seed}'s LNN", table)])
     out = table.to_dict()
-    out["envelope"] = _envelope(table, data, traj, coords, info, bool(ud.is_angle[0]))
+    with timer.stage(ENVELOPE_PICTURE) if timer is not None else nullcontext():
+        out["envelope"] = _envelope(table, data, traj, coords, info, bool(ud.is_angle[0]))
     if field == "uniform":
         zero = next((r for r in table.rows if r.key == "none"), None)
         out["_field"] = {k: _fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
@@ -658,6 +659,9 @@ def _fitted_field(table, row, coords, is_angle, q) -> dict | None:
         "coefficients": alpha.tolist(),
         "center": [np.asarray(x, float).tolist() for x in center] if center is not None else None,
     }
+
+
+ENVELOPE_PICTURE = "law table: the envelope picture"
 
 
 def _envelope(table, data, traj, coords, info, angle: bool = False) -> dict | None:

@@ -101,7 +101,7 @@ def _named_force(params, v, names, v_rms):
         elif base == "c":
             g[:, cols] -= x * sp_ * w
         else:
-            g[:, cols] -= x * w / np.sqrt(sp_**2 + eps**2)
+            g[:, cols] -= x * w * np.where(sp_ > 0, np.tanh(sp_ / eps) / np.where(sp_ > 0, sp_, 1.0), 1.0 / eps)
     return g
 
 

@@ -51,6 +51,20 @@ def test_the_true_family_is_claimed_or_tied_with_its_coefficients(name, tmp_path
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
+def test_offset_rest_is_viscous_plus_dry_not_dry_plus_quadratic(tmp_path):
+    """The offset-rest look-alike (viscous + dry about θ0 = 0.05, stuck in the dead band, one trajectory): a
+    whole-trajectory ODE fit of its positions (benchmarks/friction_reference.py) separates viscous + dry (rms 0.98
+    mrad, the noise 1 mrad) from dry + quadratic (2.02 mrad). With the algebraic sign, a dry term acted as viscous
+    friction at a few ε, and the IC's correlation time came from every fit's residual (n_eff 6): a tie, ΔIC 1.0."""
+    from nnphd.explain.table import IC_TIE
+
+    _, tab = _law_table("offset-rest", tmp_path)
+    assert tab.status == "claimed" and tab.law.key == "linear+coulomb", tab.reason
+    other = next(r for r in tab.rows if r.key == "coulomb+quadratic")
+    assert other.ic - tab.law.ic > IC_TIE
+
+
+@pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_a_stuck_tail_is_left_out_and_said(tmp_path):
     rec, tab = _law_table("ends-at-rest", tmp_path)
     rest = tab.settings["at_rest"]

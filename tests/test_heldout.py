@@ -48,3 +48,22 @@ def test_away_from_the_optimum_it_refuses_to_rank():
     # χ² (here 1.02–1.08 of it) — still ranked
     c, S, g = normal_blocks(X, y, theta + np.array([1e-3, 0.0]))
     assert heldout_chi2(c, S, g, groups) is not None
+
+
+def test_the_ic_correlation_time_is_the_noise_of_the_fits_that_explain_the_record():
+    """ρ of the IC's correlation time: the median lag-one correlation of the fits within ADEQUATE_CHI2 of the lowest
+    held-out χ² — the smooth residuals of the fits that miss the record (ρ near 1) are misfit, counted by their χ²,
+    and must not shrink every candidate's n_eff (an offset-rest look-alike: ρ 0.93 over all 13 fits, n_eff 6)."""
+    from nnphd.explain.trajectory import ADEQUATE_CHI2, _noise_correlation
+
+    def fits(pairs):  # (held-out χ², ρ) → the ranking entries' layout: χ² at [2], ρ at [4]
+        return [(None, None, c, None, r, None, None, None) for c, r in pairs]
+
+    good = [(100.0, 0.10), (150.0, 0.30), (199.0, 0.20)]
+    misfits = [(5e3, 0.95), (9e3, 0.97), (2e4, 0.98), (8e4, 0.99), (3e5, 0.99)]
+    assert ADEQUATE_CHI2 == 2.0
+    assert _noise_correlation(fits(good + misfits)) == pytest.approx(0.20)
+    assert np.median([r for _, r in good + misfits]) == pytest.approx(0.96)  # what the median over all gave
+    assert _noise_correlation(fits([(100.0, 0.1), (201.0, 0.9)])) == pytest.approx(0.1)  # just past the factor
+    assert _noise_correlation(fits([(100.0, 0.99)])) == 0.95  # clipped, as before
+    assert _noise_correlation(fits([(100.0, -0.4), (120.0, -0.2)])) == 0.0

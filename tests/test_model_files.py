@@ -101,6 +101,14 @@ def test_valid_files_load_and_give_the_saved_forces(model_file, tmp_path):
     law = {"spec": {"kind": "user", "text": "-c*x_dot"}, "beta": [0.25], "theta": []}
     with_law = nnphd.load(_variant(model_file, tmp_path, _set(["law"], law)))
     np.testing.assert_allclose(with_law.forces(Q, QD)[1], -0.25 * QD[:, None], rtol=1e-12)
+    # a built-in dry law: the tanh sign it names, or (a file saved before it named one) the algebraic sign
+    dry = {"spec": {"kind": "builtin", "key": "coulomb", "v_rms": [0.5], "sign": "tanh"}, "beta": [2.0], "theta": []}
+    eps = 0.02 * 0.5
+    tanh_law = nnphd.load(_variant(model_file, tmp_path, _set(["law"], dry), name="t.npz"))
+    np.testing.assert_allclose(tanh_law.forces(Q, QD)[1][:, 0], -2.0 * np.tanh(QD / eps), rtol=1e-12)
+    dry["spec"].pop("sign")
+    old = nnphd.load(_variant(model_file, tmp_path, _set(["law"], dry), name="o.npz"))
+    np.testing.assert_allclose(old.forces(Q, QD)[1][:, 0], -2.0 * QD / np.sqrt(QD**2 + eps**2), rtol=1e-12)
 
 
 def test_the_strategy_objects_survive_save_and_load(model_file, tmp_path):
@@ -172,6 +180,14 @@ CASES = {  # name → (edit_meta, edit_arrays, what the message says)
         "meta.law.beta[0] is nan",
     ),
     "law not a dict": (_set(["law"], "c*x_dot"), None, "meta.law is str, expected an object"),
+    "law sign": (
+        _set(
+            ["law"],
+            {"spec": {"kind": "builtin", "key": "coulomb", "v_rms": [1.0], "sign": "erf"}, "beta": [1.0], "theta": []},
+        ),
+        None,
+        "meta.law.spec.sign",
+    ),
     "sparse support": (
         _set(["law"], {"spec": {"kind": "sparse", "support": [[True]]}, "beta": [1.0], "theta": []}),
         None,

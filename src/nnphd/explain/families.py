@@ -3,7 +3,7 @@ coefficients β given a few nonlinear parameters θ (an exponent m, a drive freq
 
 Every candidate is odd under time reversal (it does work) or explicitly time-dependent. Built-in families
 (:func:`families`): linear friction (isotropic, diagonal, full Γ), quadratic drag −c|q̇|q̇, Coulomb −μ sign(q̇)
-(smoothed: q̇/√(q̇² + ε²), ε = 2 % of the rms speed), the power law −k(|q̇|²)^m q̇ with m free, Rayleigh (a + c q̇²)q̇,
+(smoothed: tanh(q̇/ε), ε = 2 % of the rms speed), the power law −k(|q̇|²)^m q̇ with m free, Rayleigh (a + c q̇²)q̇,
 van der Pol (a + b q²)q̇ and both together, a drive A cos(ωt + φ) with ω started from the peaks of the conservative
 residual's Lomb–Scargle spectrum. Besides them: the perturber on a circular orbit (:func:`perturber_family`, opt-in),
 a sparse polynomial (odd in q̇, degree ≤ 3, :func:`sparse_family` on a support thresholded jointly with f_c by
@@ -77,8 +77,11 @@ def _sym_diag(n, per):
     return [[per[i] if i == j else sp.Integer(0) for j in range(n)] for i in range(n)]
 
 
-def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
-    """The built-in candidate families for n coordinates (names for the parameters; v_rms (n,) the rms speeds)."""
+def families(n: int, names: Sequence[str], v_rms: np.ndarray, sign: str = "tanh") -> list[Family]:
+    """The built-in candidate families for n coordinates (names for the parameters; v_rms (n,) the rms speeds;
+    ``sign`` the form of the smoothed sign(q̇), :func:`smooth_sign`)."""
+    if sign not in SIGN_FORMS:
+        raise ValueError(f"unknown smoothed sign {sign!r}; expected one of {', '.join(SIGN_FORMS)}")
     v_rms = np.asarray(v_rms, float)
     eps = np.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)  # relative to the speeds: units must not matter
     v_all = float(np.sqrt(np.sum(np.square(v_rms))))
@@ -87,13 +90,13 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray) -> list[Family]:
     out: list[Family] = [
         *_linear_families(n, nm),
         *_quadratic_families(n, nm),
-        *_coulomb_families(n, nm, eps, eps_all),
-        *_mixed_families(n, nm, eps),
+        *_coulomb_families(n, nm, eps, eps_all, sign),
+        *_mixed_families(n, nm, eps, sign),
         _power_family(n),
         *_rayleigh_vdp_families(n, nm),
         _drive_family(n, nm),
     ]
-    spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)]}
+    spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)], "sign": sign}
     return [replace(f, spec={**spec, "key": f.key}) for f in out]
 
 
@@ -175,7 +178,26 @@ def _quadratic_families(n: int, nm: list[str]) -> list[Family]:
     return out
 
 
-def _coulomb_families(n: int, nm: list[str], eps: np.ndarray, eps_all: float) -> list[Family]:
+SIGN_FORMS = ("tanh", "sqrt")  # tanh(v/ε) (since 2026-11-27); v/√(v² + ε²) (model files saved before: no "sign")
+
+
+def smooth_sign(xp, v, eps, form: str = "tanh"):
+    """sign(v) smoothed over ε: tanh(v/ε) — within 1e-4 of ±1 beyond 5ε. The older algebraic form v/√(v² + ε²)
+    (``form="sqrt"``, kept for the model files fitted with it) has the same slope 1/ε at zero but falls short of ±1
+    by ε²/2v² far out (0.5 % at 10ε): on a dry-friction record a dry term with it acts as viscous friction at a few
+    ε, and dry + quadratic drag stood in for viscous + dry (an offset-rest look-alike: a tie, ΔIC 1)."""
+    e = xp.asarray(eps, v.dtype)
+    return xp.tanh(v / e) if form == "tanh" else v / xp.sqrt(v * v + e * e)
+
+
+def _sign_scale(xp, s, eps, form: str = "tanh"):
+    """smooth_sign(s)/s for speeds s ≥ 0 (1/ε at s = 0): v times it is the smoothed unit vector of v."""
+    tiny = s <= 1e-3 * eps
+    safe = xp.where(tiny, 1.0, s)
+    return xp.where(tiny, 1.0 / eps, smooth_sign(xp, safe, eps, form) / safe)
+
+
+def _coulomb_families(n: int, nm: list[str], eps: np.ndarray, eps_all: float, sign: str) -> list[Family]:
     """Coulomb (dry) friction with a smoothed sign: −μ q̇/|q̇| (on the velocity, n > 1; smoothing eps_all) and
     −μ_i sign(q̇_i) (per coordinate; smoothing eps (n,))."""
     one = n == 1
@@ -186,7 +208,9 @@ def _coulomb_families(n: int, nm: list[str], eps: np.ndarray, eps_all: float) ->
                 "coulomb",
                 "Coulomb friction −μ q̇/|q̇|",
                 ("mu",),
-                lambda xp, th, q, v, t: -(v / xp.sqrt(xp.sum(v * v, axis=1) + eps_all**2)[:, None])[:, :, None],
+                lambda xp, th, q, v, t: (
+                    -(v * _sign_scale(xp, xp.sqrt(xp.sum(v * v, axis=1)), eps_all, sign)[:, None])[:, :, None]
+                ),
                 lambda th, Q, V, T: [[-V[i] / sp.sqrt(sum(x**2 for x in V))] for i in range(n)],
                 terms=("q̇/|q̇|",),
             )
@@ -196,7 +220,7 @@ def _coulomb_families(n: int, nm: list[str], eps: np.ndarray, eps_all: float) ->
             "coulomb-diag" if not one else "coulomb",
             "Coulomb friction −μ_i sign(q̇_i)" if not one else "Coulomb friction −μ sign(q̇)",
             tuple(f"mu_{c}" for c in nm) if not one else ("mu",),
-            lambda xp, th, q, v, t: eye_columns(xp, -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2)),
+            lambda xp, th, q, v, t: eye_columns(xp, -smooth_sign(xp, v, eps, sign)),
             lambda th, Q, V, T: _sym_diag(n, [-sp.sign(x) for x in V]),
             terms=("sign(q̇_i)",) if not one else ("sign(q̇)",),
         )
@@ -204,14 +228,14 @@ def _coulomb_families(n: int, nm: list[str], eps: np.ndarray, eps_all: float) ->
     return out
 
 
-def _mixed_families(n: int, nm: list[str], eps: np.ndarray) -> list[Family]:
+def _mixed_families(n: int, nm: list[str], eps: np.ndarray, sign: str) -> list[Family]:
     """Mixed friction: sums of the textbook terms per coordinate (real friction is rarely one family: gearboxes and
     bearings are viscous + dry, air is linear + quadratic drag); each term must be significant on its own."""
     one = n == 1
     out: list[Family] = []
     term = {
         "linear": ("gamma", lambda xp, v: -v, lambda x: -x, "q̇"),
-        "coulomb": ("mu", lambda xp, v: -v / xp.sqrt(v * v + xp.asarray(eps, v.dtype) ** 2), lambda x: -sp.sign(x),
+        "coulomb": ("mu", lambda xp, v: -smooth_sign(xp, v, eps, sign), lambda x: -sp.sign(x),
                     "sign(q̇)"),
         "quadratic": ("c", lambda xp, v: -xp.abs(v) * v, lambda x: -sp.Abs(x) * x, "|q̇|q̇"),
     }  # fmt: skip
@@ -341,7 +365,8 @@ def family_from_spec(spec: dict, names: Sequence[str]) -> Family:
     names = list(names)
     kind = spec.get("kind")
     if kind == "builtin":
-        for f in families(len(names), names, np.asarray(spec["v_rms"], float)):
+        # a file saved before the tanh form names no "sign": it was fitted with the algebraic one
+        for f in families(len(names), names, np.asarray(spec["v_rms"], float), spec.get("sign", "sqrt")):
             if f.key == spec["key"]:
                 return f
         raise ValueError(f"no built-in law family {spec['key']!r} for {len(names)} coordinate(s)")

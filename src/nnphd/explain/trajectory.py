@@ -285,13 +285,25 @@ def _candidate_statistics(row, th, r, jac, chi2, free, n_fit, *, Kc, n, W, group
             cov_full[:Kc, :Kc])  # fmt: skip
 
 
+ADEQUATE_CHI2 = 2.0  # fits within this factor of the lowest held-out χ²: their residuals are the noise's
+
+
+def _noise_correlation(results) -> float:
+    """The residuals' lag-one correlation ρ that sets the IC's correlation time: the median over the fits whose
+    held-out χ² is within :data:`ADEQUATE_CHI2` of the lowest — a fit that misses the record leaves a smooth residual,
+    and its correlation is misfit (which its χ² counts already), not the noise's."""
+    best = min(x[2] for x in results)
+    ok = [x[4] for x in results if x[2] <= ADEQUATE_CHI2 * best]
+    return float(np.clip(np.median(ok), 0.0, 0.95))
+
+
 def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
     """The table's rows from the ranking entries: IC with n_eff = n_res/τ residuals, τ = (1 + ρ)/(1 − ρ)·ĉ from the
-    median lag-one correlation ρ and the overdispersion ĉ; each row with its joint fit's conservative part. Returns
-    (rows, n_eff, τ)."""
+    lag-one correlation ρ of the adequate fits (:func:`_noise_correlation`) and the overdispersion ĉ; each row with
+    its joint fit's conservative part. Returns (rows, n_eff, τ)."""
     Kc = settings["conservative_columns"]
     N = q_pos.shape[0]
-    rho = float(np.clip(np.median([x[4] for x in results]), 0.0, 0.95))
+    rho = _noise_correlation(results)
     c_hat = overdispersion_c_hat([x[5] for x in results], [x[2] for x in results])
     tau = (1 + rho) / (1 - rho) * c_hat
     n_eff = n_res / tau

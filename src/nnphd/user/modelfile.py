@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nnphd.explain.families import SIGN_FORMS
 from nnphd.io.cache import check_array, one_line, read_npz
 from nnphd.user.derivatives import METHODS as DERIVATIVE_METHODS
 
@@ -197,16 +198,25 @@ SCALING = {
 }
 
 LAW_SPECS = {  # nnphd.explain.families.family_from_spec's kinds
-    "builtin": {"kind": anything, "key": string(nonempty=True), "v_rms": list_of(number(nonneg=True), MAX_COORDS)},
+    "builtin": {
+        "kind": anything,
+        "key": string(nonempty=True),
+        "v_rms": list_of(number(nonneg=True), MAX_COORDS),
+        "sign": one_of(*SIGN_FORMS),  # optional: a file saved before the tanh sign has none
+    },
     "sparse": {"kind": anything, "support": list_of(list_of(boolean))},
     "user": {"kind": anything, "text": string(nonempty=True, max_len=MAX_TEXT)},
     "perturber": {"kind": anything},
 }
 
 
+LAW_SPECS_OPTIONAL = {"builtin": ("sign",)}
+
+
 def law_spec(x, where):
     kind = obj({"kind": one_of(*LAW_SPECS)}, others=True)(x, where)["kind"]
-    return obj(LAW_SPECS[kind])(x, where)
+    need = tuple(k for k in LAW_SPECS[kind] if k not in LAW_SPECS_OPTIONAL.get(kind, ()))
+    return obj(LAW_SPECS[kind], required=need)(x, where)
 
 
 LAW = {"spec": law_spec, "beta": list_of(number(), 10_000), "theta": list_of(number(), 10_000)}

@@ -1,6 +1,11 @@
 """Independent reference for the friction law of each real recording: a whole-trajectory ODE fit of the positions.
 
     .venv/bin/python benchmarks/friction_reference.py [file.csv ...] [--json out.json] [--cubic]
+    .venv/bin/python benchmarks/friction_reference.py --lookalikes offset-rest,sensor-20hz,...   # known truth
+
+``--lookalikes`` fits constructed look-alikes of tests/fixtures/friction.py (seed 0) instead of the recordings, with
+their true law beside (results/friction_reference_lookalikes.json): where this independent fit cannot tell two
+families apart either, a tie of nnphd's is the record's limit, not the ranking's.
 
 ``--cubic`` adds a cubic term − g q'^3 (the cubic of nnphd's Rayleigh family) to the friction library: 16 subsets
 instead of 8 (results/friction_reference_cubic.json holds that run for the two string pendulums).
@@ -522,13 +527,25 @@ def main():
     ap.add_argument(
         "--cubic", action="store_true", help="also a cubic term g q'^3 (write the result to another --json)"
     )
+    ap.add_argument(
+        "--lookalikes",
+        default="",
+        help="name,name,...: fit these constructed look-alikes (tests/fixtures/friction.py, seed 0) instead, "
+        "their truth beside (default --json: results/friction_reference_lookalikes.json)",
+    )
     args = ap.parse_args()
     global TERMS
     if args.cubic:
         TERMS = ("c", "d", "e", "g")
-    files = args.files or (
-        [os.path.join(SHARED, "servo_sts3250_drop.csv")] + sorted(glob.glob(os.path.join(DATA, "*.csv")))
-    )
+    truths = {}
+    if args.lookalikes:
+        files, truths = _lookalike_files(args.lookalikes.split(","))
+        if args.json == OUT:
+            args.json = OUT.replace(".json", "_lookalikes.json")
+    else:
+        files = args.files or (
+            [os.path.join(SHARED, "servo_sts3250_drop.csv")] + sorted(glob.glob(os.path.join(DATA, "*.csv")))
+        )
     results = []
     t_all = time.time()
     for path in files:
@@ -558,6 +575,8 @@ def main():
             "rule": f"necessary: R(full minus term) >= {RATIO} R(full); best: fewest terms with R < {RATIO} R(full)",
             "seconds": round(time.time() - t0, 1),
         }
+        if path in truths:  # a look-alike: its name and the true law in this script's names (c, d, e)
+            entry["file"], entry["truth"] = truths[path]
         for k in ("b",) * rec.pendulum + ("g",) * ("g" not in TERMS):
             entry["full_params"].pop(k)
             entry["best_params"].pop(k)
@@ -572,6 +591,34 @@ def main():
     print_table(results)
 
 
+def _lookalike_files(names):
+    """Write the look-alikes (seed 0) as CSV in a temporary folder, the coordinate named ``theta`` when it is an
+    angle and ``x`` otherwise (this script's model choice: a spring for the 20 Hz torsion sensor in degrees).
+    Returns (paths, {path: (name, truth)}), the truth as c (viscous), d (dry), e (quadratic)."""
+    import tempfile
+
+    sys.path.insert(0, ROOT)
+    from tests.fixtures.friction import make
+
+    folder = tempfile.mkdtemp(prefix="lookalikes-")
+    paths, truths = [], {}
+    for name in names:
+        rec = make(name, seed=0)
+        if len(rec.coords) != 1:
+            raise SystemExit(f"error: {name} has {len(rec.coords)} coordinates; this reference fits one")
+        path = rec.write_csv(os.path.join(folder, f"{name}.csv"))
+        coord = "theta" if rec.angles else "x"
+        with open(path) as fh:
+            lines = fh.read().splitlines()
+        lines[0] = lines[0].replace(rec.coords[0], coord, 1)
+        with open(path, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+        tc = rec.truth["coefficients"]
+        truths[path] = (f"lookalike:{name}", {"c": tc.get("gamma", 0.0), "d": tc.get("mu", 0.0), "e": tc.get("c", 0.0)})
+        paths.append(path)
+    return paths, truths
+
+
 def print_table(results):
     subs = list(subsets())
     print(
@@ -583,6 +630,8 @@ def print_table(results):
     for e in results:
         p = e["best_params"]
         ps = ", ".join(f"{k}={p[k]:.4g}" for k in ("a", "q0", "b", *TERMS) if k in p)
+        if "truth" in e:
+            ps += " (truth " + ", ".join(f"{k}={x:.4g}" for k, x in e["truth"].items() if x) + ")"
         rms = " | ".join(f"{e['rms'][label(S)]:.3g}" for S in subs)
         nec = label(e["necessary"])
         print(

@@ -457,6 +457,46 @@ def _real_law(r: dict, necessary: list[str], params: str = "all") -> str:
     return "no law"
 
 
+def _signed_pct(x: float) -> str:
+    """+4 %, −3 %, ±0 % (a relative error, rounded to whole per cent)."""
+    v = round(100 * x)
+    return "±0 %" if v == 0 else f"{'+' if v > 0 else '−'}{abs(v)} %"
+
+
+def lookalike_reference() -> str:
+    """results/friction_reference_lookalikes.json (``benchmarks/friction_reference.py --lookalikes``): per
+    look-alike the truth, the reference's best model, the rms of its fit with the truth's terms against the best
+    fit that lacks one of them, and nnphd's law status (results/friction_laws.json, seed 0)."""
+    look = {r["name"]: r for r in _load("friction_laws.json")}
+    out = [
+        "| look-alike | truth | the reference's best model | rms: the truth's terms | rms: the best lacking a "
+        "true term | ratio | nnphd, seed 0 |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for e in _load("friction_reference_lookalikes.json")["recordings"]:
+        name = e["file"].removeprefix("lookalike:")
+        truth = {k: v for k, v in e["truth"].items() if v}
+        true_set = "{" + ",".join(sorted(truth)) + "}"
+        lacking = {k: v for k, v in e["rms"].items() if not set(truth) <= set(k.strip("{}").split(","))}
+        lk, lv = min(lacking.items(), key=lambda kv: kv[1])
+        best = e["best_params"]
+        terms = " + ".join(REF_TERMS[t] for t in e["best_subset"]) or "none"
+        coef = ", ".join(f"{t} = {_g(best[t], 3)} ({_signed_pct(best[t] / truth[t] - 1)})" if t in truth
+                         else f"{t} = {_g(best[t], 3)}" for t in e["best_subset"])  # fmt: skip
+        tw = " + ".join(f"{REF_TERMS[t]} {t} = {_g(v, 3)}" for t, v in truth.items())
+        r = look.get(name)
+        said = "not run" if r is None else (
+            "tie: " + " / ".join(_fam(k) for k in [r["winner"] or r["candidate"] or "", *r["ties"]] if k)
+            if r["law_status"] == "tie" else f"{r['law_status']}: {_fam(r['winner'] or 'none')}"
+        )  # fmt: skip
+        lacks = " + ".join(REF_TERMS[t] for t in lk.strip("{}").split(",") if t) or "no friction"
+        out.append(
+            f"| {name} | {tw} | {terms}: {coef} | {_g(e['rms'][true_set], 3)} | {_g(lv, 3)} ({lacks}) | "
+            f"{_g(lv / e['rms'][true_set], 4)} | {said} |"
+        )
+    return "\n".join(out) + "\n"
+
+
 def _real_seed_rows() -> dict[int, dict[str, dict]]:
     return {s: {r["file"].removesuffix(".csv"): r for r in _load(f)} for s, f in REAL_SEED_FILES.items()}
 
@@ -1359,6 +1399,7 @@ TABLES = {
     "throw_declared": throw_declared,
     "laws_table": laws_table,
     "friction_lookalikes": friction_lookalikes,
+    "lookalike_reference": lookalike_reference,
     "real_friction": real_friction,
     "real_friction_seeds": real_friction_seeds,
     "detect_recordings": detect_recordings,

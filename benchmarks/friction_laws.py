@@ -24,7 +24,7 @@ conservative control: no law claimed); **s** the wall time of the whole ``detect
 Our law's force is evaluated on the TRUE states of the kept rows, from the family's own basis
 (:func:`nnphd.explain.families.families`, ε of the smooth sign = 2 % of the rms speed, as nnphd) when the key is a
 built-in family; otherwise (a family this checkout does not have) from its parameters named gamma*, mu*, c* as
-−γ v − μ v/√(v² + ε²) − c |v| v; a sparse polynomial from its monomials. ``--sindy`` adds the PySINDy peer
+−γ v − μ tanh(|v|/ε) v/|v| − c |v| v; a sparse polynomial from its monomials. ``--sindy`` adds the PySINDy peer
 (benchmarks/sindy_baseline.py: the velocity-odd part of a cubic polynomial fit of q̈) and its error on the same rows.
 """
 
@@ -75,7 +75,7 @@ def _builtin_force(row, q, v, t, names, v_rms):
 
 
 def _named_force(params, v, names, v_rms):
-    """−γ v − μ v/√(v² + ε²) − c |v| v from parameters gamma / mu / c (one coordinate, or isotropic in 2-D) or
+    """−γ v − μ tanh(|v|/ε) v/|v| − c |v| v from parameters gamma / mu / c (one coordinate, or isotropic in 2-D) or
     gamma_<x> / mu_<x> / c_<x> (per coordinate); None if a parameter is none of these."""
     n = v.shape[1]
     g = np.zeros_like(v)

@@ -5,7 +5,8 @@
 
 ``--lookalikes`` fits constructed look-alikes of tests/fixtures/friction.py (seed 0) instead of the recordings, with
 their true law beside (results/friction_reference_lookalikes.json): where this independent fit cannot tell two
-families apart either, a tie of nnphd's is the record's limit, not the ranking's.
+families apart either, a tie of nnphd's is the record's limit, not the ranking's.  The two-coordinate look-alike
+``throw-2d`` is fitted with the projectile model below.
 
 ``--cubic`` adds a cubic term − g q'^3 (the cubic of nnphd's Rayleigh family) to the friction library: 16 subsets
 instead of 8 (results/friction_reference_cubic.json holds that run for the two string pendulums).
@@ -19,6 +20,21 @@ nnphd's, and fits the one-degree-of-freedom model
 
 (viscous c, dry/Coulomb d, quadratic/aerodynamic e; a, q0, b free; eps = 1.5 % of the rms speed of the record,
 fixed) to the measured POSITIONS - nothing is differentiated except for starting guesses.
+
+A CSV with two coordinate columns (``t,x,y[,traj]``, y up) is a body in flight (a thrown ball), fitted with the
+projectile model, the same three friction terms in their isotropic two-dimensional form (v = (x', y'), |v| its norm)
+
+    projectile (x, y):  x'' =    - c x' - d tanh(|v|/eps) x'/|v| - e |v| x'
+                        y'' = -G - c y' - d tanh(|v|/eps) y'/|v| - e |v| y'
+
+(gravity G free like a; eps = 1.5 % of the rms speed |v|; ``--cubic`` adds - g |v|^2 v).  The record does not
+oscillate, so it has no period and no windows: each trajectory is one window, integrated from its own fitted state
+(x, y, x', y') over its whole length (single shooting, again with forward sensitivities), and the residuals are
+the x and the y position residuals (R is their rms over both coordinates).  Starting guesses: the state from a cubic
+in time per coordinate, G and a drag rate k (drag = -k v) from the constant acceleration and the mean velocity of a
+quadratic, k converted to each term at the rms speed s (c = k, d = k s, e = k / s).  Subsets, repairs and decision
+rules are the oscillators'; the JSON entry has the same keys (``model`` "projectile", ``period_s`` null,
+``windows`` the trajectories, ``continuity_gap_full`` 0, and ``gravity`` in place of a, q0, b in the parameters).
 
 Fit: multiple shooting.  Each trajectory is cut into windows of about two periods; every window starts from its own
 fitted state (q, q') and is integrated with ``scipy.integrate.solve_ivp`` (RK45, all windows of a record in one
@@ -79,6 +95,7 @@ OUT = os.path.join(ROOT, "benchmarks", "results", "friction_reference.json")
 
 TERMS = ("c", "d", "e")  # with --cubic also "g" (a cubic term g q'^3: the Rayleigh family's)
 PHYS = ("a", "q0", "b", "c", "d", "e", "g")  # sensitivity order
+PHYS2 = ("gravity", "c", "d", "e", "g")  # the projectile's (two coordinates), in its sensitivity order
 RTOL = 1e-6  # solve_ivp relative tolerance (the data are good to ~1e-3 of their range)
 MAX_RHS = 40_000  # right-hand-side calls allowed for one integration of all windows
 MAX_NFEV = 60  # least-squares evaluations per fit
@@ -91,29 +108,37 @@ ANGLE_PREFIXES = ("theta", "phi", "angle", "alpha", "q_ang")
 
 
 # ---- data ---------------------------------------------------------------------------------------------------------
-def read_record(path):
-    """(coordinate name, is_angle, [(t, q), ...]) from a CSV with a header; rows grouped by ``traj``."""
+def read_columns(path):
+    """(coordinate names, [(t, Q), ...]) from a CSV with a header ``t,<coord>...[,traj]``: one (t, Q) per ``traj``
+    value (all rows when there is no such column), sorted by time, Q of shape (rows, coordinates)."""
     with open(path, newline="") as f:
         reader = csv.reader(f)
         header = [h.strip() for h in next(reader)]
         rows = [r for r in reader if r and any(c.strip() for c in r)]
     coords = [h for h in header if h not in ("t", "traj")]
-    if len(coords) != 1:
-        raise ValueError(f"{path}: expected one coordinate column, got {coords}")
-    name = coords[0]
-    it, iq = header.index("t"), header.index(name)
+    it, iq = header.index("t"), [header.index(h) for h in coords]
     itr = header.index("traj") if "traj" in header else None
     groups: dict[str, list] = {}
     for r in rows:
-        groups.setdefault(r[itr].strip() if itr is not None else "1", []).append((float(r[it]), float(r[iq])))
-    is_angle = name.lower().startswith(ANGLE_PREFIXES)
+        groups.setdefault(r[itr].strip() if itr is not None else "1", []).append(
+            [float(r[it])] + [float(r[i]) for i in iq]
+        )
     trajs = []
     for rs in groups.values():
         a = np.array(rs, dtype=float)
         a = a[np.argsort(a[:, 0], kind="stable")]
-        q = np.unwrap(a[:, 1]) if is_angle else a[:, 1]
-        trajs.append((a[:, 0], q))
-    return name, is_angle, trajs
+        trajs.append((a[:, 0], a[:, 1:]))
+    return coords, trajs
+
+
+def read_record(path):
+    """(coordinate name, is_angle, [(t, q), ...]) from a CSV with one coordinate column; rows grouped by ``traj``."""
+    coords, trajs = read_columns(path)
+    if len(coords) != 1:
+        raise ValueError(f"{path}: expected one coordinate column, got {coords}")
+    name = coords[0]
+    is_angle = name.lower().startswith(ANGLE_PREFIXES)
+    return name, is_angle, [(t, np.unwrap(Q[:, 0]) if is_angle else Q[:, 0]) for t, Q in trajs]
 
 
 def quantum(q):
@@ -180,6 +205,7 @@ class Record:
     def __init__(self, path):
         self.path = path
         self.name, self.pendulum, trajs = read_record(path)
+        self.model = "pendulum" if self.pendulum else "spring"
         allq = np.concatenate([q for _, q in trajs])
         self.qstep = quantum(allq)
         self.period = period_estimate(trajs, self.qstep)
@@ -434,8 +460,213 @@ class Record:
         }
 
 
+# ---- two coordinates: a projectile ------------------------------------------------------------------------------
+class Projectile:
+    """A record of a body in flight, two coordinates (x, y), y up: one window (single shooting) per trajectory.
+
+    Same interface as :class:`Record` for :func:`fit_record` and :func:`main`; its parameters are PHYS2."""
+
+    model = "projectile"
+    pendulum = False
+    period = None
+
+    def __init__(self, path):
+        self.path = path
+        coords, self.trajs = read_columns(path)
+        if len(coords) != 2:
+            raise ValueError(f"{path}: expected two coordinate columns (x, y), got {coords}")
+        self.name = ",".join(coords)
+        self.qstep = min(quantum(Q[:, i]) for _, Q in self.trajs for i in range(2))
+        self.trimmed = [0] * len(self.trajs)
+        self.n_rows = sum(len(t) for t, _ in self.trajs)
+        self.K = len(self.trajs)
+        self.tau = np.concatenate([t - t[0] for t, _ in self.trajs])
+        self.owner = np.concatenate([np.full(len(t), k) for k, (t, _) in enumerate(self.trajs)])
+        self.qdata = np.concatenate([Q for _, Q in self.trajs]).T  # (coordinate, sample)
+        self.tau_u, self.tau_inv = np.unique(self.tau, return_inverse=True)
+        self.n = self.tau.size
+        self.t_end = np.array([t[-1] - t[0] for t, _ in self.trajs])
+        self.span = float(self.t_end.max())
+        speeds = np.concatenate([np.linalg.norm(np.gradient(Q, t, axis=0), axis=1) for t, Q in self.trajs])
+        self.vrms = float(np.sqrt(np.mean(speeds**2)))
+        self.eps = EPS_FRAC * self.vrms
+        # starting guesses from a quadratic in time per coordinate and trajectory: the initial state from a cubic,
+        # gravity and a drag rate k (drag = -k v) from the mean acceleration against the mean velocity
+        states, ks, gs = [], [], []
+        for t, Q in self.trajs:
+            tt = t - t[0]
+            cub = [np.polyfit(tt, Q[:, i], 3) for i in range(2)]
+            states.append([cub[0][3], cub[1][3], cub[0][2], cub[1][2]])
+            quad = [np.polyfit(tt - tt.mean(), Q[:, i], 2) for i in range(2)]
+            acc = np.array([2 * quad[0][0], 2 * quad[1][0]])
+            vm = np.array([quad[0][1], quad[1][1]])
+            k = -acc[0] / vm[0] if abs(vm[0]) > 0.1 * np.linalg.norm(vm) else 0.0
+            ks.append(k)
+            gs.append(-acc[1] - k * vm[1])
+        self.init_states = np.array(states)
+        self.k0 = max(float(np.median(ks)), 0.01 / self.span)
+        self.g0 = max(float(np.median(gs)), 1e-3 * self.vrms / self.span)
+
+    def guesses(self):
+        """Gravity, and the drag rate k expressed as each friction term at the rms speed s (c = k, d = k s, ...)."""
+        s, k = self.vrms, self.k0
+        return {"gravity": self.g0}, {"c": k, "d": k * s, "e": k / s, "g": k / s**2}
+
+    def simulate(self, phys, sens):
+        """Integrate every trajectory from its state in ``self._x_states`` (K, 4: x, y, x', y'), with sensitivities
+        to the parameters named in ``sens`` (a subset of PHYS2, in PHYS2 order) and to the initial state.  Returns
+        (1 + m, 4, sample): the state, then its derivative by each of the m = len(sens) + 4 columns."""
+        G, c, d, e, gc = phys
+        K, eps = self.K, self.eps
+        ns = len(sens)
+        m = ns + 4
+        forcing = [PHYS2.index(p) for p in sens]
+        calls = [0]
+
+        def rhs(_, y):
+            calls[0] += 1
+            if calls[0] > MAX_RHS:
+                raise FloatingPointError("too many steps")
+            Y = y.reshape(1 + m, 4, K)
+            v = Y[0, 2:]
+            s = np.sqrt(v[0] ** 2 + v[1] ** 2)
+            u = s / eps
+            th = np.tanh(u)
+            small = u < 1e-4
+            sg = np.where(small, eps, s)
+            h = np.where(small, (1 - u * u / 3) / eps, th / sg)  # tanh(s/eps)/s
+            hp = np.where(small, -2 / (3 * eps**3), (u * (1 - th * th) - th) / sg**3)  # h'(s)/s
+            k = c + d * h + e * s + gc * s * s  # the drag is -k(s) v
+            q = d * hp + e / np.maximum(s, 1e-300) + 2 * gc  # k'(s)/s
+            F = -k * v
+            F[1] -= G
+            J00, J01, J11 = -k - q * v[0] ** 2, -q * v[0] * v[1], -k - q * v[1] ** 2  # dF/dv
+            S = Y[1:]
+            dS = np.empty_like(S)
+            dS[:, :2] = S[:, 2:]
+            dS[:, 2] = J00 * S[:, 2] + J01 * S[:, 3]
+            dS[:, 3] = J01 * S[:, 2] + J11 * S[:, 3]
+            for i, j in enumerate(forcing):
+                if j == 0:
+                    dS[i, 3] += -1.0
+                else:
+                    dS[i, 2:] -= (1.0, h, s, s * s)[j - 1] * v
+            return np.concatenate([np.concatenate([v, F])[None], dS]).ravel()
+
+        y0 = np.zeros((1 + m, 4, K))
+        y0[0] = self._x_states.T
+        for i in range(4):
+            y0[1 + ns + i, i] = 1.0
+        sq = 1e-3 * max(self.qstep, 1e-6 * np.ptp(self.qdata))
+        atol = np.zeros((1 + m, 4, K))
+        atol[:, :2], atol[:, 2:] = sq, sq / self.span
+        sol = solve_ivp(
+            rhs, (0.0, self.span), y0.ravel(), method=METHOD, rtol=RTOL, atol=atol.ravel(), dense_output=True
+        )
+        if not sol.success:
+            raise RuntimeError(sol.message)
+        Yu = sol.sol(self.tau_u).reshape(1 + m, 4, K, -1)
+        return Yu[:, :, self.owner, self.tau_inv]
+
+    def fit(self, terms, start):
+        """Fit gravity and the friction terms ``terms`` from ``start`` (dict of PHYS2 values, optional states)."""
+        free = ["gravity"] + [p for p in TERMS if p in terms]
+        nf = len(free)
+        states0 = start.get("states", self.init_states)
+        x0 = np.concatenate(
+            [
+                [max(start.get(p, 0.0), 0.0) if p in TERMS else start.get(p, self.g0) for p in free],
+                np.asarray(states0).ravel(),
+            ]
+        )
+        lo = np.full(x0.size, -np.inf)
+        hi = np.full(x0.size, np.inf)
+        T, s = self.span, self.vrms
+        acc = max(self.g0, s / T)
+        limits = {  # generous; they keep trial points integrable
+            "gravity": (1e-3 * acc, 1e3 * acc),
+            "c": (0.0, 100 / T),
+            "d": (0.0, 100 * acc),
+            "e": (0.0, 100 / (T * s)),
+            "g": (0.0, 100 / (T * s * s)),
+        }
+        for i, p in enumerate(free):
+            lo[i], hi[i] = limits[p]
+        x0 = np.clip(x0, lo, hi)
+        n, K = self.n, self.K
+        cache = {}
+        big = np.full(2 * n, 1e6 * (np.ptp(self.qdata) + 1))
+
+        def evaluate(x):
+            key = x.tobytes()
+            if key in cache:
+                return cache[key]
+            phys = dict.fromkeys(PHYS2, 0.0)
+            phys.update(dict(zip(free, x[:nf])))
+            self._x_states = x[nf:].reshape(K, 4)
+            try:
+                with np.errstate(over="raise", invalid="raise"):
+                    Yd = self.simulate([phys[p] for p in PHYS2], free)
+            except (RuntimeError, FloatingPointError, ValueError):
+                cache.clear()
+                cache[key] = None
+                return None
+            r = (Yd[0, :2] - self.qdata).ravel()  # x residuals, then y residuals
+            J = np.zeros((2 * n, x.size))
+            for i in range(nf):
+                J[:, i] = Yd[1 + i, :2].ravel()
+            rows = np.arange(n)
+            for coord in range(2):
+                for comp in range(4):
+                    J[coord * n + rows, nf + 4 * self.owner + comp] = Yd[1 + nf + comp, coord]
+            cache.clear()
+            cache[key] = (r, J)
+            return cache[key]
+
+        def fun(x):
+            out = evaluate(x)
+            return big if out is None else out[0]
+
+        def jac(x):
+            out = evaluate(x)
+            return np.eye(2 * n, x.size) if out is None else out[1]
+
+        res = least_squares(
+            fun,
+            x0,
+            jac=jac,
+            bounds=(lo, hi),
+            method="trf",
+            x_scale="jac",
+            max_nfev=MAX_NFEV,
+            ftol=1e-8,
+            xtol=1e-8,
+            gtol=1e-10,
+        )
+        x = res.x
+        out = evaluate(x)
+        params = dict.fromkeys(PHYS2, 0.0)
+        params.update(dict(zip(free, x[:nf])))
+        rms = float("inf") if out is None else float(np.sqrt(np.mean(out[0] ** 2)))
+        return {
+            "params": {p: float(params[p]) for p in PHYS2},
+            "states": x[nf:].reshape(K, 4).copy(),
+            "rms": rms,
+            "continuity_gap": 0.0,
+            "nfev": int(res.nfev),
+        }
+
+
+def load_record(path):
+    """A :class:`Projectile` for a CSV with two coordinate columns, else a :class:`Record` (one coordinate)."""
+    coords, _ = read_columns(path)
+    return Projectile(path) if len(coords) == 2 else Record(path)
+
+
 def guesses(rec):
     """Data-derived starting values: a from the period, q0 from the median, damping from the envelope decay."""
+    if rec.model == "projectile":
+        return rec.guesses()
     q0 = float(np.median(np.concatenate([q for _, q in rec.trajs])))
     amps, decays = [], []
     for t, q in rec.trajs:
@@ -550,14 +781,14 @@ def main():
     t_all = time.time()
     for path in files:
         t0 = time.time()
-        rec = Record(path)
+        rec = load_record(path)
         fits = fit_record(rec)
         necessary, best = decide(fits)
         full = fits[TERMS]
         entry = {
             "file": os.path.relpath(os.path.abspath(path), ROOT).replace(os.sep, "/"),
             "coordinate": rec.name,
-            "model": "pendulum" if rec.pendulum else "spring",
+            "model": rec.model,
             "rows": rec.n_rows,
             "rows_fitted": rec.n,
             "rows_trimmed_at_rest": rec.trimmed,
@@ -604,15 +835,16 @@ def _lookalike_files(names):
     paths, truths = [], {}
     for name in names:
         rec = make(name, seed=0)
-        if len(rec.coords) != 1:
-            raise SystemExit(f"error: {name} has {len(rec.coords)} coordinates; this reference fits one")
+        if len(rec.coords) not in (1, 2):
+            raise SystemExit(f"error: {name} has {len(rec.coords)} coordinates; this reference fits one or two")
         path = rec.write_csv(os.path.join(folder, f"{name}.csv"))
-        coord = "theta" if rec.angles else "x"
-        with open(path) as fh:
-            lines = fh.read().splitlines()
-        lines[0] = lines[0].replace(rec.coords[0], coord, 1)
-        with open(path, "w") as fh:
-            fh.write("\n".join(lines) + "\n")
+        if len(rec.coords) == 1:
+            coord = "theta" if rec.angles else "x"
+            with open(path) as fh:
+                lines = fh.read().splitlines()
+            lines[0] = lines[0].replace(rec.coords[0], coord, 1)
+            with open(path, "w") as fh:
+                fh.write("\n".join(lines) + "\n")
         tc = rec.truth["coefficients"]
         truths[path] = (f"lookalike:{name}", {"c": tc.get("gamma", 0.0), "d": tc.get("mu", 0.0), "e": tc.get("c", 0.0)})
         paths.append(path)
@@ -622,14 +854,14 @@ def _lookalike_files(names):
 def print_table(results):
     subs = list(subsets())
     print(
-        f"| file | model | rows fitted | necessary | best | best params (a, q0, b, {', '.join(TERMS)}) | "
+        f"| file | model | rows fitted | necessary | best | best params (a, q0, b | gravity, {', '.join(TERMS)}) | "
         + " | ".join(f"rms {label(S)}" for S in subs)
         + " |"
     )
     print("|" + "---|" * (6 + len(subs)))
     for e in results:
         p = e["best_params"]
-        ps = ", ".join(f"{k}={p[k]:.4g}" for k in ("a", "q0", "b", *TERMS) if k in p)
+        ps = ", ".join(f"{k}={p[k]:.4g}" for k in ("a", "q0", "b", "gravity", *TERMS) if k in p)
         if "truth" in e:
             ps += " (truth " + ", ".join(f"{k}={x:.4g}" for k, x in e["truth"].items() if x) + ")"
         rms = " | ".join(f"{e['rms'][label(S)]:.3g}" for S in subs)

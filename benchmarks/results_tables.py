@@ -478,7 +478,11 @@ def lookalike_reference() -> str:
         truth = {k: v for k, v in e["truth"].items() if v}
         true_set = "{" + ",".join(sorted(truth)) + "}"
         lacking = {k: v for k, v in e["rms"].items() if not set(truth) <= set(k.strip("{}").split(","))}
-        lk, lv = min(lacking.items(), key=lambda kv: kv[1])
+        # the fewest terms among the fits within 1e-6 of the lowest rms (a term fitted to ~0 is no other model)
+        low = min(lacking.values())
+        lk, lv = min(
+            ((k, v) for k, v in lacking.items() if v <= low * (1 + 1e-6)), key=lambda kv: (kv[0].count(","), kv[1])
+        )
         best = e["best_params"]
         terms = " + ".join(REF_TERMS[t] for t in e["best_subset"]) or "none"
         coef = ", ".join(f"{t} = {_g(best[t], 3)} ({_signed_pct(best[t] / truth[t] - 1)})" if t in truth

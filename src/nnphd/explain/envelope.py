@@ -2,7 +2,10 @@ r"""The amplitude envelope of a damped oscillation — the picture physicists us
 from the record (:func:`measured_envelope`) and predicted by a candidate law (:func:`predicted_envelope`).
 
 Measured: the half swings between successive turning points (where the estimated velocity changes sign), each at
-the midpoint time; swings below :data:`MIN_SWING_SIGMA`·σ (noise, a body at rest) are dropped.
+the midpoint time — a turning point's time is where the velocity crosses zero, interpolated between the two rows
+around the sign change (the row after it sets the time only to within a sample: at 66 Hz 3.6 % of a half period,
+more than a 0.5-rad pendulum's 1.4 % lengthening, which is how its orbit is told from a harmonic one); swings below
+:data:`MIN_SWING_SIGMA`·σ (noise, a body at rest) are dropped.
 
 Predicted (one coordinate, energy balance over one cycle of the harmonic motion q = q₀ + A cos φ, q̇ = −Aω sin φ):
 
@@ -73,11 +76,14 @@ def measured_envelope(q, qd, t, traj, sigma: float) -> tuple[np.ndarray, np.ndar
     for seg in np.split(np.arange(len(t)), cuts):
         s = np.sign(qd[seg])
         turn = np.flatnonzero((s[1:] * s[:-1]) < 0) + 1  # the first row after each sign change
-        for a, b in zip(turn[:-1], turn[1:]):
+        r = seg[turn]
+        frac = qd[r - 1] / (qd[r - 1] - qd[r])  # in (0, 1): the two velocities have opposite signs
+        t_turn = t[r - 1] + frac * (t[r] - t[r - 1])  # the velocity's zero crossing, interpolated
+        for n, (a, b) in enumerate(zip(turn[:-1], turn[1:])):
             i, j = seg[a], seg[b]
             swing = abs(q[j] - q[i])
             if swing >= MIN_SWING_SIGMA * sigma:
-                out_t.append(0.5 * (t[i] + t[j]))
+                out_t.append(0.5 * (t_turn[n] + t_turn[n + 1]))
                 out_a.append(0.5 * swing)
                 out_k.append(traj[i])
     return np.asarray(out_t, float), np.asarray(out_a, float), np.asarray(out_k)

@@ -67,24 +67,3 @@ def test_the_ic_correlation_time_is_the_noise_of_the_fits_that_explain_the_recor
     assert _noise_correlation(fits([(100.0, 0.1), (201.0, 0.9)])) == pytest.approx(0.1)  # just past the factor
     assert _noise_correlation(fits([(100.0, 0.99)])) == 0.95  # clipped, as before
     assert _noise_correlation(fits([(100.0, -0.4), (120.0, -0.2)])) == 0.0
-
-
-def test_an_in_sample_fit_is_ranked_only_at_an_optimum():
-    """The in-sample check (:func:`nnphd.explain.trajectory.in_sample_chi2`), on linear least squares: at the
-    optimum χ² as it is; far from it (one Gauss–Newton step would more than halve χ²) None; a little short of it
-    still ranked; and a normal matrix that is not positive semi-definite beyond rounding — the sensitivities of a
-    runaway orbit, past float64's range — None, however small its gradient."""
-    from nnphd.explain.trajectory import in_sample_chi2
-
-    X, y, theta = _windows()
-    c, S, g = normal_blocks(X, y, theta)
-    assert in_sample_chi2(float(c.sum()), S, g) == pytest.approx(float(c.sum()))
-    c, S, g = normal_blocks(X, y, theta + np.array([0.8, -0.6]))
-    assert in_sample_chi2(float(c.sum()), S, g) is None
-    c, S, g = normal_blocks(X, y, theta + np.array([1e-3, 0.0]))
-    assert in_sample_chi2(float(c.sum()), S, g) == pytest.approx(float(c.sum()))
-    c, S, g = normal_blocks(X, y, theta)
-    bad = S.copy()
-    bad[0] += np.diag([1e33, -1e27])  # the servo drop's LNN base: eigenvalues −1.6e27 … 2.5e33
-    assert in_sample_chi2(float(c.sum()), bad, g) is None
-    assert in_sample_chi2(float(c.sum()), S + np.diag([1e33, 0.0]), g) is not None  # huge but PSD: ranked

@@ -235,30 +235,6 @@ def _lowest_first(res, starts: list) -> list:
     return [starts[i] for i in sorted(range(len(starts)), key=costs.__getitem__)]
 
 
-PSD_TOL = 1e-9  # a normal matrix's most negative eigenvalue beyond this share of its largest: not rounding
-
-
-def in_sample_chi2(chi2: float, S, g) -> float | None:
-    """The χ² of an in-sample fit (whole trajectories, no held-out groups) when it is at an optimum, else None
-    (``S`` (W, P, P), ``g`` (W, P): the windows' Schur-reduced normal matrices and gradients). Not at an optimum:
-    (a) one Gauss–Newton step would take χ² below HELDOUT_FLOOR of itself — far from its optimum, as the held-out
-    check (:func:`heldout_chi2`) has it; or (b) the normal matrix is not positive semi-definite beyond rounding
-    (:data:`PSD_TOL`): the orbit's sensitivity to the parameters has run away past float64's range. A conservative
-    force fitted without the friction can balance a whole trajectory on an unstable equilibrium — the servo drop's
-    LNN base (seed 2, no ``--angles``): its zero law at χ² 9e5 had eigenvalues −1.6e27 … 2.5e33 and a covariance of
-    1e-23, and was ranked, and was the start from which 7 of 12 candidates never moved."""
-    Stot, gtot = S.sum(0), g.sum(0)
-    if not (np.all(np.isfinite(Stot)) and np.all(np.isfinite(gtot))):
-        return None
-    if gtot.size:
-        ev = np.linalg.eigvalsh(0.5 * (Stot + Stot.T))
-        if ev[0] < -PSD_TOL * max(ev[-1], 0.0):
-            return None
-        if chi2 - float(gtot @ solve_or_lstsq(ridge_regularised(Stot), gtot)) < HELDOUT_FLOOR * chi2:
-            return None
-    return chi2
-
-
 def _window_bootstrap(th, fi, S, g, W: int, n_boot: int, seed: int) -> list:
     """``n_boot`` window-bootstrap replicates of θ: the fit moved by one linearised step to the windows drawn with
     replacement (S, g the windows' Schur-reduced normal matrices and gradients over the free parameters ``fi``)."""
@@ -285,7 +261,7 @@ def _candidate_statistics(row, th, r, jac, chi2, free, n_fit, *, Kc, n, W, group
     S, g, _XB, Xr = schur_complement(AtA, AtB, BtB, Atr, Btr, 0.0, free)
     c_loc = rr - np.einsum("wi,wi->w", Atr, Xr)  # χ² per window with its states re-optimised
     Stot = S.sum(0)
-    cv = in_sample_chi2(chi2, S, g) if in_sample else heldout_chi2(c_loc, S, g, groups)
+    cv = chi2 if in_sample else heldout_chi2(c_loc, S, g, groups)
     if cv is None:  # not at an optimum: its held-out error means nothing — the candidate is not ranked
         return None
     fi = np.flatnonzero(free)  # S, g are over the free parameters

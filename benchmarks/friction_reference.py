@@ -429,18 +429,7 @@ class Record:
                 return np.eye(n + 2 * len(self.cont), x.size)
             return out[1]
 
-        res = least_squares(
-            fun,
-            x0,
-            jac=jac,
-            bounds=(lo, hi),
-            method="trf",
-            x_scale="jac",
-            max_nfev=MAX_NFEV,
-            ftol=1e-8,
-            xtol=1e-8,
-            gtol=1e-10,
-        )
+        res = _least_squares(fun, jac, x0, lo, hi)
         x = res.x
         out = evaluate(x)
         params = dict(fixed)
@@ -458,6 +447,13 @@ class Record:
             "continuity_gap": gap,
             "nfev": int(res.nfev),
         }
+
+
+def _least_squares(fun, jac, x0, lo, hi):
+    """The reference's one optimiser setting, for both models: trust-region reflective within the bounds, scaled by
+    the Jacobian, tolerances tight enough that the subsets' rms values compare to 1e-6."""
+    return least_squares(fun, x0, jac=jac, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=MAX_NFEV,
+                         ftol=1e-8, xtol=1e-8, gtol=1e-10)  # fmt: skip
 
 
 # ---- two coordinates: a projectile ------------------------------------------------------------------------------
@@ -631,18 +627,7 @@ class Projectile:
             out = evaluate(x)
             return np.eye(2 * n, x.size) if out is None else out[1]
 
-        res = least_squares(
-            fun,
-            x0,
-            jac=jac,
-            bounds=(lo, hi),
-            method="trf",
-            x_scale="jac",
-            max_nfev=MAX_NFEV,
-            ftol=1e-8,
-            xtol=1e-8,
-            gtol=1e-10,
-        )
+        res = _least_squares(fun, jac, x0, lo, hi)
         x = res.x
         out = evaluate(x)
         params = dict.fromkeys(PHYS2, 0.0)

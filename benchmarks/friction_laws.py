@@ -1,6 +1,6 @@
 """Issue 29's look-alikes of real friction (tests/fixtures/friction.py: viscous + dry, linear + quadratic drag, offset
-rest, a record ending at rest, a 1 kHz quantized encoder, a 20 Hz/1° sensor, a jittered nominal clock, heavy damping,
-a 2-D throw, a conservative control) written as CSV and run through ``nnphd detect`` at its default settings — the
+rest, a record ending at rest, a 1 kHz quantized encoder, a 20 Hz/1° sensor in one run and in ten, a jittered nominal
+clock, heavy damping, a 2-D throw, a conservative control) written as CSV and run through ``nnphd detect`` at its default settings — the
 throw with the uniform field its user knows declared (DECLARED; ``--undeclared``: none); prints per case the truth,
 the verdict, the winning family and its coefficients, the runner-up, their ΔIC and the law's error.
 

@@ -399,6 +399,7 @@ LOOK_CASES = {  # the case column: what each look-alike of tests/fixtures/fricti
     "jitter-clock": "k/100 s written, 2 ms jitter",
     "heavy-damping": "ratio 0.13, 4 s",
     "sensor-20hz": "torsion, whole degrees",
+    "sensor-20hz-runs": "the same, 10 runs to rest, as the issue's record",
     "offset-rest": "θ₀ = 0.05, stuck in the dead band",
     "throw-2d": "60 fps, 1.2 s",
     "pendulum-free": "control",

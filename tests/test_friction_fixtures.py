@@ -34,7 +34,7 @@ def _ranges(rec):
 
 
 def test_cases_and_unknown_name():
-    assert len(NAMES) == 10 and len(set(NAMES)) == 10
+    assert len(NAMES) == 11 and len(set(NAMES)) == 11
     with pytest.raises(ValueError, match="unknown case 'nope'; expected one of viscous-dry"):
         make("nope")
 
@@ -153,7 +153,7 @@ def test_energy_decreases(recs):
 
 def test_quantization_seen_in_positions(recs):
     out = recs
-    for name in ("viscous-dry", "encoder-1khz", "sensor-20hz"):
+    for name in ("viscous-dry", "encoder-1khz", "sensor-20hz", "sensor-20hz-runs"):
         r = out[name]
         step = r.truth["step"]
         k = r.q[:, 0] / step
@@ -244,3 +244,21 @@ def test_csv_round_trip(tmp_path, recs):
         np.testing.assert_array_equal(q, r.q)
     head = (tmp_path / "sensor-20hz.csv").read_text().splitlines()[1]
     assert head.split(",")[1] == "30"  # whole degrees, written as integers
+
+
+def test_the_sensor_in_runs_is_ten_releases_of_the_same_oscillator(recs):
+    """The 20 Hz/1° sensor as the issue's record was: 10 runs, released from 20–40° on either side, each stopping;
+    the same oscillator and friction as the one-run case."""
+    one, runs = recs["sensor-20hz"], recs["sensor-20hz-runs"]
+    for k in ("omega0", "theta0", "gamma", "mu", "c", "fs", "step"):
+        assert runs.truth[k] == one.truth[k], k
+    spans = _ranges(runs)
+    assert len(spans) == 10
+    first = np.array([runs.truth["q_true"][a, 0] for a, _ in spans])
+    assert sorted(np.abs(first)) == [20, 20, 25, 25, 30, 30, 35, 35, 40, 40]
+    assert (first > 0).sum() == 5
+    tr, db = runs.truth, runs.truth["dead_band"]
+    for i, (a, b) in enumerate(spans):  # each run sticks in the dead band (one of them next to the spring's rest)
+        assert tr["t_stick"][i] is not None and abs(tr["q_stick"][i]) <= db
+        assert (tr["t_true"][a:b] >= tr["t_stick"][i]).sum() >= 10
+    assert runs.n_samples > 9 * one.n_samples

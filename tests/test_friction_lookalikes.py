@@ -5,6 +5,8 @@ family. Slow tier: tens of seconds per case."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -33,7 +35,8 @@ def _force_error(rec, row) -> float:
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
-# (not yet: the 20 Hz/1° sensor — a tie of viscous + dry and dry + quadratic that holds the truth, γ 24 % off)
+# (not the one-run 20 Hz/1° sensor: a tie of viscous + dry and dry + quadratic that holds the truth, γ 24 % off — the
+# independent whole-trajectory fit cannot tell them apart either, rms ratio 1.008; its 10 runs can, below)
 @pytest.mark.parametrize(
     "name",
     [
@@ -49,6 +52,7 @@ def _force_error(rec, row) -> float:
         "throw-2d",
         "linear-quadratic",
         "jitter-clock",
+        "sensor-20hz-runs",
     ],
 )
 def test_the_true_family_is_claimed_or_tied_with_its_coefficients(name, tmp_path):
@@ -60,7 +64,13 @@ def test_the_true_family_is_claimed_or_tied_with_its_coefficients(name, tmp_path
     assert right, (truth["law"], [r.key for r in shown], tab.reason)
     for p, v in truth["coefficients"].items():
         assert right[0].params[p] == pytest.approx(v, rel=0.1), (p, right[0].params)
-    assert _force_error(rec, right[0]) < 0.1
+    # the force within 10 % — or within 2 % of the floor: the true law in nnphd's form, its sign smoothed over 2 % of
+    # the rms speed (the truth's over 0.1 %), which on the 20 Hz sensor's whole degrees is itself 10.6 % off
+    fam = right[0].family
+    floor = _force_error(
+        rec, dataclasses.replace(right[0], beta=np.array([truth["coefficients"][c] for c in fam.coef_names]))
+    )
+    assert _force_error(rec, right[0]) < max(0.1, floor + 0.02), floor
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)

@@ -424,7 +424,8 @@ INELIGIBLE = (
     "disagree or its windows reject it"
 )
 
-NESTS = {"power": ("linear", "quadratic")}  # families a nonlinear family holds as special cases (m = 0, ½ in 1-D)
+# families a nonlinear family holds as special cases (the power law: viscous at m = 0, quadratic drag at ½)
+NESTS = {key: tuple(fam for _, fam in specials) for key, (_, specials) in SPECIAL_VALUES.items()}
 
 
 def _nested(a: Candidate, b: Candidate) -> bool:

@@ -249,9 +249,9 @@ class NNPhD:
     "trajectory") ``LawLibrary.fit``, ``trim`` (drop the ends of each trajectory: "auto", True, False)
     ``Derivatives.trim``; one given beside an object that says otherwise is a ValueError. ``sr_time``: seconds of
     genetic symbolic regression for the fallback (0: none); ``field``: the conservative force, "learned" (by the LNN,
-    the default) or "uniform" (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the
+    the default), "uniform" (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the
     verdict and the law then rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted
-    field); ``workers``: train the seeds on that many local Dask worker processes (default 1: here; the numbers are
+    field) or "vertical" (declared uniform and along the last coordinate, which points up: its size fitted); ``workers``: train the seeds on that many local Dask worker processes (default 1: here; the numbers are
     the same), ``scheduler``: on an existing Dask cluster; further keywords go to :func:`nnphd.user.assess.assess`.
 
     After ``fit``: ``result_`` (:class:`DetectResult`: everything below, typed), ``verdict_`` (:class:`Verdict`),

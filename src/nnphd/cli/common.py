@@ -93,6 +93,7 @@ class LawLevel(StrEnum):
 class Field(StrEnum):
     learned = "learned"
     uniform = "uniform"
+    vertical = "vertical"
 
 
 class Trim(StrEnum):

@@ -74,7 +74,9 @@ def detect(
         "--field",
         help="the conservative force: learned (by the Lagrangian network, any force) or uniform (declared: gravity "
         "near the ground, or none — for a throw, a fall, a coast-down, which a learned potential can follow whatever "
-        "force acts); the verdict then rests on a fit of the positions beside the fitted field",
+        "force acts), or vertical (declared uniform and along the last coordinate, which points up: gravity filmed "
+        "with a level camera — one parameter fewer than uniform); the verdict then rests on a fit of the positions "
+        "beside the fitted field",
     ),
     lambdas: str | None = typer.Option(
         None,

@@ -56,7 +56,9 @@ def _potential_gradients(xp, q, angles, center, library):
     onehot[np.arange(d), owner] = 1.0
     onehot = xp.asarray(onehot, dtype=q.dtype)
     grads = []
-    mons = _pot_monomials(d, 1 if library == "minimal" else (3 if library == "short" else None))
+    mons = _pot_monomials(d, 1 if library in ("minimal", "vertical") else (3 if library == "short" else None))
+    if library == "vertical":  # the uniform field along the last feature alone (gravity with that coordinate up)
+        mons = [e for e in mons if e[-1] == 1]
     if library == "short":  # the angles' sin/cos to degree 1 (a pendulum about any rest angle), the rest to 3
         is_ang = [bool(angles[o]) for o in owner]
         mons = [e for e in mons if sum(k for k, a in zip(e, is_ang) if a) <= 1 and (sum(e) == 1 or not any(
@@ -106,7 +108,7 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
     on an orbit would mimic friction (v ∝ a rotation of q); quadratic velocity terms; and the antisymmetric
     gyroscopic term (n ≥ 2). ``library=False``: the scale of ``fc`` alone (when ``fc`` comes from a trusted form,
     e.g. a system's feature Lagrangian); ``library="minimal"``: ``fc``'s scale and the uniform field (degree-1
-    potentials) only — for motion that does not oscillate (a throw, a fall), where one arc visits each position once
+    potentials) only (``"vertical"``: along the last coordinate alone) — for motion that does not oscillate (a throw, a fall), where one arc visits each position once
     and any force of time is a force of position along it: a richer library absorbs the drag; ``"short"``: ``fc``'s
     scale, sin θ and cos θ of angles to degree 1 (−a sin(θ − θ₀)), other coordinates' potentials to degree 3, no
     velocity terms — for a record of a few periods, where the full library's ~15 shapes trade against the friction
@@ -120,7 +122,7 @@ def conservative_basis(xp, q, v, angles, fc=None, center=None, library: bool = T
             raise ValueError("library=False needs a conservative force fc")
         return cols[0]
     cols.append(_potential_gradients(xp, q, angles, center, library))
-    if library in ("minimal", "short"):
+    if library in ("minimal", "short", "vertical"):
         return xp.concatenate(cols, axis=2)
     cols += _velocity_columns(xp, q, v)
     return xp.concatenate(cols, axis=2)

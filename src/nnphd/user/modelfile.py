@@ -253,7 +253,7 @@ SETTINGS = {  # NNPhD's arguments
     "law_fit": one_of("auto", "pointwise", "trajectory"),
     "sr_time": number(nonneg=True),
     "trim": either(boolean, string(max_len=100)),
-    "field": one_of("learned", "uniform"),  # (files saved before it was a setting have none: "learned")
+    "field": one_of("learned", "uniform", "vertical"),  # (files saved before it was a setting have none: "learned")
     # written only when not the default (nnphd.Derivatives' method "auto"; nnphd.LawLibrary's families: all)
     "derivative_method": one_of(*DERIVATIVE_METHODS),
     "families": list_of(string(nonempty=True, max_len=100), max_len=100),

@@ -172,7 +172,7 @@ def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, 
     - a declared uniform field: the fit of the positions beside it decides (:func:`declared_field_verdict`).
     """
     status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
-    if field == "uniform" and (res.get("quality") or {}).get("usable", True):
+    if field in ("uniform", "vertical") and (res.get("quality") or {}).get("usable", True):
         status, conf, why = declared_field_verdict(law)
         law["_effect"] = declared_field_effect(law)
         withhold(law, status, None if status == "detected" else why)

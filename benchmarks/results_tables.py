@@ -471,8 +471,8 @@ def lookalike_reference() -> str:
     look = {r["name"]: r for r in _load("friction_laws.json")}
     out = [
         "| look-alike | truth | the reference's best model | rms: the truth's terms | rms: the best lacking a "
-        "true term | ratio | nnphd, seed 0 |",
-        "|---|---|---|---|---|---|---|",
+        "true term | ratio | IC: best, its rival (ΔIC; n_eff) | nnphd, seed 0 |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for e in _load("friction_reference_lookalikes.json")["recordings"]:
         name = e["file"].removeprefix("lookalike:")
@@ -497,9 +497,25 @@ def lookalike_reference() -> str:
         lacks = " + ".join(REF_TERMS[t] for t in lk.strip("{}").split(",") if t) or "no friction"
         out.append(
             f"| {name} | {tw} | {terms}: {coef} | {_g(e['rms'][true_set], 3)} | {_g(lv, 3)} ({lacks}) | "
-            f"{_g(lv / e['rms'][true_set], 4)} | {said} |"
+            f"{_g(lv / e['rms'][true_set], 4)} | {_ref_ic(e)} | {said} |"
         )
     return "\n".join(out) + "\n"
+
+
+def _ref_terms(subset: str) -> str:
+    return " + ".join(REF_TERMS[t] for t in subset.strip("{}").split(",") if t) or "none"
+
+
+def _ref_ic(e: dict) -> str:
+    """The reference's information criterion (benchmarks/friction_reference.py ``information``): its best subset,
+    the best rival that is neither a subset nor a superset of it, their ΔIC and the effective number of residuals."""
+    inf = e.get("information")
+    if not inf:
+        return "—"
+    rival = (
+        "none" if inf["runner_up"] is None else f"{_ref_terms(inf['runner_up'])} ({_g(inf['delta_ic_runner_up'], 3)}"
+    )
+    return f"{_ref_terms(inf['best'])}, {rival}; {_g(inf['n_eff'], 4)})"
 
 
 def _real_seed_rows() -> dict[int, dict[str, dict]]:

@@ -51,8 +51,10 @@ nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 from nnphd.user.detect import detect_file
 
 # what the user of such a recording knows and declares: a throw is filmed in a uniform field (gravity), under which a
-# learned potential cannot hide a drag (nnphd.user.detect.FIELDS); ``--undeclared`` runs every case at the defaults
-DECLARED = {"throw-2d": {"field": "uniform"}}
+# learned potential cannot hide a drag (nnphd.user.detect.FIELDS) — with a level camera, y up, the field is vertical
+# (one parameter fewer: along a 1.2-s arc a sideways field lets linear drag stand in for quadratic); ``--undeclared``
+# runs every case at the defaults, ``--declare throw-2d=uniform`` declares another field
+DECLARED = {"throw-2d": {"field": "vertical"}}
 
 COULOMB_EPS = 0.02  # nnphd's smoothing of sign(q̇), relative to the rms speed (explain/families.py)
 
@@ -232,6 +234,7 @@ def run_case(name, seed, sindy=False, declared=True):
         "truth_law": tr["law"],
         "truth_coefficients": tr["coefficients"],
         "declared": settings,
+        "whole_record": (lw.get("settings") or {}).get("whole_record"),  # a tie re-judged over the whole record
         "status": rep["status"],
         "confidence": rep.get("confidence"),
         "law_status": law_status,
@@ -274,6 +277,12 @@ def run_case(name, seed, sindy=False, declared=True):
             for r in cands
         ],
     }
+    wr = row["whole_record"] or {}
+    if wr.get("dropped") and win_key in wr.get("delta_ic", {}):  # the whole record decided: its runner-up and ΔIC
+        rivals = {k: d for k, d in wr["delta_ic"].items() if k != win_key}
+        k = min(rivals, key=rivals.get)
+        row.update(runner_up=k, runner_up_params=wr["params"].get(k), runner_up_eligible=True,
+                   delta_ic=float(rivals[k]), delta_ic_from="the whole record")  # fmt: skip
     if sindy:
         row.update(_sindy(rec, keep))
     return row
@@ -340,7 +349,13 @@ def main() -> None:
     ap.add_argument("--sindy", action="store_true", help="add the PySINDy peer's law and error")
     ap.add_argument("--undeclared", action="store_true", help="no declared field (DECLARED): every case at defaults")
     ap.add_argument("--duration", default="", help="name=seconds,... : record these cases for longer (or shorter)")
+    ap.add_argument("--declare", default="", help="name=field,... : declare this field for these cases instead")
     a = ap.parse_args()
+    for item in filter(None, a.declare.split(",")):
+        name, _, fld = item.partition("=")
+        if name not in NAMES:
+            ap.error(f"--declare: unknown case {name!r}")
+        DECLARED[name] = {"field": fld}
     names = [n for n in a.names.split(",") if n]
     bad = [n for n in names if n not in NAMES]
     if bad:

@@ -113,6 +113,7 @@ def main() -> None:
                 "right": bool(scored) and scored[0]["err"] <= TOL and scored[0]["necessary_in"],
                 "reference": {"necessary": ref["necessary"], "best": ref["best_subset"], "params": p},
                 "reason": law.get("reason"),
+                "whole_record": (law.get("settings") or {}).get("whole_record"),  # a tie re-judged whole
                 "wall_s": wall,
             }
         )

@@ -266,6 +266,7 @@ FIELD = {  # a declared uniform field as fitted (nnphd.user.detect._fitted_field
     "stderr": dict_of(number(nonneg=True)),
     "coefficients": list_of(number(), max_len=2 * MAX_COORDS),
     "center": optional(list_of(list_of(number(), max_len=MAX_COORDS), max_len=2)),
+    "library": one_of("minimal", "vertical"),  # (files saved before the vertical field have none: "minimal")
 }
 
 META = obj(
@@ -280,7 +281,7 @@ META = obj(
         "report": obj(REPORT, required=("status", "new_physics", "confidence", "reasons"), others=True),
         "n_leaves": integer(1, 1000),
         "settings": obj(SETTINGS, required=tuple(k for k in SETTINGS if k not in OPTIONAL_SETTINGS)),
-        "field": optional(obj(FIELD)),
+        "field": optional(obj(FIELD, required=tuple(k for k in FIELD if k != "library"))),
     },
     required=("format", "version", "names", "angles", "cfg", "scaling", "law", "report", "n_leaves", "settings"),
 )
@@ -338,10 +339,10 @@ def _check_coords(meta: dict) -> int:
 
 def _check_field(fld: dict | None, angles: list) -> None:
     """A declared field's sizes: one column per position feature of the uniform-field library (an angle has two:
-    sin, cos), a centring (mean, std) of one entry per coordinate with positive spreads."""
+    sin, cos; the vertical field one), a centring (mean, std) of one entry per coordinate with positive spreads."""
     if fld is None:
         return
-    want = sum(2 if a else 1 for a in angles)
+    want = 1 if fld.get("library") == "vertical" else sum(2 if a else 1 for a in angles)
     if len(fld["coefficients"]) != want:
         raise _Bad(f"meta.field.coefficients has {len(fld['coefficients'])} entries, expected {want}")
     c = fld["center"]

@@ -7,15 +7,15 @@ The amplitude envelope (:mod:`nnphd.explain.envelope`) sees that, but only throu
 the positions over whole trajectories, each integrated from its own initial state to its end, uses every sample's
 phase and amplitude: a loss that is a little wrong at some amplitude moves every later sample. On a two-minute
 string pendulum in air (linear + quadratic drag, 60 periods, video noise 0.003 rad) the windows and the envelope
-left viscous + quadratic, dry + quadratic and a power law within ΔIC 6; fitted over the whole record, dry +
-quadratic is Δχ² 16–58 and the power law Δχ² ≥ 77 behind on seeds 0–2 (an independent whole-trajectory fit of
-the positions, benchmarks/friction_reference.py, agrees).
+left viscous + quadratic, dry + quadratic and a power law within ΔIC 6; fitted over the whole record, the other two
+are ≥ 37 behind on seeds 0–2 (the independent whole-trajectory fit of benchmarks/friction_reference.py puts dry +
+quadratic ΔIC 38 behind on seed 0).
 
 Such a fit is only as good as its conservative part: over sixty periods a small error of the restoring force
 accumulates, and friction terms can soak it up — which is why the law table's windows stay short, and why this
-stage (a) uses the conservative library alone (potential gradients in sin θ, cos θ for an angle, to degree 4:
-fitted jointly, no network, no seed — never the LNN's f_c, which over long windows let a dry + quadratic law beat
-the true viscous one by ΔIC 66 on a noisy pendulum), (b) judges only when the best whole-record fit follows the
+stage (a) uses the conservative libraries alone (the full one — potential gradients in sin θ, cos θ for an angle, to
+degree 4 — and the short one, a pendulum or a spring; fitted jointly, no network, no seed — never the LNN's f_c,
+which over long windows let a dry + quadratic law beat the true viscous one by ΔIC 66 on a noisy pendulum), (b) judges only when the best whole-record fit follows the
 record to its noise (χ²/N ≤ :data:`MAX_CHI2_PER_ROW` in the position noise's units; else the library does not hold
 the record's conservative force well enough to judge, and the tie stands), (c) counts the residuals' correlation
 (the IC's n_eff = N/τ of :mod:`nnphd.explain.trajectory`), and (d) only removes families from a tie — it never
@@ -120,11 +120,12 @@ def _family_ics(fits, keys: list[str], n_res: int):
 
 def break_tie(table, lib):
     """``table`` (a LawTable whose status is "tie"; any other is returned as it is) re-judged by the whole record,
-    fitted beside the conservative library (``lib``: the library base's table, with ``settings["_whole_record"]``
-    from :func:`context`; without it the tie stands). Families ≥ IC_TIE behind the best whole-record fit leave the
-    tie; one left is claimed (the table's own row of it: its coefficients from the windows and the envelope). The
-    tie stands where a member cannot be fitted whole, the best whole-record fit is not eligible, or it misses the
-    record (χ²/N > :data:`MAX_CHI2_PER_ROW`). ``settings["whole_record"]``: what was found, or why not."""
+    fitted beside the conservative libraries (``lib``: the library base's table, with ``settings["_whole_record"]``
+    from :func:`context`; without it the tie stands; :func:`_family_ics`). Families ≥ IC_TIE behind the best
+    whole-record fit leave the tie; one left is claimed (the table's own row of it: its coefficients from the windows
+    and the envelope). The tie stands where a member has no whole-record fit at an optimum that follows the record
+    (χ²/N ≤ :data:`MAX_CHI2_PER_ROW`), the best whole-record fit is not eligible, or all stay within IC_TIE.
+    ``settings["whole_record"]``: what was found, or why not."""
     from nnphd.explain.table import IC_TIE
 
     if table.status != "tie":

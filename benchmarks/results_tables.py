@@ -494,7 +494,7 @@ def lookalike_reference() -> str:
             "tie: " + " / ".join(_fam(k) for k in [r["winner"] or r["candidate"] or "", *r["ties"]] if k)
             if r["law_status"] == "tie" else f"{r['law_status']}: {_fam(r['winner'] or 'none')}"
         )  # fmt: skip
-        lacks = " + ".join(REF_TERMS[t] for t in lk.strip("{}").split(",") if t) or "no friction"
+        lacks = _ref_terms(lk).replace("none", "no friction")
         out.append(
             f"| {name} | {tw} | {terms}: {coef} | {_g(e['rms'][true_set], 3)} | {_g(lv, 3)} ({lacks}) | "
             f"{_g(lv / e['rms'][true_set], 4)} | {_ref_ic(e)} | {said} |"

@@ -65,9 +65,11 @@ def _whole_record_fits(ctx: dict, keys: list[str]):
     Returns ([(library name, ranked LawTable), …], None) or (None, why not)."""
     from nnphd.explain.trajectory import rank_trajectory
 
-    tables = [("the conservative library", ctx["pointwise"])]
-    if ctx.get("refit") is not None and ctx["pointwise"].settings.get("library") != "short":
-        tables.append(("the short library (a pendulum or a spring)", ctx["refit"]("short")))
+    short = "the short library (a pendulum or a spring)"
+    is_short = ctx["pointwise"].settings.get("library") == "short"  # a record too short for held-out windows
+    tables = [(short if is_short else "the conservative library", ctx["pointwise"])]
+    if ctx.get("refit") is not None and not is_short:
+        tables.append((short, ctx["refit"]("short")))
     out, why = [], "the record is too long to fit whole (or no whole-trajectory fit was finite)"
     for name, pw in tables:
         by_key = {r.key: r for r in pw.rows}

@@ -347,3 +347,23 @@ def test_dominant_period_is_not_fooled_by_a_body_at_rest(monkeypatch, stop):
     assert abs(P / 1.5 - 1) < 0.03
     monkeypatch.setattr(ev, "CROSSING_HYSTERESIS", 0.0)
     assert dominant_period(np.c_[q, qd], t, segs, position_noise=[0.002]) < 0.8 * 1.5
+
+
+def test_a_learned_energy_trend_within_the_fit_errors_reach_does_not_count():
+    """Issue 54: the Moon over a year (DE405; its Kepler energy has no trend) — the learned energy decayed 0.25 %/period
+    at z = 8 while the residual's power moved 2.9 % in and out per period: 3.2 % over 13 periods < 2 × 2.9 %. A
+    string pendulum in air: 4 %/period over 58 periods against 5.6 % per period counts."""
+    from nnphd.user.checks import FIT_ERROR_RATIO, trajectory_evidence, within_fit_error
+
+    moon = {"valid": True, "z": 8.0, "rate": 9.05e-05, "se": 1.1e-5, "rate_per_period": 0.00248, "period": 27.4,
+            "n_blocks": 13, "fit_error": {"gross_smooth": 0.0291, "periods": 13.0}}  # fmt: skip
+    assert within_fit_error(moon)
+    shoot = {"valid": True, "z": -0.4, "d_mean": -1.9e-4}
+    ev = trajectory_evidence(moon, shoot)
+    assert not ev["significant"] and ev["z_energy"] == 0.0 and ev["within_fit_error"]
+    assert ev["rate_bound"] == pytest.approx(FIT_ERROR_RATIO * 0.0291 / (13 * 27.4))  # what the fit error can hide
+    string = {**moon, "z": 16.9, "rate_per_period": 0.0404, "fit_error": {"gross_smooth": 0.0559, "periods": 58.0}}
+    assert not within_fit_error(string)
+    assert trajectory_evidence(string, {**shoot, "z": 14.4, "d_mean": 0.026})["significant"]
+    # motion that does not oscillate has its own rule
+    assert not within_fit_error({**moon, "oscillating": False})

@@ -195,3 +195,52 @@ def test_table2_families_through_the_joint_fit(name, truth):
         assert table.law.key == sysm.law_family
     else:
         assert table.law.key == "linear" and table.law.params["gamma"] == pytest.approx(0.02, rel=1e-4)
+
+
+def test_a_candidate_of_the_state_that_does_no_net_work_leaves_none_alone():
+    """Issue 54: on one DE405 orbit a sparse polynomial odd in q̇ lowered the LNN's held-out error by 76 % (ΔIC −68)
+    where the checks said "none" — on a path each position of which comes with one velocity it stands in for a
+    correction of the learned potential, and it does no net work. It does not contradict "none"; a drag (share 1),
+    a pump (−1), a force that is no function of position (a Rayleigh pump on its limit cycle) and a drive do."""
+    from nnphd.user.rules import LAW_WORK_MIN, POSITION_MAX, reconcile
+
+    res = {"status": "none", "new_physics": False, "confidence": 0.97, "reasons": ["seed 0: a Lagrangian fits"]}
+    sparse = {"law": "sparse", "title": "sparse polynomial", "heldout_ratio": 0.24, "delta_ic": -68.4}
+    cases = [
+        (0.05, 0.9, "none"),
+        (LAW_WORK_MIN - 0.01, POSITION_MAX, "none"),
+        (1.0, 0.9, "inconclusive"),
+        (-0.9, 0.9, "inconclusive"),
+        (0.05, POSITION_MAX - 0.01, "inconclusive"),
+        (0.05, None, "inconclusive"),  # unknown: as before
+    ]
+    for share, pos, status in cases:
+        law = {"law": sparse, "_against_velocity": share, "by_position": pos}
+        assert reconcile(res, law)[0] == status, (share, pos)
+    drive = {"law": "drive", "title": "drive A cos(ω t + φ)", "heldout_ratio": 0.68, "delta_ic": -17.2}
+    assert reconcile(res, {"law": drive, "_against_velocity": 0.0, "by_position": 1.0})[0] == "inconclusive"
+
+
+def test_a_force_in_balance_found_by_every_base_is_detected_on_a_record_that_keeps_its_energy():
+    """A limit cycle: the checks say "none" (no net energy change) but the Rayleigh law, no function of position and
+    doing no net work, beats no law beside the seed-free library and the LNN alike: "detected", the law claimed."""
+    from nnphd.user.rules import LAW_DETECT_CONFIDENCE, reconcile, unclaim_unidentifiable
+
+    res = {"status": "none", "new_physics": False, "confidence": 0.9, "reasons": ["seed 0: a Lagrangian fits"],
+           "quality": {"usable": True, "oscillating": True}, "checks": {"per_seed": [{"status": "none"}]}}  # fmt: skip
+    w = {"law": "rayleigh", "title": "Rayleigh (a + c q̇²) q̇", "heldout_ratio": 0.146, "delta_ic": -2013.3}
+    bases = [{"base": b, "status": "claimed", "law": w, "families": ["rayleigh"]} for b in ("library", "LNN")]
+    law = {"law": w, "status": "claimed", "settings": {"bases": bases}, "_against_velocity": 0.02, "by_position": 0.03}
+    status, new, conf, reasons = reconcile(res, law)
+    assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE)
+    assert "does no net work" in reasons[0] and "no potential can stand in for it" in reasons[0]
+    assert law["law"] is w
+    law["against_velocity"] = law.pop("_against_velocity")
+    assert unclaim_unidentifiable(law) is None and law["law"] is w
+    # one base without the law: the conflict stands ("inconclusive")
+    weak = {**law, "_against_velocity": 0.02, "settings": {"bases": [bases[0], {**bases[1], "status": "none"}]}}
+    assert reconcile(res, weak)[0] == "inconclusive"
+    # a function of position that does no net work: not identifiable — no conflict, and never claimed
+    pos = {**law, "by_position": 0.9}
+    assert unclaim_unidentifiable(pos).startswith("no law is claimed: the best candidate, Rayleigh")
+    assert pos["law"] is None and pos["candidate_law"] is w

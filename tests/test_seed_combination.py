@@ -159,3 +159,16 @@ def test_a_law_consistent_with_or_untested_by_the_evidence_stands(share, res):
     law = _law_dict(share)
     assert unclaim_against_evidence(res, law) is None
     assert law["law"] == {"title": "power-law drag −k (|q̇|²)^m q̇"} and law["status"] == "claimed"
+
+
+def test_detections_of_opposite_signs_are_no_agreement():
+    # the satellite orbit of issue 54: seed 0's learned energy decays at z = 428, seed 1's grows at z = −68
+    seeds = [_seed(0, "detected", 0.05, z=(428.0, 0.2)), _seed(1, "detected", 0.05, z=(-68.0, -0.1))]
+    status, new, conf, reasons = combine_seeds(seeds)
+    assert (status, new) == ("inconclusive", False)
+    assert conf == pytest.approx(0.5)
+    assert reasons[0].startswith("seeds disagree on the sign of the energy change")
+    assert "seed 0: the record loses energy" in reasons[0] and "seed 1: the record gains energy" in reasons[0]
+    # the same sign twice is an agreement
+    same = [_seed(0, "detected", 0.05, z=(428.0, 0.2)), _seed(1, "detected", 0.05, z=(68.0, 0.1))]
+    assert combine_seeds(same)[:2] == ("detected", True)

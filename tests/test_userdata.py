@@ -629,3 +629,24 @@ def test_ten_thousand_irregular_rows_get_accurate_derivatives():
     assert est.method == "local" and 100 < est.window_qdd[0] < 600  # measured 295 (order 6)
     e_qdd = rel_err(est.qdd[:, 0], -((2 * np.pi / 3) ** 2) * np.sin(2 * np.pi * t / 3))
     assert e_qdd < 0.03 and 0.5 < (est.qdd_err[0] / est.qdd_rms[0]) / e_qdd < 2  # measured 1.4 %, 0.83
+
+
+def test_a_smooth_curve_keeps_the_noise_that_differences_cancel():
+    """Tracking noise correlated from frame to frame (AR(1), ρ = 0.8) on a 0.5-s arc: the differences of
+    noise_level see well under half of σ, the low-degree curve of smooth_curve_noise most of it; on white noise
+    both agree."""
+    from nnphd.user.sampling import smooth_curve_noise
+
+    rng = np.random.default_rng(3)
+    t = np.arange(121) / 240.0
+    arc = 3.0 * t - 4.9 * t**2
+    e = np.empty(len(t))
+    e[0] = rng.standard_normal()
+    for i in range(1, len(t)):
+        e[i] = 0.8 * e[i - 1] + 0.6 * rng.standard_normal()
+    y = arc + 1.2e-3 * e
+    assert noise_level(t, y) < 0.5 * 1.2e-3
+    assert 0.6 * 1.2e-3 < smooth_curve_noise(t, y) < 1.4 * 1.2e-3
+    white = arc + 1.2e-3 * rng.standard_normal(len(t))
+    assert smooth_curve_noise(t, white) == pytest.approx(noise_level(t, white), rel=0.25)
+    assert np.isnan(smooth_curve_noise(t[:8], y[:8]))  # too short for a curve and its noise

@@ -50,6 +50,7 @@ __all__ = [
     "epochs",
     "gm",
     "state",
+    "moon_geocentric",
     "pull",
     "UranusResidual",
     "uranus_residual",
@@ -164,8 +165,18 @@ def state(body: str, jd, frame: str = "ecliptic") -> tuple[np.ndarray, np.ndarra
     Each is an (N, 3) float64 array. The three come from the same Chebyshev series of DE405 (value, first and second
     derivative), so the acceleration is that of the ephemeris' interpolant (accurate to ~1e-9 relative for Uranus).
     """
+    return _series(_body(body), jd, frame)
+
+
+def moon_geocentric(jd, frame: str = "ecliptic") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The Moon's position (AU), velocity (AU/day) and acceleration (AU/day²) relative to the Earth's centre at
+    Julian dates ``jd`` (DE405 stores the Moon geocentric), each (N, 3), as :func:`state`."""
+    return _series("moon", jd, frame)
+
+
+def _series(body: str, jd, frame: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Value, first and second derivative of DE405's Chebyshev series of ``body`` (a segment name) at ``jd``."""
     e = load_ephemeris()
-    body = _body(body)
     rot = _rotation(frame)
     jd = np.atleast_1d(np.asarray(jd, dtype=np.float64))
     if jd.ndim != 1:

@@ -333,5 +333,53 @@ def energy_trend(E, E_floor: float, t, segs, period: float, n_boot: int = 200, s
     return out
 
 
+def _moving_average(y: np.ndarray, w: int) -> np.ndarray:
+    if w <= 1 or len(y) < w:
+        return y
+    c = np.cumsum(np.concatenate([[0.0], y]))
+    m = (c[w:] - c[:-w]) / w
+    pad = (len(y) - len(m)) // 2
+    return np.concatenate([np.full(pad, m[0]), m, np.full(len(y) - len(m) - pad, m[-1])])
+
+
+def fit_error_bound(E, power, t, segs, period: float, floor: float) -> dict:
+    """How far the learned Lagrangian's own fit error could move its energy along the record — the bound a trend of
+    the learned energy must clear (:func:`nnphd.user.checks.within_fit_error`).
+
+    The learned energy H changes along the data at exactly the power P = q̇ᵀ(∂²L/∂q̇²) r of the residual
+    r = q̈ − f_c. Where the motion is conservative, r is the Lagrangian's approximation error (and the q̈ noise): its
+    power moves energy in and out within each period, and on a record whose orbit drifts through its states
+    (precession, a rotating frame, a quasi-periodic orbit) the per-period means of H can drift by about as much as
+    one period moves — a trend at any z. Per block of one period (relative to the block's mean energy above the
+    floor): ``gross_smooth`` = ∫|P̄| dt with P averaged over an eighth of a period (the q̈ noise averaged down),
+    ``gross`` the same unaveraged, ``swing`` the rms of the (averaged) H about its linear trend within the block;
+    each the median over blocks; ``periods``: whole blocks in the median trajectory."""
+    E, power, t = (np.asarray(a, float) for a in (E, power, t))
+    per_traj = period_blocks(t, segs, period)
+    blocks = [b for bl in per_traj for b in bl if len(b) >= 4]
+    if not blocks:
+        return {"fit_error": None}
+    gross, gross_s, swing = [], [], []
+    for b in blocks:
+        tb, pb, eb = t[b], power[b], E[b]
+        w = max(1, len(b) // 8)
+        scale = max(_time_mean(eb, tb) - floor, 1e-300)
+        gross.append(_time_mean(np.abs(pb), tb) * (tb[-1] - tb[0]) / scale)
+        gross_s.append(_time_mean(np.abs(_moving_average(pb, w)), tb) * (tb[-1] - tb[0]) / scale)
+        es = _moving_average(eb, w)
+        A = np.column_stack([np.ones_like(tb), tb - tb.mean()])
+        c, *_ = np.linalg.lstsq(A, es, rcond=None)
+        swing.append(float(np.sqrt(np.mean((es - A @ c) ** 2))) / scale)
+    return {
+        "fit_error": {
+            "gross": float(np.median(gross)),
+            "gross_smooth": float(np.median(gross_s)),
+            "swing": float(np.median(swing)),
+            "n_blocks": len(blocks),
+            "periods": float(np.median([len(bl) for bl in per_traj])),
+        }
+    }
+
+
 # ------------------------------------------------------------------------------------------------------------------
 # multiple shooting

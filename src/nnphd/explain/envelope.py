@@ -194,6 +194,12 @@ ENV_FLOOR = 0.01  # relative error of a measured half swing beyond the position 
 ORBIT_TOL = 0.06  # the orbit's half periods off the measured ones by more (median): the envelope is not evidence
 # (measured: a double well 0.10 — its envelope coefficients contradict the windows —, a 10 Hz seismometer 0.04)
 MIN_ENV_SWINGS = 6  # fewer half swings: the envelope is shown, not used as evidence
+# a constant amplitude (the zero law) fits the measured envelope to this χ²/N or better: the amplitudes do not change
+# (a limit cycle, a steady drive), the envelope pins at most one combination of the coefficients — the amplitude
+# where gain and loss balance — and its check abstains instead of vetoing (measured: a Rayleigh oscillator on its
+# limit cycle, whose windows pinned a = 0.2002 ± 0.0002, c = −0.2002 ± 0.0002, lost its law to a "disagreement"
+# of Mahalanobis² 39 with an envelope that could not inform; tests/test_envelope_evidence.py)
+FLAT_ENVELOPE_CHI2 = 2.0
 AGREE_P = 0.997  # the windows' and the envelope's coefficients differ beyond this quantile of χ²(K): two laws
 TIME_FAMILIES = ("drive",)  # a cycle average of the motion loses a drive's phase: not fitted to the envelope
 
@@ -378,6 +384,13 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
     if zero is None or len(fits) < 2:
         return table
     n = len(A)
+    if zero["chi2"] / n <= FLAT_ENVELOPE_CHI2:  # the amplitudes do not change: the envelope cannot inform
+        why = (
+            f"the amplitude envelope abstains: a constant amplitude fits its {n} half swings to their errors "
+            f"(χ²/N = {zero['chi2'] / n:.2f} ≤ {FLAT_ENVELOPE_CHI2:g}), as on a limit cycle — it carries no "
+            "evidence on how the loss depends on the amplitude, so the windows decide"
+        )
+        return replace(table, settings={**table.settings, "envelope_abstains": why})
     best = min(fits, key=lambda f: f["chi2"])
     res = best["resid"]
     rho = float(np.clip(np.sum(res[1:] * res[:-1]) / max(np.sum(res * res), 1e-300), 0.0, 0.95))

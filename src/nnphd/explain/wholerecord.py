@@ -32,7 +32,7 @@ from dataclasses import replace
 
 import numpy as np
 
-__all__ = ["MAX_CHI2_PER_ROW", "break_tie", "context"]
+__all__ = ["MAX_CHI2_PER_ROW", "active_share", "break_tie", "context", "passivity"]
 
 MAX_CHI2_PER_ROW = 2.0  # the best whole-record fit's χ²/N (position noise units) above which it does not judge
 ALL_WINDOWS = 10**9  # min_windows for rank_trajectory: never enough windows, so whole trajectories in-sample
@@ -206,3 +206,79 @@ def break_tie(table, lib):
         "for predictions) — " + table.reason
     )
     return replace(table, rows=rows, law=law, ties=ties, settings=settings, reason=reason)
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# passivity: a law that adds energy where the record loses it
+
+ACTIVE_SHARE_MAX = 0.10  # a law adding energy (f·q̇ > 0) on at least this share of the moving rows is "active"
+PASSIVE_MARGIN_IC = 10.0  # ... and is claimed on a record that loses energy only this far ahead of every passive family
+ACTIVE_TOL = 0.01  # f·q̇ counts as adding energy above this share of |f||q̇| (a drag is exactly 0 across the motion)
+
+
+def active_share(f, qd) -> float | None:
+    """The share of the moving rows on which the force ``f`` (N, n) adds energy, f·q̇ > ACTIVE_TOL·|f||q̇| (in the
+    record's coordinates; for Cartesian coordinates and one coordinate the power itself). None when nothing moves
+    or the force is zero everywhere."""
+    f, qd = np.asarray(f, float), np.asarray(qd, float)
+    f, qd = f.reshape(len(f), -1), qd.reshape(len(qd), -1)
+    size = np.linalg.norm(f, axis=1) * np.linalg.norm(qd, axis=1)
+    ok = np.isfinite(size) & (size > 0)
+    if not np.any(ok):
+        return None
+    power = np.einsum("ni,ni->n", f[ok], qd[ok])
+    return float(np.mean(power > ACTIVE_TOL * size[ok]))
+
+
+def passivity(table, lib, q, qd, t) -> dict | None:
+    """Is the claimed law of ``table`` passive on this record, and if not, does the whole record prefer it to every
+    passive candidate? None when no law is claimed.
+
+    ``active_share`` (:func:`active_share`) of the law and of each eligible candidate on the rows (q, q̇, t). Where
+    the law's is ≥ ACTIVE_SHARE_MAX, the law and the eligible passive candidates (share below it) are fitted over the
+    whole record beside the conservative libraries (:func:`_whole_record_fits`, the library base ``lib``'s context;
+    one coordinate that oscillates) and ``margin`` = the best passive family's IC − the law's (> 0: the law is
+    better). The decision — the record loses energy, and the margin is below PASSIVE_MARGIN_IC — is the verdict's
+    (:func:`nnphd.user.rules.unclaim_active`)."""
+    law = table.law
+    if law is None:
+        return None
+    share = active_share(law.predict(q, qd, t), qd)
+    info = {"law": law.key, "active_share": share, "active": share is not None and share >= ACTIVE_SHARE_MAX,
+            "threshold": ACTIVE_SHARE_MAX}  # fmt: skip
+    if not info["active"]:
+        return info
+    passive = []
+    for r in table.rows:
+        if r.family is None or r is law or not r.significant:
+            continue
+        s = active_share(r.predict(q, qd, t), qd)
+        if s is not None and s < ACTIVE_SHARE_MAX:
+            passive.append(r.key)
+    info["passive_candidates"] = passive
+    ctx = (lib.settings if lib is not None else {}).get("_whole_record")
+    if not passive:
+        info["why"] = "no eligible passive candidate to compare with"
+        return info
+    if ctx is None:
+        info["why"] = "no whole-record fit for this record (one coordinate that oscillates, the library base)"
+        return info
+    fits, why = _whole_record_fits(ctx, [law.key, *passive])
+    if fits is None:
+        info["why"] = why
+        return info
+    fam, n_eff, _ = _family_ics(fits, [law.key, *passive], len(ctx["t"]))
+    if law.key not in fam:
+        info["why"] = (
+            f"the law's whole-record fit does not follow the record to its noise (χ²/N > {MAX_CHI2_PER_ROW:g})"
+        )
+        return info
+    rivals = {k: v[0] for k, v in fam.items() if k != law.key}
+    if not rivals:
+        info["margin"] = float("inf")
+        info["why"] = "no passive family's whole-record fit follows the record to its noise"
+        return info
+    best = min(rivals, key=rivals.get)
+    info.update(margin=float(rivals[best] - fam[law.key][0]), best_passive=best, n_eff=float(n_eff),
+                chi2_per_row=float(fam[law.key][3]))  # fmt: skip
+    return info

@@ -27,8 +27,11 @@ from nnphd.user.rules import (
     LIBRARY_BASE,
     RECONCILED_BASIS,
     against_velocity,
+    position_explained,
     reconcile,
+    unclaim_active,
     unclaim_against_evidence,
+    unclaim_unidentifiable,
 )
 
 
@@ -98,7 +101,9 @@ def _check_declared_field(field: str, data, traj, ud, info) -> None:
         return
     from nnphd.user.assess import motion_period
 
-    noise = [info["per_coordinate"][c]["noise"] for c in ud.coords]
+    arc = arc_noise(data, traj, list(ud.coords), info)  # a tracker's correlated noise must not read as swings
+    noise = [max(arc["difference"][c], arc["smooth_curve"][c]) if np.isfinite(arc["smooth_curve"][c])
+             else arc["difference"][c] for c in ud.coords]  # fmt: skip
     period = motion_period(data, traj, [bool(a) for a in ud.is_angle], noise)
     path = ud.path
     if np.isfinite(period):
@@ -287,6 +292,8 @@ def detect_data(
                 library[1].set()
         status, new_physics, confidence, reasons = reconcile(res, law, field)
         unclaim_against_evidence(res, law)
+        unclaim_active(res, law)
+        unclaim_unidentifiable(law)
         declared, fitted, fc, fn = _declared_forces(law, data, ud, fc, fn)
         blind = {}
         if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
@@ -629,14 +636,48 @@ def _law_table(
     with timer.stage(ENVELOPE_PICTURE) if timer is not None else nullcontext():
         out["envelope"] = _envelope(table, data, traj, coords, info, bool(ud.is_angle[0]))
     if field in DECLARED_FIELDS:
+        out["noise"] = arc_noise(data, traj, coords, info)
         zero = next((r for r in table.rows if r.key == "none"), None)
         out["_field"] = {k: _fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
                          (("alone", zero), ("with_law", table.law))}  # fmt: skip
     if table.law is not None:  # the law's share against the velocity: a drag's is 1, a thrust's −1
-        out["_against_velocity"] = against_velocity(table.law.predict(data.q, data.qd, data.t), data.qd)
+        f_law = table.law.predict(data.q, data.qd, data.t)
+        out["_against_velocity"] = against_velocity(f_law, data.qd)
+        out["by_position"] = position_explained(f_law, data.q, data.t, traj, table.settings.get("period", np.nan))
+        from nnphd.explain.wholerecord import passivity
+
+        with timer.stage(PASSIVITY) if timer is not None else nullcontext():
+            out["_passivity"] = passivity(table, lib, data.q, data.qd, data.t)
         if field in DECLARED_FIELDS:  # a drag opposes the velocity (:data:`DRAG_ALONG_MIN`)
             out["_field"]["against_velocity"] = out["_against_velocity"]
     return out, table.law
+
+
+def arc_noise(data, traj, coords, info) -> dict:
+    """The position noise that the χ²/N of a declared field's fits is judged against (:func:`nnphd.user.rules.
+    declared_field_verdict`): the difference estimate of the derivative stage (:func:`nnphd.user.sampling.
+    noise_level`), unless a low-degree curve through each arc (:func:`nnphd.user.sampling.smooth_curve_noise`,
+    pooled over the trajectories) leaves more for every coordinate — noise correlated from frame to frame, which
+    differences cancel (a tracker's): then the curve's, the smallest ratio over the coordinates. ``chi2_scale``
+    divides a χ²/N computed with the difference estimate."""
+    from nnphd.explain.jointfit import trajectory_segments
+    from nnphd.user.sampling import smooth_curve_noise
+
+    segs = trajectory_segments(np.zeros(len(data.t), int) if traj is None else traj)
+    diff = [float(info["per_coordinate"][c]["noise"]) for c in coords]
+    curve = []
+    for j in range(len(coords)):
+        v = [(smooth_curve_noise(data.t[s], data.q[s, j]), len(s)) for s in segs]
+        v = [(x, n) for x, n in v if np.isfinite(x)]
+        curve.append(float(np.sqrt(sum(x * x * n for x, n in v) / sum(n for _, n in v))) if v else float("nan"))
+    ratio = [c / d if d > 0 and np.isfinite(c) else float("nan") for c, d in zip(curve, diff)]
+    use = bool(ratio and np.all(np.isfinite(ratio)) and min(ratio) > 1.0)
+    return {
+        "difference": dict(zip(coords, diff)),
+        "smooth_curve": dict(zip(coords, curve)),
+        "used": "smooth curve" if use else "differences",
+        "chi2_scale": float(min(ratio) ** 2) if use else 1.0,
+    }
 
 
 def field_force(fitted: dict, q, is_angle, xp=np):
@@ -680,6 +721,7 @@ def _fitted_field(table, row, coords, is_angle, q) -> dict | None:
 
 ENVELOPE_PICTURE = "law table: the envelope picture"
 WHOLE_RECORD = "law table: a tie fitted over the whole record"
+PASSIVITY = "law table: is the law passive"
 
 
 def _envelope(table, data, traj, coords, info, angle: bool = False) -> dict | None:

@@ -14,7 +14,7 @@ import numpy as np
 
 from nnphd._config import release_compiled_if_crowded
 from nnphd.engine.batching import by_rows
-from nnphd.engine.evidence import energy_trend, evidence_block
+from nnphd.engine.evidence import energy_trend, evidence_block, fit_error_bound
 from nnphd.engine.models import (
     ModelConfig,
     embed_periodic,
@@ -394,6 +394,8 @@ def _energy_trend(ctx: dict, seed: int, cons: _Rounds, block) -> dict:
         kinetic=cons.kin,
     )
     trend["orientation"] = cons.orient
+    trend.update(fit_error_bound(cons.orient * cons.E, cons.power, ctx["tp"], ctx["segs"], block,
+                                 float(np.min(cons.orient * cons.E_rest))))  # fmt: skip
     return trend
 
 

@@ -351,7 +351,7 @@ def test_dominant_period_is_not_fooled_by_a_body_at_rest(monkeypatch, stop):
 
 def test_a_learned_energy_trend_within_the_fit_errors_reach_does_not_count():
     """Issue 54: the Moon over a year (DE405; its Kepler energy has no trend) — the learned energy decayed 0.25 %/period
-    at z = 8 while the residual's power moved 2.9 % in and out per period: 3.2 % over 13 periods < 2 × 2.9 %. A
+    at z = 8 while the residual's power moved 2.9 % in and out per period: 3.2 % over 13 periods < 3 × 2.9 %. A
     string pendulum in air: 4 %/period over 58 periods against 5.6 % per period counts."""
     from nnphd.user.checks import FIT_ERROR_RATIO, trajectory_evidence, within_fit_error
 

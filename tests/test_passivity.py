@@ -141,3 +141,17 @@ def test_a_force_of_the_state_is_a_force_of_position_on_one_orbit_but_not_on_a_1
     assert position_explained(0.2 * (1 - v1**2) * v1, q1, t, period=2 * np.pi) < 0.2
     # ... while a force of position is, in either case
     assert position_explained(-(q1**3), q1, t, period=2 * np.pi) > 0.9
+
+
+def test_a_law_that_differs_at_the_same_state_on_another_pass_is_no_reproducible_force_of_the_state():
+    from nnphd.user.rules import position_explained
+
+    t = np.arange(0.0, 60.0, 0.05)
+    q = np.column_stack([1.1 * np.cos(t), np.sin(t)])
+    v = np.column_stack([-1.1 * np.sin(t), np.cos(t)])
+    x = np.hstack([q, v])
+    smooth = 0.3 * v + 0.1 * v**3
+    assert position_explained(smooth, x, t, period=2 * np.pi) > 0.9
+    # an ill-conditioned fit: its force changes from pass to pass at the same state (here: with the pass number)
+    erratic = smooth * np.cos(7.0 * np.floor(t / (2 * np.pi)))[:, None]
+    assert position_explained(erratic, x, t, period=2 * np.pi) < 0.5

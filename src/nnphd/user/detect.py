@@ -643,7 +643,9 @@ def _law_table(
     if table.law is not None:  # the law's share against the velocity: a drag's is 1, a thrust's −1
         f_law = table.law.predict(data.q, data.qd, data.t)
         out["_against_velocity"] = against_velocity(f_law, data.qd)
-        out["by_position"] = position_explained(f_law, data.q, data.t, traj, table.settings.get("period", np.nan))
+        period = table.settings.get("period", np.nan)
+        out["by_position"] = position_explained(f_law, data.q, data.t, traj, period)
+        out["by_state"] = position_explained(f_law, np.hstack([data.q, data.qd]), data.t, traj, period)
         from nnphd.explain.wholerecord import passivity
 
         with timer.stage(PASSIVITY) if timer is not None else nullcontext():

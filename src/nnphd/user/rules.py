@@ -196,17 +196,21 @@ TIME_KEYS = ("drive", "perturber")  # families of explicit time: they need no ne
 
 
 POSITION_MAX = 0.5  # ... or when less than this share of its force is a function of position along the record
+STATE_MIN = 0.5  # ... and a law of the state only when at least this share of its force recurs at the same states
 
 
-def does_work(cand: dict, share: float | None, by_position: float | None = None) -> bool:
+def does_work(cand: dict, share: float | None, by_position: float | None = None, by_state: float | None = None) -> bool:
     """Is this candidate law's force shown to be non-conservative by the record? A law of explicit time (a drive, a
-    perturber) always; a law of
-    the state when its force does net work on the record (|share against the velocity| ≥ LAW_WORK_MIN) or is not
-    a function of position along it (:func:`position_explained` < POSITION_MAX: a Rayleigh pump on its limit
-    cycle does no net work, yet no potential can stand in for it); unknown numbers: yes."""
+    perturber) always; a law of the state when its force is a reproducible function of the state over the record's
+    passes (:func:`position_explained` of the states ≥ STATE_MIN, or unknown) and does net work on the record
+    (|share against the velocity| ≥ LAW_WORK_MIN) or is not a function of position along it
+    (:func:`position_explained` < POSITION_MAX: a Rayleigh pump on its limit cycle does no net work, yet no
+    potential can stand in for it); unknown numbers: yes."""
     key = str(cand.get("law", ""))
     if share is None or any(k in key for k in TIME_KEYS) or "drive" in str(cand.get("title", "")):
         return True
+    if by_state is not None and by_state < STATE_MIN:
+        return False
     return abs(share) >= LAW_WORK_MIN or by_position is None or by_position < POSITION_MAX
 
 
@@ -244,7 +248,7 @@ def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, 
         and cand
         and cand["delta_ic"] <= LAW_CONFLICT_DIC
         and 1 - cand["heldout_ratio"] >= LAW_EFFECT_MIN
-        and does_work(cand, law.get("_against_velocity"), law.get("by_position"))
+        and does_work(cand, law.get("_against_velocity"), law.get("by_position"), law.get("by_state"))
         and cand.get("fn_rel", 1.0) >= MIN_RELATIVE_SIZE
     ):
         balanced = balanced_force_evidence(res, law)
@@ -412,39 +416,38 @@ POSITION_K = 8  # neighbours in position (:func:`position_explained`)
 
 
 def position_explained(f, q, t, traj=None, period: float = float("nan")) -> float | None:
-    """How much of the force ``f`` (N, n) on the rows is a function of position along this record: 1 − rms(f − f̂)/
-    rms(f), f̂ at each row the mean of f over its POSITION_K nearest rows in q among those at least a quarter period
-    away in time on its trajectory (other passes; any row of another trajectory). On one orbit that revisits its
-    path (a planet, a satellite) each position comes with one velocity, so every force of the state is a force of
-    position there (≈ 1), which a learned potential can absorb; on a 1-D oscillation each position comes with ±q̇,
-    so a force odd in q̇ (a drag, a Rayleigh pump) is not (≈ 0). None when no neighbours qualify."""
+    """How much of the force ``f`` (N, n) on the rows is a function of ``q`` (N, m) along this record: 1 − rms(f − f̂)/
+    rms(f), f̂ at each row the mean of f over its POSITION_K nearest rows in q (each column scaled by its spread)
+    among those at least a quarter period away in time on its trajectory (other passes; any row of another
+    trajectory). With q the positions: on one orbit that revisits its path (a planet, a satellite) each position
+    comes with one velocity, so every force of the state is a force of position there (≈ 1), which a learned
+    potential can absorb; on a 1-D oscillation each position comes with ±q̇, so a force odd in q̇ (a drag, a Rayleigh
+    pump) is not (≈ 0). With q the states (q, q̇): whether the force is a reproducible function of the state at all —
+    a law that differs at the same state on another pass (an ill-conditioned fit) is not (measured: a sparse
+    polynomial fitted to a Venus orbit's model error, 0.20). None when too few neighbours qualify."""
     from scipy.spatial import cKDTree
 
     f, q, t = np.asarray(f, float), np.asarray(q, float), np.asarray(t, float)
     f, q = f.reshape(len(f), -1), q.reshape(len(q), -1)
     traj = np.zeros(len(t), int) if traj is None else np.asarray(traj)
     gap = 0.25 * period if np.isfinite(period) and period > 0 else 0.25 * float(np.ptp(t))
-    ok = np.all(np.isfinite(f), axis=1) & np.all(np.isfinite(q), axis=1)
-    idx = np.flatnonzero(ok)
+    idx = np.flatnonzero(np.all(np.isfinite(f), axis=1) & np.all(np.isfinite(q), axis=1))
     size = float(np.sqrt(np.mean(np.sum(f[idx] ** 2, axis=1)))) if len(idx) else 0.0
     if len(idx) < 2 * POSITION_K or size <= 0:
         return None
     scale = np.std(q[idx], axis=0)
-    scale = np.where(scale > 0, scale, 1.0)
-    tree = cKDTree(q[idx] / scale)
-    k = min(len(idx), 8 * POSITION_K)
-    _, nb = tree.query(q[idx] / scale, k=k)
-    err, used = 0.0, 0
-    for row, cand in zip(idx, nb):
-        c = idx[cand]
-        c = c[(traj[c] != traj[row]) | (np.abs(t[c] - t[row]) >= gap)][:POSITION_K]
-        if len(c) == 0:
-            continue
-        err += float(np.sum((f[row] - f[c].mean(axis=0)) ** 2))
-        used += 1
-    if used < len(idx) // 2:
+    x = q[idx] / np.where(scale > 0, scale, 1.0)
+    _, nb = cKDTree(x).query(x, k=min(len(idx), 8 * POSITION_K))
+    rows, cand = idx[:, None], idx[nb]
+    ok = (traj[cand] != traj[rows]) | (np.abs(t[cand] - t[rows]) >= gap)
+    ok &= np.cumsum(ok, axis=1) <= POSITION_K  # the POSITION_K nearest that qualify
+    n = ok.sum(axis=1)
+    use = n > 0
+    if use.sum() < len(idx) // 2:
         return None
-    return float(1.0 - np.sqrt(err / used) / size)
+    fhat = np.einsum("rk,rkd->rd", ok[use], f[cand[use]]) / n[use, None]
+    err = float(np.mean(np.sum((f[idx[use]] - fhat) ** 2, axis=1)))
+    return float(1.0 - np.sqrt(err) / size)
 
 
 def declared_field_effect(law: dict) -> str | None:

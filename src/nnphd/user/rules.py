@@ -12,21 +12,27 @@ The order in which :func:`reconcile` applies them:
 2. **A drive** the law table claims, on trajectories whose clock can be told, is "detected" with the drive as the
    law (:func:`drive_evidence`: ΔIC ≤ LAW_CONFLICT_DIC, error −DRIVE_EFFECT_MIN or more).
 3. **"none" against a strong law**: a candidate with ΔIC ≤ LAW_CONFLICT_DIC that lowers the held-out error by
-   ≥ LAW_EFFECT_MIN makes a "none" "inconclusive" (confidence 0.5: the evidence is split).
+   ≥ LAW_EFFECT_MIN makes a "none" "inconclusive" (confidence 0.5: the evidence is split) — when the record shows
+   the law to be non-conservative (:func:`does_work`) and it is ≥ MIN_RELATIVE_SIZE of the force; "detected" where
+   that law does no net work, is no function of position and every conservative base finds it
+   (:func:`balanced_force_evidence`: a limit cycle).
 4. **"inconclusive" with every conservative base agreeing** (one coordinate: the seed-free library and the seed's
    LNN each find a law with ΔIC ≤ LAW_DETECT_DIC and error −LAW_DETECT_EFFECT or more) is "detected"
    (:func:`seed_free_evidence`).
 5. Otherwise the seeds' status stands; a record that does not oscillate gets a hint of what would decide
    (:func:`uniform_field_hint`).
 
-No law is claimed unless the final status is "detected" (:func:`withhold`), nor a law whose force works against
-the record-level evidence: one that adds energy (≤ −LAW_AGAINST_EVIDENCE of its force against the velocity) where
+No law is claimed unless the final status is "detected" (:func:`withhold`), nor one that pumps energy into a record
+that loses it unless a whole-record fit puts it ≥ PASSIVE_MARGIN_IC ahead of every passive family
+(:func:`unclaim_active`), nor a law of the state that does no net work and is a function of position along the record
+(:func:`unclaim_unidentifiable`), nor a law whose force works against the record-level evidence: one that adds energy (≤ −LAW_AGAINST_EVIDENCE of its force against the velocity) where
 the record loses it, or takes it where the record gains it, is only a candidate
 (:func:`unclaim_against_evidence`; measured on the camera look-alike of a damped chaotic double pendulum, seed 1: a
 power law with k = −3.1e-15, m = 6.35, a thrust at the fastest rows, on a record losing energy at z = 7.4).
 Before them, the seeds' own statuses (:func:`nnphd.user.checks.seed_status`) are combined by :func:`combine_seeds`: their common status; where they
 differ, a seed whose conservative model failed to fit (an optimisation failure another seed shows the data do not
-cause) is discounted, and the others decide if they agree; else "inconclusive". The paper's phase-transition rule
+cause) is discounted, and the others decide if they agree; else "inconclusive" — and "inconclusive" too where seeds
+detect with opposite signs of the energy change (:func:`opposite_signs`). The paper's phase-transition rule
 is :mod:`nnphd.engine.verdict`.
 """
 

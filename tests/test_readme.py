@@ -296,8 +296,22 @@ def _check_reproduce_time(text):
     return [f]
 
 
+def _check_controls(text):
+    # the conservative negative controls: conservative_controls.json (benchmarks/conservative_controls.py, seeds 0-2)
+    m = _find(
+        r"\*\*Negative controls\*\*: (\w+) conservative orbits \(DE405, a J2 satellite; rotating frames too\): (\d+) of "
+        r"(\d+) runs \"detected\", (\d+) \"none\"",
+        text,
+    )
+    runs = _json("conservative_controls.json")["runs"]
+    assert _n(m[1]) == len({r["record"] for r in runs}) and int(m[3]) == len(runs)
+    assert [int(m[2]), int(m[4])] == [sum(r["status"] == s for r in runs) for s in ("detected", "none")]
+    return [m]
+
+
 CHECKS = (
     _check_machine,
+    _check_controls,
     _check_paper,
     _check_recordings,
     _check_laws,
@@ -316,6 +330,10 @@ def test_the_readmes_paper_verdicts_and_table2_are_those_of_the_json():
 
 def test_the_readmes_recording_and_double_pendulum_counts_are_those_of_the_json():
     _check_recordings(_readme())
+
+
+def test_the_readmes_negative_control_counts_are_those_of_the_json():
+    _check_controls(_readme())
 
 
 def test_the_readmes_law_table_numbers_are_those_of_the_json():

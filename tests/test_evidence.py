@@ -367,3 +367,21 @@ def test_a_learned_energy_trend_within_the_fit_errors_reach_does_not_count():
     assert trajectory_evidence(string, {**shoot, "z": 14.4, "d_mean": 0.026})["significant"]
     # motion that does not oscillate has its own rule
     assert not within_fit_error({**moon, "oscillating": False})
+    # between one period's fit error and FIT_ERROR_RATIO× it (a camera look-alike of a damped double pendulum: 2.1,
+    # z = 4.7): no detection, but its z stays for the reasons, so the seed is "inconclusive", never "none"
+    from nnphd.user.checks import FIT_ERROR_NONE, seed_status
+
+    dp = {**moon, "z": 4.7, "rate_per_period": 0.0418, "fit_error": {"gross_smooth": 0.1405, "periods": 7.0}}
+    assert FIT_ERROR_NONE <= 0.0418 * 7 / 0.1405 < FIT_ERROR_RATIO and within_fit_error(dp)
+    ev = trajectory_evidence(dp, {**shoot, "z": -1.2, "d_mean": -0.12})
+    assert not ev["significant"] and ev["z_energy"] == 4.7
+    ev["effect"] = "e"
+    drift = {"significant": False, "bootstrap_fraction": 0.0, "rho_median": 0.1, "magnitude_median": 0.01,
+             "slow_ratio_median": 0.5, "valid": True}  # fmt: skip
+    tchk = {"significant": False, "valid": False, "testable": "one trajectory", "gain": 1.0}
+    gap = {"large": False, "gap_train": 0.9}
+    assert seed_status(drift, tchk, gap, {"still_falling": False, "relative_drop": 0.0}, ev)[0] == "inconclusive"
+    # the Moon, within one period's fit error: "none" is possible
+    ev_moon = trajectory_evidence(moon, shoot)
+    ev_moon["effect"] = "e"
+    assert seed_status(drift, tchk, gap, {"still_falling": False, "relative_drop": 0.0}, ev_moon)[0] == "none"

@@ -93,7 +93,11 @@ script (benchmarks/trust_table.py, 24 runs at each of the two configs, none wron
 # 6.5, the camera double-pendulum look-alike 6.8 and 7.4, a real encoder pendulum 14 and 17, the string pendulum
 # look-alike 42. The threshold sits in that gap, closer to the conservative side; a rotating frame reached 3.7, so it
 # is no guarantee: a conservative record above it still needs a second statistic or Z_ONE to be "detected"
-FIT_ERROR_RATIO = 3.0 of the energy per period (0.001 %/period): a z-score says how sure a change is, not that it is
+FIT_ERROR_RATIO = 3.0
+# ... and below this multiple the trend is within a single period's fit error: it counts as no change at all (the
+# Moon's 1.1, 1.2); between the two a significant trend makes a "none" "inconclusive" — the camera look-alike of a
+# damped double pendulum (two 10-s takes) reached only 2.1 and 2.3 (z = 4.7, 8.8), below the rotating Earth's 3.7
+FIT_ERROR_NONE = 1.5 of the energy per period (0.001 %/period): a z-score says how sure a change is, not that it is
   physics. On exact data a learned Lagrangian's own bias can trend at a high z: one trajectory of the conservative
   Morse oscillator (benchmarks/trust_table.py, seed 0, 2026-11-27) gave an energy trend of 1.2e-7 per period at
   z = 16.9 (a "detection", confidence 0.48) and 3.8e-8 at z = 5.7; the smallest change of a detected
@@ -154,6 +158,10 @@ EFFECT_MIN = 1e-5
 # look-alike 42. The threshold sits in that gap, closer to the conservative side; a rotating frame reached 3.7, so it
 # is no guarantee: a conservative record above it still needs a second statistic or Z_ONE to be "detected"
 FIT_ERROR_RATIO = 3.0
+# ... and below this multiple the trend is within a single period's fit error: it counts as no change at all (the
+# Moon's 1.1, 1.2); between the two a significant trend makes a "none" "inconclusive" — the camera look-alike of a
+# damped double pendulum (two 10-s takes) reached only 2.1 and 2.3 (z = 4.7, 8.8), below the rotating Earth's 3.7
+FIT_ERROR_NONE = 1.5
 NOISE_REL_MAX = 0.3  # positions with noise/spread above this (every coordinate): no usable dynamics
 MIN_SAMPLES_PER_PERIOD = 6.0
 QDD_ERR_MAX = 0.5  # estimated relative q̈ error above this (every coordinate): no pointwise test
@@ -359,6 +367,11 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
     zs = shoot.get("z", 0.0) if shoot.get("valid") else None
     tiny = negligible_effect(trend, shoot)
     own = within_fit_error(trend)
+    # a trend the fit error may have made: no evidence of a change, but where it is beyond one period's fit error
+    # (FIT_ERROR_NONE) and significant it is no evidence of its absence either — its z is kept for the reasons
+    # (:func:`_weak_evidence`: "inconclusive", never "none"), not for a detection
+    undecided = own and not tiny["energy"] and fit_error_ratio(trend) >= FIT_ERROR_NONE
+    shown_zt = zt
     if own:
         tiny["energy"] = True
     if tiny["energy"]:
@@ -397,13 +410,23 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
         "significant": bool(sig),
         "within_fit_error": own,
         "negligible": [k for k, v in tiny.items() if v and not (k == "energy" and own)],
-        "z_energy": zt,
+        "z_energy": shown_zt if undecided else zt,
         "z_shooting": zs,
         "direction": "loses energy" if sign > 0 else ("gains energy" if sign < 0 else "none"),
         "valid": zt is not None or zs is not None,
         "bootstrap_fraction": float(np.mean(reps)) if reps else None,
         "rate_bound": bound,
     }
+
+
+def fit_error_ratio(trend: dict) -> float:
+    """The learned energy's change over the record (|r·period|·periods) over the energy the residual's power moves
+    in and out within one period (:func:`nnphd.engine.evidence.fit_error_bound`); NaN when not computed."""
+    fe = trend.get("fit_error") or None
+    rp = trend.get("rate_per_period", float("nan"))
+    if fe is None or not np.isfinite(rp) or not fe.get("gross_smooth"):
+        return float("nan")
+    return float(abs(rp) * fe["periods"] / fe["gross_smooth"])
 
 
 def within_fit_error(trend: dict) -> bool:
@@ -463,7 +486,11 @@ def effect_text(traj: dict, trend: dict, shoot: dict) -> str:
             f"the learned energy changes {100 * abs(trend['rate_per_period']) * fe['periods']:.2g}% over the record, "
             f"less than {FIT_ERROR_RATIO:g}× the {100 * fe['gross_smooth']:.2g}% of it that the residual of the "
             "learned Lagrangian moves in and out within one period — its own fit error can make such a trend, "
-            "so it does not count however significant"
+            + (
+                "so it does not count however significant"
+                if fit_error_ratio(trend) < FIT_ERROR_NONE
+                else f"so it is no evidence of a change, nor (beyond {FIT_ERROR_NONE:g}×) of its absence"
+            )
         )
     if traj.get("negligible"):
         names = " and ".join({"energy": "the energy trend", "shooting": "the damping"}[k] for k in traj["negligible"])

@@ -57,7 +57,10 @@ def test_conservative_recording_is_none(name, tmp_path):
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_chaotic_double_pendulum_with_whole_turns(tmp_path):
-    rec, rep = _detect("double-pendulum", tmp_path)
+    # detect's default networks (steps 1000, width 64): with SMALL's (300 steps, width 32) the learned Lagrangian's
+    # own fit error moves ~as much energy per period as the trend removes over the record, so since the fit-error
+    # rule (nnphd.user.checks.within_fit_error) that run is "inconclusive" — a weaker call, not a wrong one
+    rec, rep = _detect("double-pendulum", tmp_path, steps=1000, width=64, long_factor=3)
     assert rep["status"] == "detected"
     assert rep["angles"] == ["theta1", "theta2"]
     assert rep["evidence"]["energy_trend"]["rate"] > 0  # it loses energy

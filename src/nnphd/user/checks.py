@@ -434,11 +434,9 @@ def within_fit_error(trend: dict) -> bool:
     The change |r·period|·periods (the trend over the median trajectory) below FIT_ERROR_RATIO × the energy the
     residual's power moves in and out within one period (``gross_smooth`` of
     :func:`nnphd.engine.evidence.fit_error_bound`). Such a trend does not count, however significant its z."""
-    fe = trend.get("fit_error") or None
-    rp = trend.get("rate_per_period", float("nan"))
-    if not trend.get("valid") or not trend.get("oscillating", True) or fe is None or not np.isfinite(rp):
+    if not trend.get("valid") or not trend.get("oscillating", True):
         return False  # (motion that does not oscillate has its own, stricter rule: both statistics must agree)
-    return bool(abs(rp) * fe["periods"] < FIT_ERROR_RATIO * fe["gross_smooth"])
+    return bool(fit_error_ratio(trend) < FIT_ERROR_RATIO)  # (NaN: not computed, False)
 
 
 def negligible_effect(trend: dict, shoot: dict) -> dict:

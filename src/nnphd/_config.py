@@ -6,6 +6,7 @@ Importing it changes nothing."""
 from __future__ import annotations
 
 import os
+import stat
 from pathlib import Path
 
 XLA_FLAG = "--xla_cpu_experimental_ynn_fusion_type="
@@ -15,8 +16,13 @@ COMPILE_CACHE_ENV = "NNPHD_COMPILE_CACHE"
 COMPILE_CACHE_MAX_BYTES = 2**30  # least recently used programs are evicted beyond 1 GiB
 
 
+class CompileCacheWarning(UserWarning):
+    """The compile cache folder is not safe to load programs from (another owner, writable by others): not used."""
+
+
 def default_compile_cache() -> Path:
-    """The command line's compiled-program cache: ``$XDG_CACHE_HOME/nnphd/jax`` (``~/.cache/nnphd/jax``)."""
+    """The command line's compiled-program cache: ``$XDG_CACHE_HOME/nnphd/jax`` (``~/.cache/nnphd/jax``; created
+    with mode 0700)."""
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "nnphd" / "jax"
 
@@ -58,6 +64,9 @@ def configure(
     (the folder goes to them in NNPHD_COMPILE_CACHE) instead of compiled again: most of a short run's time is
     compilation (the tiny ``reproduce`` of the tests: 40 of 48 s). A loaded program is the compiled one, so the
     numbers are the same; at most 1 GiB is kept (least recently used evicted). Set it before the first compilation.
+    JAX runs what it loads from there, so the folder must be this user's own: one owned by someone else or writable
+    by group or others is not used (one :class:`CompileCacheWarning` line naming it and why; the run compiles as
+    usual), and a missing folder is created with mode 0700 (:func:`compile_cache_problem`).
     """
     flags = os.environ.get("XLA_FLAGS", "")
     if not os.environ.get("NNPHD_KEEP_XLA_FLAGS"):
@@ -76,10 +85,41 @@ def configure(
         _use_compile_cache(cache)
 
 
-def _use_compile_cache(cache: Path) -> None:
+def compile_cache_problem(cache: Path) -> str | None:
+    """Why ``cache`` must not hold compiled programs, or None when it may: created (mode 0700, its parents as the
+    umask gives) when missing; then it must be a folder (a link to one is followed) owned by this user and writable
+    by nobody else — JAX loads and runs the programs it finds there, so another user who can write into it could
+    make nnphd run their code. ``"cannot be created"`` (a read-only place) is a problem too, but not a warning's."""
     try:
-        cache.mkdir(parents=True, exist_ok=True)
-    except OSError:  # an unwritable place: compile as usual
+        cache.mkdir(parents=True, exist_ok=True, mode=0o700)
+        st = os.stat(cache)
+    except OSError as e:
+        return f"cannot be created ({e.strerror or e})"
+    if not stat.S_ISDIR(st.st_mode):
+        return "not a folder"
+    if hasattr(os, "getuid") and st.st_uid != os.getuid():
+        return f"owned by another user (uid {st.st_uid}), not by you (uid {os.getuid()})"
+    if st.st_mode & 0o022:
+        who = " and ".join(w for w, bit in (("group", 0o020), ("others", 0o002)) if st.st_mode & bit)
+        return f"writable by {who} (mode {stat.S_IMODE(st.st_mode):o}; chmod go-w it, or choose another folder)"
+    return None
+
+
+def _use_compile_cache(cache: Path) -> None:
+    """Point JAX's persistent compilation cache at ``cache`` if :func:`compile_cache_problem` finds none; otherwise
+    compile as usual: silently where the folder cannot be created (a read-only place, as before); for an unsafe
+    folder with one :class:`CompileCacheWarning` line, NNPHD_COMPILE_CACHE then set to ``0`` so the Dask workers
+    started from this process skip it without a warning of their own."""
+    why = compile_cache_problem(cache)
+    if why is not None:
+        if not why.startswith("cannot be created"):
+            import warnings
+
+            from nnphd.io.escape import one_line
+
+            msg = one_line(f"{cache}: not used as the compile cache ({why}); compiling without it")
+            warnings.warn_explicit(msg, CompileCacheWarning, "<nnphd>", 0, module=__name__)
+            os.environ[COMPILE_CACHE_ENV] = "0"
         return
     import jax
 

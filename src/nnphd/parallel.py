@@ -13,11 +13,13 @@ a ``detect`` batch.  Built on Dask distributed.
 * ``scheduler="tcp://host:8786"``: use an existing Dask cluster (``dask scheduler`` + ``dask worker``, or
   dask-jobqueue's ``SLURMCluster``, see docs/scaling.md); the workers must have nnphd installed and see the same ``out``
   folder (a shared filesystem), since the units write their results and caches there.  A malformed address or one
-  that does not answer within :data:`CONNECT_TIMEOUT_S` seconds raises :class:`SchedulerError` (one line).
+  that does not answer within :data:`CONNECT_TIMEOUT_S` seconds (NNPHD_SCHEDULER_TIMEOUT, a finite number of seconds
+  up to a day: :func:`connect_timeout`) raises :class:`SchedulerError` (one line).
 
 **Nothing listens beyond this machine.**  A local cluster's scheduler, workers and their HTTP servers (Dask's
 /health, /metrics, …; no dashboard is started) all listen on 127.0.0.1 only; a test lists every listening socket of
-the process tree during a run.
+the process tree during a run.  Their scratch space is a private folder (:func:`scratch_folder`: mode 0700, removed
+when the cluster closes), not Dask's shared and predictable ``<tmp>/dask-scratch-space``.
 
 **Same numbers whatever the number of workers.** A unit's result depends only on its arguments (its seed is one of
 them), never on which worker ran it or in what order; the tests compare 1 and 2 workers, and a killed worker.
@@ -36,6 +38,7 @@ address or on SLURM/PBS through dask-jobqueue.  Nothing in nnphd needs Ray's act
 
 from __future__ import annotations
 
+import math
 import os
 import threading
 import time
@@ -54,6 +57,7 @@ __all__ = [
     "CompileClock",
     "SchedulerError",
     "check_scheduler_address",
+    "connect_timeout",
     "local_cluster",
     "UnitsFailed",
     "Unit",
@@ -82,7 +86,10 @@ WORKER_ENV = {
 LOOPBACK = "127.0.0.1"  # every socket of a local cluster listens here only
 
 # seconds to wait for an existing scheduler (``scheduler=``) to answer; NNPHD_SCHEDULER_TIMEOUT=seconds overrides it
+# (a finite number, 0 < seconds ≤ MAX_CONNECT_TIMEOUT_S: inf or 1e300 overflowed a thread's join deep in a run)
 CONNECT_TIMEOUT_S = 30.0
+MAX_CONNECT_TIMEOUT_S = 86400.0
+TIMEOUT_ENV = "NNPHD_SCHEDULER_TIMEOUT"
 
 
 class SchedulerError(ValueError):
@@ -114,13 +121,26 @@ def check_scheduler_address(address: str) -> str:
     return text
 
 
-def _connect_timeout() -> float:
-    raw = os.environ.get("NNPHD_SCHEDULER_TIMEOUT", "").strip()
+def connect_timeout() -> float:
+    """Seconds to wait for an existing scheduler: NNPHD_SCHEDULER_TIMEOUT when it is set and not empty, else
+    :data:`CONNECT_TIMEOUT_S`. A value that is not a finite number of seconds in (0, :data:`MAX_CONNECT_TIMEOUT_S`]
+    (``inf``, ``nan``, ``1e300``, ``-1``, ``0``, ``abc``) is a :class:`SchedulerError` (one line naming the variable;
+    exit 2 on the command line), raised before anything is contacted."""
+    raw = os.environ.get(TIMEOUT_ENV, "").strip()
+    if not raw:
+        return CONNECT_TIMEOUT_S
     try:
-        t = float(raw) if raw else CONNECT_TIMEOUT_S
+        t = float(raw)
     except ValueError:
-        t = CONNECT_TIMEOUT_S
-    return t if t > 0 else CONNECT_TIMEOUT_S
+        t = math.nan
+    if not (math.isfinite(t) and 0 < t <= MAX_CONNECT_TIMEOUT_S):
+        from nnphd.io.escape import one_line
+
+        raise SchedulerError(
+            f"{TIMEOUT_ENV}={one_line(repr(raw), 40)} is not a number of seconds: expected a finite number "
+            f"above 0 and at most {MAX_CONNECT_TIMEOUT_S:g} (one day); unset, it is {CONNECT_TIMEOUT_S:g}"
+        )
+    return t
 
 
 class UnitsFailed(RuntimeError):
@@ -302,6 +322,7 @@ def run_units(
     n = n_workers(workers, scheduler, len(units))
     if scheduler is not None:
         scheduler = check_scheduler_address(scheduler)
+        connect_timeout()  # a bad NNPHD_SCHEDULER_TIMEOUT is refused before any unit is submitted
     if not units:
         return {}
     if n == 1:
@@ -412,26 +433,52 @@ def _run_here(units, progress, on_outcome) -> dict[str, Outcome]:
 
 
 @contextmanager
+def scratch_folder():
+    """A private scratch folder for a local cluster (yields its path): made by :func:`tempfile.mkdtemp` — an
+    unpredictable name, mode 0700, owned by this user — instead of Dask's default ``<tmp>/dask-scratch-space``,
+    which is shared by every user of the machine and predictable (Dask also puts its scratch folder first on
+    ``sys.path``: one made by someone else could plant modules). On leaving, the folder and everything in it are
+    removed, and the ``sys.path`` entries Dask left pointing into it are dropped (a later folder of the same name
+    is never imported from)."""
+    import shutil
+    import sys
+    import tempfile
+
+    folder = tempfile.mkdtemp(prefix="nnphd-dask-")
+    try:
+        yield folder
+    finally:
+        inside = os.path.join(folder, "")
+        sys.path[:] = [p for p in sys.path if not (p == folder or str(p).startswith(inside))]
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextmanager
 def local_cluster(n: int):
     """A ``distributed.LocalCluster`` of ``n`` single-threaded worker processes (nannied, :data:`WORKER_ENV`) whose
     every socket listens on 127.0.0.1 only: the scheduler and the workers, and their HTTP servers (health and
-    metrics routes; no dashboard is started, so bokeh is never needed). Closed on leaving, also on an error."""
+    metrics routes; no dashboard is started, so bokeh is never needed). The scheduler, nannies and workers keep
+    their scratch files in a private folder (:func:`scratch_folder`: mode 0700, removed afterwards), never in the
+    system's shared temporary folder. Closed on leaving, also on an error."""
+    import dask
     from distributed import LocalCluster
 
-    with LocalCluster(
-        n_workers=n,
-        threads_per_worker=1,
-        processes=True,
-        host=LOOPBACK,
-        scheduler_port=0,
-        # the scheduler's HTTP server (Dask starts one even without a dashboard): loopback, a free port; the
-        # default ":8787"/":0" means every interface. The workers' HTTP servers follow their host (127.0.0.1).
-        dashboard_address=f"{LOOPBACK}:0",
-        worker_dashboard_address=None,
-        env=dict(WORKER_ENV),
-        silence_logs=50,  # logging.CRITICAL: Dask's own log lines stay off the user's terminal
-    ) as cluster:
-        yield cluster
+    with scratch_folder() as scratch, dask.config.set({"temporary-directory": scratch}):  # the scheduler's too
+        with LocalCluster(
+            n_workers=n,
+            threads_per_worker=1,
+            processes=True,
+            host=LOOPBACK,
+            scheduler_port=0,
+            # the scheduler's HTTP server (Dask starts one even without a dashboard): loopback, a free port; the
+            # default ":8787"/":0" means every interface. The workers' HTTP servers follow their host (127.0.0.1).
+            dashboard_address=f"{LOOPBACK}:0",
+            worker_dashboard_address=None,
+            env=dict(WORKER_ENV),
+            silence_logs=50,  # logging.CRITICAL: Dask's own log lines stay off the user's terminal
+            local_directory=scratch,  # the nannies' and workers' scratch space (Dask adds dask-scratch-space/)
+        ) as cluster:
+            yield cluster
 
 
 def _client(scheduler: str):
@@ -443,7 +490,7 @@ def _client(scheduler: str):
 
     from distributed import Client
 
-    timeout = _connect_timeout()
+    timeout = connect_timeout()
     box: dict = {}
 
     def connect() -> None:

@@ -8,12 +8,17 @@ it created and left empty (the given or default ``--out`` and its parents; never
 :func:`nnphd.cli.common.undo_run`; a defect of nnphd gives one ``error: internal error ...`` line and
 exit code 1 (``NNPHD_TRACEBACK=1`` shows the traceback).  Each command claims its ``--out`` folder
 (:func:`nnphd.io.outdir.claim_out_dir`): a second run into the same folder is refused while the first runs.
+
+Nothing a file, a column or an argument names reaches the terminal raw: every line printed here, every Rich text
+(:func:`nnphd.io.escape.rich`) and every warning shown while a command runs goes through
+:func:`nnphd.io.escape.terminal`, which shows control and bidi characters as escapes (``\\x1b``, ``\\u202e``).
 """
 
 from __future__ import annotations
 
 import os
 import sys
+import warnings
 
 import typer
 
@@ -21,11 +26,22 @@ from nnphd.cli import detect as _detect  # noqa: F401  (registers the command)
 from nnphd.cli import paper as _paper  # noqa: F401  (registers the commands)
 from nnphd.cli.common import ClickError, InputError, app, begin_run, claimed_outs, undo_run
 from nnphd.io.errors import DataError
+from nnphd.io.escape import one_line, terminal
 from nnphd.io.outdir import release_out_dirs
 from nnphd.parallel import SchedulerError, UnitsFailed
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default: ``sys.argv[1:]``); returns the exit code."""
+    shown_warning = warnings.formatwarning
+    warnings.formatwarning = _escaped_warnings(shown_warning)  # a warning's message is shown escaped too
+    try:
+        return _main(argv)
+    finally:
+        warnings.formatwarning = shown_warning
+
+
+def _main(argv: list[str] | None) -> int:
     from nnphd import configure
     from nnphd._extras import MissingExtra
 
@@ -68,13 +84,25 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _one_line(e: BaseException) -> str:
-    text = " ".join(str(e).split())
-    return text[:300] + ("…" if len(text) > 300 else "")
+def _escaped_warnings(format_warning):
+    """``warnings.formatwarning`` showing the message's control and bidi characters as escapes (a warning may quote
+    a file or column name); the location and source line are nnphd's or a library's code, shown as they are."""
+
+    def shown(message, category, filename, lineno, line=None) -> str:
+        return format_warning(terminal(message), category, filename, lineno, line)
+
+    return shown
+
+
+def _one_line(e: BaseException | str) -> str:
+    """The text of ``e`` as one line of at most 300 characters (before escaping), control and bidi characters shown
+    as escapes (:func:`nnphd.io.escape.one_line`)."""
+    return one_line(e, 300)
 
 
 def _failed(message: str, code: int) -> int:
-    """One ``error: ...`` line and ``code``; what the run created and left empty is removed (:func:`undo_run`)."""
+    """One ``error: ...`` line (control and bidi characters of the names it quotes shown as escapes) and ``code``;
+    what the run created and left empty is removed (:func:`undo_run`)."""
     undo_run()
     print(f"error: {_one_line(message)}", file=sys.stderr)
     return code
@@ -88,7 +116,7 @@ def _interrupted() -> int:
     for d in claimed_outs():
         try:
             if d.is_dir() and any(f.name == ".checkpoint.npz" for f in d.iterdir()):
-                msg += f"; the finished steps are kept in {d}: run the same command again to resume"
+                msg += f"; the finished steps are kept in {terminal(d)}: run the same command again to resume"
                 break
         except OSError:
             pass

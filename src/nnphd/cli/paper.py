@@ -32,7 +32,8 @@ from nnphd.cli.common import (
     study_app,
     workers_option,
 )
-from nnphd.io.escape import rich as _r  # --out and a --scheduler address are the user's text: Rich markup escaped
+from nnphd.io.escape import one_line
+from nnphd.io.escape import rich as _r  # --out, a --scheduler address: the user's text (markup, control chars escaped)
 
 
 @app.command()
@@ -498,7 +499,7 @@ def reproduce(
     if s["failed"]:
         k, e = next(iter(s["failed"].items()))
         msg = f"{len(s['failed'])} units failed ({k}: {e}); the others are cached in {out}: rerun to resume"
-        print(f"error: {msg}", file=sys.stderr)
+        print(one_line(f"error: {msg}"), file=sys.stderr)  # quotes --out and errors: control characters escaped
         raise typer.Exit(1)
 
 

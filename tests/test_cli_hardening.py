@@ -156,12 +156,14 @@ def test_p_limit_holds_for_the_api_too():
 
 
 def _sweep_raises(monkeypatch, exc, write=()):
-    """nnphd sweep's run_sweep replaced by one that writes ``write`` (names in --out) and raises ``exc``."""
+    """nnphd sweep's run_sweep replaced by one that writes ``write`` (names in --out) as nnphd writes its files
+    (:func:`nnphd.io.results.atomic_write_bytes`, which keeps the list of what this run wrote) and raises ``exc``."""
     import nnphd.paper.sweep as sweep_mod
+    from nnphd.io.results import atomic_write_bytes
 
     def run(*a, out=None, **k):
         for name in write:
-            (Path(out) / name).write_text("{}")
+            atomic_write_bytes(Path(out) / name, b"{}")
         raise exc
 
     monkeypatch.setattr(sweep_mod, "run_sweep", run)

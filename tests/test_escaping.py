@@ -236,9 +236,13 @@ def test_batch_summary_guards_csv_escapes_html_skips_links_and_its_out(tmp_path,
         assert sorted(read) == ["<img src=x onerror=alert(1)>[bold]bad.csv", '=HYPERLINK("evil").csv']
     assert (d / "nnphd" / "summary.csv").is_file()
     # files given one by one that lie inside --out (a shell glob over it) are skipped, never read
-    files, skipped = batch.scan_paths([out / "summary.csv", d / "key.csv"], out)
-    assert files == [d / "key.csv"]  # a file named on the command line is the user's choice, link or not
-    assert skipped == [{"file": str(out / "summary.csv"), "reason": "inside the --out folder (nnphd's own output), not read"}]  # fmt: skip
+    bad = d / "<img src=x onerror=alert(1)>[bold]bad.csv"
+    files, skipped = batch.scan_paths([out / "summary.csv", bad, d / "key.csv"], out)
+    assert files == [bad]  # a link named on the command line is skipped as in a folder (issue 55)
+    assert skipped == [
+        {"file": str(d / "key.csv"), "reason": "symbolic link, not followed"},
+        {"file": str(out / "summary.csv"), "reason": "inside the --out folder (nnphd's own output), not read"},
+    ]
 
 
 def test_html_report_escapes_names():

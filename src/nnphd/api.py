@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from enum import StrEnum
@@ -224,17 +225,43 @@ class DetectResult:
 def read_report(path) -> DetectResult:
     """A report.json written by ``nnphd detect`` (or :meth:`NNPhD.report`), read and checked: bounded in size, parsed
     as JSON only (never executed), its verdict and law checked for type. ValueError with one line naming the path
-    and what is wrong."""
+    and what is wrong. Only a regular file is read, checked on a non-blocking descriptor before any read
+    (:func:`nnphd.io.cache.open_regular`): a FIFO, a device or a link to one is refused at once, not waited on."""
+    from nnphd.io.cache import open_regular
+
     path = Path(path)
     try:
-        size = path.stat().st_size
+        f = open_regular(path, sys.maxsize)  # (the size is checked below, to say it as a report's limit)
+    except ValueError as e:  # no such file, not a regular file, not readable
+        raise _report_error(str(path), f"not a readable report.json ({e})") from None
+    with f:
+        size = os.fstat(f.fileno()).st_size
         if size > MAX_REPORT_BYTES:
             raise _report_error(str(path), f"{size} bytes, more than a report holds ({MAX_REPORT_BYTES} at most)")
-        with open(path, "rb") as f:
-            report = json.loads(f.read(MAX_REPORT_BYTES + 1).decode("utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
-        raise _report_error(str(path), f"not a readable report.json ({type(e).__name__}: {str(e)[:120]})") from None
+        try:
+            data = f.read(MAX_REPORT_BYTES + 1)
+            if len(data) > MAX_REPORT_BYTES:  # it grew while read
+                raise _report_error(str(path), f"more than a report holds ({MAX_REPORT_BYTES} bytes at most)")
+            report = json.loads(data.decode("utf-8"))
+        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+            why = f"{type(e).__name__}: {str(e)[:120]}"
+            raise _report_error(str(path), f"not a readable report.json ({why})") from None
     return DetectResult.from_dict(report, str(path))
+
+
+def _check_run_settings(seed: int, steps: int, n_seeds: int, sr_time: float) -> None:
+    """The ranges of the command line's options (:mod:`nnphd.user.limits`), which a saved model's settings must keep
+    too: ValueError naming the first one outside."""
+    from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
+
+    for name, value, lo, hi in (
+        ("seed", seed, 0, MAX_SEED),
+        ("steps", steps, 0, MAX_STEPS),
+        ("n_seeds", n_seeds, 1, MAX_N_SEEDS),
+        ("sr_time", sr_time, 0, MAX_SR_TIME),
+    ):
+        if not lo <= value <= hi:  # (NaN fails too)
+            raise ValueError(f"{name} must be between {lo} and {hi}, got {value!r}")
 
 
 class NNPhD:
@@ -280,6 +307,7 @@ class NNPhD:
         self.derivatives, self.library = with_old_keywords(derivatives, library, trim=trim, laws=laws, law_fit=law_fit)
         check_field(field, self.library.fit)
         self.seed, self.steps, self.n_seeds = int(seed), int(steps), int(n_seeds)
+        _check_run_settings(self.seed, self.steps, self.n_seeds, float(sr_time))
         # the older names of the objects' fields (save() writes them)
         self.laws, self.law_fit, self.trim = self.library.laws, self.library.fit, self.derivatives.trim
         self.sr_time, self.assess_kw = float(sr_time), dict(assess_kw)
@@ -341,22 +369,26 @@ class NNPhD:
 
     # ------------------------------------------------------------------------------------------- the model
     def _fc_fn(self):
+        """f_c(q, q̇) of the model held, compiled (once per model and shape)."""
         if self._fc_jit is None:
             import jax
 
-            from nnphd.user.assess import conservative_fn
-
-            fld = self._model.get("field")
-            if fld is not None:  # a declared uniform field: its fitted acceleration
-                import jax.numpy as jnp
-
-                from nnphd.user.detect import field_force
-
-                ang = self._model["angles"]
-                self._fc_jit = jax.jit(lambda q, qd: field_force(fld, q, ang, xp=jnp))
-            else:
-                self._fc_jit = jax.jit(conservative_fn(self._model["conservative"]))
+            self._fc_jit = jax.jit(self._fc_raw())
         return self._fc_jit
+
+    def _fc_raw(self):
+        """f_c(q, q̇) of the model held, as a JAX function (not compiled: :func:`_check_forward` runs it once)."""
+        from nnphd.user.assess import conservative_fn
+
+        fld = self._model.get("field")
+        if fld is not None:  # a declared uniform field: its fitted acceleration
+            import jax.numpy as jnp
+
+            from nnphd.user.detect import field_force
+
+            ang = self._model["angles"]
+            return lambda q, qd: field_force(fld, q, ang, xp=jnp)
+        return conservative_fn(self._model["conservative"])
 
     def _states(self, q, qd, t):
         n = len(self.names_)
@@ -371,9 +403,11 @@ class NNPhD:
         """(f_c, f_n) at states q, qd (N, n) (or (n,)), times t (N,) — in the data's units; f_n is the claimed law
         (zeros without one)."""
         self._check_fitted()
-        q, qd, t = self._states(q, qd, t)
+        return self._forces(self._fc_fn(), *self._states(q, qd, t))
+
+    def _forces(self, fc_fn, q, qd, t) -> tuple[np.ndarray, np.ndarray]:
         with _x64():
-            fc = np.asarray(self._fc_fn()(q, qd), float)
+            fc = np.asarray(fc_fn(q, qd), float)
         fn = np.zeros_like(q) if self._law is None else np.asarray(self._law.predict(q, qd, t), float)
         return fc, fn
 
@@ -525,8 +559,10 @@ class NNPhD:
 
 def load(path) -> NNPhD:
     """A model saved by :meth:`NNPhD.save`. The whole file is checked first (:mod:`nnphd.user.modelfile`: bounded
-    reading, every field's type and size, the weights' shapes and finiteness, the law parsed, never executed); a file
-    that is not a valid model raises ValueError with one line naming the path and what is wrong."""
+    reading, every field's type and size, the settings within the command line's ranges, the weights' shapes and
+    finiteness, the law parsed, never executed), then the model is run once at states of its own scales
+    (:func:`_check_forward`: its forces must be finite); a file that is not a valid model raises ValueError with one
+    line naming the path and what is wrong."""
     import jax
 
     from nnphd.explain.table import Candidate
@@ -584,4 +620,37 @@ def load(path) -> NNPhD:
     }
     model.report_ = meta["report"]
     model._set_results(meta["report"], law, f"{path}: report")
+    _check_forward(model, path)
     return model
+
+
+PROBE_STATES = ((-1.0, 1.0), (0.0, -1.0), (1.0, 0.5))  # (a, b) of load's forward pass: q = μ_q + a·s_q, q̇ = b·s_q/s_t
+
+
+def _check_forward(model: NNPhD, path) -> None:
+    """One forward pass of a loaded model at states of its own scales (:data:`PROBE_STATES`; t = t₀ + a·s_t): its
+    scales, input scales, weights and law coefficients are each finite when checked, but extreme ones together
+    (an input_scale of 1e-300, weights of 1e200) make :meth:`NNPhD.forces` return NaN or inf without a word. Such a
+    file is refused with one ValueError line, as a file :func:`nnphd.user.modelfile.read_model_file` refuses. (The
+    same functions as :meth:`NNPhD.forces`, run op by op, not compiled: ~10 ms once JAX has run those ops in the
+    process, where compiling each loaded model's function would cost ~0.5 s on every load.)"""
+    from nnphd.io.cache import one_line
+
+    sc = model._model["conservative"]["scaling"]
+    a, b = np.asarray(PROBE_STATES).T
+    with np.errstate(all="ignore"):
+        q = np.asarray(sc.mu_q, float) + a[:, None] * np.asarray(sc.s_q, float)
+        qd = b[:, None] * np.asarray(sc.s_q, float) / sc.s_t
+        t = sc.t0 + a * sc.s_t
+    why = None
+    if not (np.isfinite(q).all() and np.isfinite(qd).all() and np.isfinite(t).all()):
+        why = "its scaling overflows (μ_q ± s_q, s_q/s_t or t₀ ± s_t is not finite)"
+    else:
+        with np.errstate(all="ignore"):  # (a law computed in numpy: the overflow is the finding, not a warning)
+            fc, fn = model._forces(model._fc_raw(), q, qd, t)
+        parts = (("the conservative force f_c (the network)", fc), ("the law's force f_n", fn))
+        bad = next((what for what, f in parts if not np.isfinite(f).all()), None)
+        if bad is not None:
+            why = f"{bad} is not finite at states of its own scales (q = μ_q ± s_q, q̇ ~ s_q/s_t)"
+    if why is not None:
+        raise ValueError(one_line(f"{path}: not a valid nnphd model file: {why}"))

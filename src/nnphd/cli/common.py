@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 import os
-import time
 from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
@@ -13,6 +12,8 @@ from pathlib import Path
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS  # noqa: F401  (the options' ranges)
 
 app = typer.Typer(
     add_completion=False,
@@ -48,7 +49,8 @@ ClickError = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickE
 @contextmanager
 def progress_bar(title: str):
     """The CLI's side of the one progress interface: a rich bar fed by ``progress(done, total, message)`` (the title
-    and messages may quote file or column names: shown literally, Rich markup escaped)."""
+    and messages may quote file or column names: shown literally: Rich markup escaped, control and bidi
+    characters shown as escapes, :func:`nnphd.io.escape.rich`)."""
     from nnphd.io.escape import rich as _r
 
     with Progress(
@@ -102,10 +104,6 @@ class Trim(StrEnum):
     no = "no"
 
 
-MAX_SEED = 2**32 - 1  # JAX and NumPy take seeds of up to 64 bits; 32 are plenty and portable
-MAX_STEPS = 10**7  # training steps per run: more would allocate the minibatch keys of the whole scan at once
-
-
 def workers_option():
     return typer.Option(
         None,
@@ -117,12 +115,14 @@ def workers_option():
 
 
 def _check_scheduler(value: str | None) -> str | None:
-    """--scheduler: its form is checked when the command line is read, before anything is written or contacted."""
+    """--scheduler: its form, and NNPHD_SCHEDULER_TIMEOUT (:func:`nnphd.parallel.connect_timeout`), are checked when
+    the command line is read, before anything is written or contacted."""
     if value is None:
         return None
-    from nnphd.parallel import check_scheduler_address
+    from nnphd.parallel import check_scheduler_address, connect_timeout
 
     try:
+        connect_timeout()
         return check_scheduler_address(value)
     except ValueError as e:
         raise InputError(str(e)) from None
@@ -160,13 +160,16 @@ def parse_loss_p(value):
 
 # ---- what a run created: removed again if it fails or is interrupted (nnphd.cli.main) -------------------------------
 RESULT_FILES = ("results.json", "summary.json", "report.json", "table2.json")
-_run = {"t0_ns": 0, "created": [], "outs": []}
+_run = {"created": [], "outs": []}
 
 
 def begin_run() -> None:
-    """Forget the folders of an earlier run in this process (nnphd.cli.main calls it before each command)."""
-    # (file times come from the kernel's coarse clock, up to a few ms behind time.time_ns())
-    _run.update(t0_ns=time.time_ns() - 50_000_000, created=[], outs=[])
+    """Forget the folders and files of an earlier run in this process (nnphd.cli.main calls it before each
+    command)."""
+    from nnphd.io.results import forget_written
+
+    forget_written()
+    _run.update(created=[], outs=[])
 
 
 def claim_out(path):
@@ -194,14 +197,19 @@ def claimed_outs() -> list[Path]:
 
 
 def undo_run() -> None:
-    """After a failed or interrupted run: remove the result files (:data:`RESULT_FILES`) it wrote at the top of its
-    --out folders (a failed run leaves no result behind; caches and checkpoints stay, for a rerun to resume), then
-    every folder it created and left empty, innermost first. A folder that existed before is never removed."""
+    """After a failed or interrupted run: remove the result files (:data:`RESULT_FILES`) this process wrote at the
+    top of its --out folders (a failed run leaves no result behind; caches and checkpoints stay, for a rerun to
+    resume), then every folder it created and left empty, innermost first. A file counts as written by the run only
+    while it is the very file the run wrote (:func:`nnphd.io.results.written_by_this_process`: same device and
+    inode), not by its modification time: a file that was there before, or was put there since, is never removed;
+    nor is a folder that existed before."""
+    from nnphd.io.results import written_by_this_process
+
     for out in _run["outs"]:
         for name in RESULT_FILES:
             f = out / name
             try:
-                if f.is_file() and not f.is_symlink() and f.stat().st_mtime_ns >= _run["t0_ns"]:
+                if written_by_this_process(f):
                     f.unlink()
             except OSError:
                 pass
@@ -213,13 +221,24 @@ def undo_run() -> None:
             pass
 
 
+# --lambdas: at most this many λ (the paper's grid has 13; each λ is a whole training run, and a λ list of thousands
+# only makes a run that never ends)
+MAX_LAMBDAS = 64
+
+
 def parse_lambdas(value: str | None):
+    """``--lambdas`` as a tuple of floats (None: the paper's grid, :data:`nnphd.engine.train.PAPER_LAMBDAS`): at most
+    :data:`MAX_LAMBDAS` comma-separated distinct finite numbers > 0, some below and some above 1; an
+    :class:`InputError` (one line) if not. The count is checked before any value is read."""
     from nnphd.engine.train import PAPER_LAMBDAS
 
     if value is None:
         return PAPER_LAMBDAS
+    toks = value.split(",")
+    if len(toks) > MAX_LAMBDAS:
+        raise InputError(f"--lambdas takes at most {MAX_LAMBDAS} values (the paper's grid has 13), got {len(toks)}")
     out = []
-    for tok in value.split(","):
+    for tok in toks:
         try:
             x = float(tok)
         except ValueError:

@@ -8,7 +8,9 @@ from pathlib import Path
 import typer
 
 from nnphd.cli.common import (
+    MAX_N_SEEDS,
     MAX_SEED,
+    MAX_SR_TIME,
     MAX_STEPS,
     Field,
     InputError,
@@ -21,6 +23,7 @@ from nnphd.cli.common import (
     scheduler_option,
     workers_option,
 )
+from nnphd.io.escape import one_line
 from nnphd.io.escape import rich as _r
 from nnphd.user.limits import MAX_ROWS, MIN_ROWS
 
@@ -44,11 +47,12 @@ def detect(
         "--n-seeds",
         "--repeats",
         min=1,
+        max=MAX_N_SEEDS,
         help="how many seeds (other initialisation and held-out trajectories; NNPhD(n_seeds=…); --repeats is "
         "its old name)",
     ),
     sr_time: int = typer.Option(
-        10, "--sr-time", min=0, help="seconds of genetic symbolic regression per component (0: skip)"
+        10, "--sr-time", min=0, max=MAX_SR_TIME, help="seconds of genetic symbolic regression per component (0: skip)"
     ),
     law: list[str] | None = typer.Option(
         None,
@@ -219,7 +223,7 @@ def _detect_one(ud, out, workers, scheduler, t_read, settings) -> dict:
 def _print_report(rep: dict) -> None:
     """The verdict of one file's report on the console: status, effect, warnings, angle notes, reasons, the law
     and the hint or blind formula."""
-    # every text from the report may quote the file's column names or path: Rich markup escaped (_r)
+    # every text from the report may quote the file's column names or path: markup and control characters escaped (_r)
     colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
     console.print(
         f"[{colour}]{_r(rep['status'].upper())}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
@@ -293,7 +297,7 @@ def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) 
     for col in ("file", "verdict", "confidence", "law", "time (s)", "error"):
         t.add_column(col, justify="left")
     for r in s["rows"]:
-        t.add_row(  # file names, laws and errors quote the data: Rich markup escaped (_r)
+        t.add_row(  # file names, laws and errors quote the data: markup and control characters escaped (_r)
             _r(r["file"]),
             _r(r["status"]),
             "" if r["confidence"] is None else f"{r['confidence']:.2g}",
@@ -312,8 +316,8 @@ def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) 
     )
     if s["failed"]:
         first = next(r for r in s["rows"] if r["status"] == "error")
-        print(
-            f"error: {s['failed']} of {s['n_files']} files failed ({first['error']}); see {out}/summary.csv",
+        print(  # the error and --out quote names: one line, control and bidi characters shown as escapes
+            one_line(f"error: {s['failed']} of {s['n_files']} files failed ({first['error']}); see {out}/summary.csv"),
             file=sys.stderr,
         )
         raise typer.Exit(1)

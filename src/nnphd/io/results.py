@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import stat
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,16 +35,49 @@ def _umask() -> int:
     return mask
 
 
+# The files this process wrote (absolute path → device, inode, size and SHA-256 of what it wrote): a failed or
+# interrupted command removes only files that are still the ones it wrote (nnphd.cli.common.undo_run), never one
+# that was there before or was put there since (an inode number is reused at once, hence the contents too).
+_written: dict[str, tuple[int, int, int, bytes]] = {}
+
+
+def written_by_this_process(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is (still) the very file :func:`atomic_write_bytes` of this process wrote there: the same
+    inode, holding the same bytes (read without following a link or waiting on a FIFO)."""
+    key = os.path.abspath(path)
+    if key not in _written:
+        return False
+    dev, ino, size, digest = _written[key]
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_NOFOLLOW", 0)
+    try:
+        fd = os.open(key, flags)
+    except OSError:
+        return False
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fd)
+        if (st.st_dev, st.st_ino, st.st_size) != (dev, ino, size) or not stat.S_ISREG(st.st_mode):
+            return False
+        return hashlib.sha256(fh.read(size + 1)).digest() == digest
+
+
+def forget_written() -> None:
+    """Forget which files this process wrote (a new command starts)."""
+    _written.clear()
+
+
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> None:
     """Write ``data`` to a temporary file beside ``path`` and rename it over ``path`` (never half-written), with the
-    permissions a plain ``open`` would give (0666 less the umask; mkstemp's are 0600)."""
+    permissions a plain ``open`` would give (0666 less the umask; mkstemp's are 0600). The file is noted as written
+    by this process (:func:`written_by_this_process`)."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
+            st = os.fstat(fh.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
+        _written[os.path.abspath(path)] = (st.st_dev, st.st_ino, len(data), hashlib.sha256(data).digest())
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)

@@ -100,21 +100,19 @@ def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dic
     """Load the unit's results from ``d`` when its marker (:class:`nnphd.io.cache.Cache`) records exactly
     ``settings``, else run ``fn`` (which writes ``d/results.json``) and mark ``d``."""
     cache = Cache(d, settings)
-    marker = cache.load(MARKER)
-    if marker is not None:
-        try:
-            res = json.loads((d / "results.json").read_text())
-        except (OSError, ValueError):
-            res = None
-        if res is not None:
-            log["cached"] = True
-            log["compute_time_s"] = float(marker.get("wall_time_s", 0.0))
-            return res
+    sealed = cache.load_sealed(MARKER, "results.json")
+    if sealed is not None and isinstance(sealed[1], dict):
+        marker, res = sealed
+        log["cached"] = True
+        log["compute_time_s"] = float(marker.get("wall_time_s", 0.0))
+        return res
     t0 = time.perf_counter()
     res = fn()
     wall = time.perf_counter() - t0
-    cache.save(
-        {"settings": settings, "wall_time_s": wall, "finished": datetime.now(UTC).isoformat(timespec="seconds")}, MARKER
+    cache.seal(
+        {"settings": settings, "wall_time_s": wall, "finished": datetime.now(UTC).isoformat(timespec="seconds")},
+        MARKER,
+        ("results.json",),
     )
     log["cached"] = False
     log["compute_time_s"] = wall

@@ -10,7 +10,8 @@ same settings skips every file whose content has not changed and runs the rest.
 
 What is read (:func:`scan_paths`): of a folder, only the regular ``.csv``/``.npz`` files directly in it — a symbolic
 link is not followed (it could point anywhere, e.g. at a private key whose lines an error message would quote into a
-summary the user shares), nor anything else that is not a regular file; each is listed as skipped.  Files inside
+summary the user shares), nor anything else that is not a regular file; each is listed as skipped.  A file named on
+the command line is taken the same way (``data/*.csv`` may expand to a link or a FIFO).  Files inside
 ``out`` are nnphd's own output (summary.csv …) and never inputs: they are skipped too, and an ``out`` that is an
 input folder is refused (a subfolder of it is fine: folders are not searched recursively).  Text cells of summary.csv that a spreadsheet would run as a formula get a
 leading ``'`` (:func:`nnphd.io.escape.csv_cell`).
@@ -21,13 +22,15 @@ from __future__ import annotations
 import csv
 import hashlib
 import io
-import json
 import os
+import stat
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from nnphd.io.cache import Cache
+from nnphd.io.cache import Cache, open_regular, warn_ignored
+from nnphd.io.errors import DataError
 from nnphd.io.escape import csv_cell
 from nnphd.io.html import escape, page, table
 from nnphd.io.progress import Progress
@@ -37,6 +40,7 @@ from nnphd.parallel import Unit, n_workers, run_units
 __all__ = ["SUFFIXES", "expand_paths", "scan_paths", "detect_batch", "detect_one"]
 
 SUFFIXES = (".csv", ".npz")
+VERDICTS = ("detected", "none", "inconclusive")  # nnphd.api.Status (a test keeps them equal)
 MARKER = "batch.json"
 COLUMNS = (
     "name",
@@ -74,12 +78,15 @@ def scan_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> tu
     files: list[Path] = []
     skipped: list[dict[str, str]] = []
     for p in map(Path, paths):
-        if p.is_dir():
+        if p.is_dir():  # a folder named on the command line is read even through a link; its entries are not
             files.extend(_scan_folder(p, out_r, skipped))
-        elif p.exists():
-            files.append(p)
+        elif os.path.lexists(p):
+            _add_named_file(p, files, skipped)
         else:
             raise ValueError(f"{p}: no such file or folder")
+    if not files:
+        why = f": {skipped[-1]['file']} is {skipped[-1]['reason']}" if skipped else ""
+        raise ValueError(f"no .csv or .npz file to read{why}")
     if out_r is not None:
         inside = [f for f in files if _inside(f.resolve(), out_r)]
         for f in inside:
@@ -94,6 +101,18 @@ def scan_paths(paths: Sequence[str | Path], out: str | Path | None = None) -> tu
             raise ValueError(f"{p}: the file is given twice")
         seen.add(r)
     return files, skipped
+
+
+def _add_named_file(p: Path, files: list[Path], skipped: list[dict[str, str]]) -> None:
+    """A file named on the command line, taken as a folder's entry would be: a symbolic link is not followed and a
+    FIFO, device or socket is not opened (both skipped, with the reason), whatever its suffix."""
+    st = os.lstat(p)
+    if stat.S_ISLNK(st.st_mode):
+        _skip(skipped, p, "symbolic link, not followed")
+    elif not stat.S_ISREG(st.st_mode):
+        _skip(skipped, p, "not a regular file")
+    else:
+        files.append(p)
 
 
 def _skip(skipped: list[dict[str, str]], p: Path, why: str) -> None:
@@ -147,11 +166,34 @@ def _names(paths: Sequence[Path]) -> list[str]:
 
 
 def _sha256(path: str | Path) -> str:
+    """The SHA-256 of a data file, streamed, opened as a regular file only: a FIFO or device swapped in after the
+    scan is refused, never read or waited on."""
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    try:
+        f = open_regular(path, sys.maxsize)
+    except ValueError as e:
+        raise DataError(f"{path}: {e}; expected a .csv or .npz file") from None
+    with f:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+def _cached_report(rep) -> dict:
+    """A cached report.json as the summary reads it, checked (ValueError saying what is not as this version writes
+    it): a verdict, a confidence in [0, 1] (or NaN), the law table, effect and timings of the right types."""
+    if not isinstance(rep, dict) or rep.get("status") not in VERDICTS:
+        raise ValueError("no verdict")
+    conf = rep.get("confidence")
+    if isinstance(conf, bool) or not isinstance(conf, (int, float)) or not (0 <= conf <= 1 or conf != conf):
+        raise ValueError(f"confidence {conf!r:.40}")
+    law = rep.get("law") or {}
+    if not isinstance(law, dict) or not isinstance(law.get("law") or {}, dict):
+        raise ValueError("the law table is not an object")
+    for key, kind in (("effect", str), ("timings", dict), ("wall_time_s", (int, float))):
+        if rep.get(key) is not None and not isinstance(rep[key], kind):
+            raise ValueError(f"{key} of the wrong type")
+    return rep
 
 
 def _tie_prefix(law: dict) -> str:
@@ -199,13 +241,14 @@ def detect_one(path: str, out: str, name: str, angles: tuple = (), max_rows: int
 
     key = {"file_sha256": _sha256(path), "angles": list(angles), "max_rows": max_rows, **settings}
     cache = Cache(out, key)
-    if cache.load(MARKER) is not None:
+    sealed = cache.load_sealed(MARKER, "report.json")
+    if sealed is not None:
         try:
-            return _row(name, path, json.loads((Path(out) / "report.json").read_text()), True)
-        except (OSError, ValueError, KeyError, TypeError):
-            pass  # a damaged report: run the file again
+            return _row(name, path, _cached_report(sealed[1]), True)
+        except (ValueError, KeyError, TypeError) as e:  # a report of another version: run the file again
+            warn_ignored(Path(out) / "report.json", f"not a report this version can summarise: {e}")
     rep = detect_file(path, out, angles=angles, max_rows=max_rows, **settings)
-    cache.save({"settings": key, "finished": time.time()}, MARKER)
+    cache.seal({"settings": key, "finished": time.time()}, MARKER, ("report.json",))
     return _row(name, path, rep, False)
 
 

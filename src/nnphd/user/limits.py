@@ -13,6 +13,12 @@ T_SPAN = (1e-15, 1e15)  # the time span of the file (max t − min t)
 Q_SPREAD = (1e-30, 1e30)  # the spread (max − min) of every coordinate that moves
 MIN_RESOLUTION = 1e-12  # a coordinate's spread relative to its largest |value| (digits of motion left in float64)
 
+# Run settings (the command line's options, NNPhD's arguments and a model file's saved settings get the same ranges):
+MAX_SEED = 2**32 - 1  # JAX and NumPy take seeds of up to 64 bits; 32 are plenty and portable
+MAX_STEPS = 10**7  # training steps per run: more would allocate the minibatch keys of the whole scan at once
+MAX_N_SEEDS = 100  # seeds of a verdict: each is a whole training of every model (2 by default)
+MAX_SR_TIME = 24 * 3600  # seconds of genetic symbolic regression per component (10 by default; 1e300 never ends)
+
 # Bounds on the size and shape of a file, checked before (NPZ: from the array headers) or while (CSV: streamed) it is
 # read, so that a hostile or careless file gives one line within bounded memory and time, never a swap storm:
 MAX_COORDS = 32  # coordinates per file: the model is n×n per row; a 1000-coordinate CSV once took 2.5 GB, no output

@@ -7,7 +7,13 @@ below (:data:`META`, :data:`CFG`, ...), then what the fields imply: the coordina
 leaves (count, shapes and dtypes equal to what :func:`nnphd.engine.models.init_lnn` makes for the saved config;
 every weight finite), the saved law (built by :func:`nnphd.explain.families.family_from_spec`, which parses a user
 law's text without executing it; its coefficients of the right sizes and finite) and the fields of the report that
-the model reads. Anything wrong raises one ValueError line: ``<path>: not a valid nnphd model file: <what>``.
+the model reads. The settings a refit would use get the command line's ranges (``steps`` at most
+:data:`nnphd.user.limits.MAX_STEPS`: 2³¹ steps would allocate ~16 GB of minibatch keys; the seed as ``--seed``;
+``n_seeds`` and ``sr_time`` at most :data:`MAX_N_SEEDS` and :data:`MAX_SR_TIME`), and the coordinate names hold no
+control or bidi characters (:data:`UNSAFE_NAME_CHARS`: a name is printed and drawn; ESC or U+202E would send
+terminal commands or reorder what is shown). Anything wrong raises one ValueError line: ``<path>: not a valid nnphd
+model file: <what>``. (:func:`nnphd.load` then runs the model once at states of the file's own scales and refuses
+it in the same form if its forces are not finite.)
 """
 
 from __future__ import annotations
@@ -22,13 +28,20 @@ import numpy as np
 from nnphd.explain.families import SIGN_FORMS
 from nnphd.io.cache import check_array, one_line, read_npz
 from nnphd.user.derivatives import METHODS as DERIVATIVE_METHODS
+from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
 
-__all__ = ["MAX_MODEL_BYTES", "ModelFile", "read_model_file"]
+__all__ = ["MAX_MODEL_BYTES", "MAX_N_SEEDS", "MAX_SR_TIME", "UNSAFE_NAME_CHARS", "ModelFile", "read_model_file"]
 
 MAX_MODEL_BYTES = 256 << 20  # a model of 4 layers of 2000 units is 100 MB
 MAX_COORDS = 32  # as nnphd.user.limits.MAX_COORDS: no model is trained on more coordinates
 MAX_SPARSE_COORDS = 6  # the sparse law's monomials are enumerated over 4^(2n) exponents (n = 6: ~5 s)
 MAX_TEXT = 10_000  # characters of a user law
+# characters refused in a coordinate name: C0 controls, DEL, C1 controls (ESC, CSI: terminal commands), the bidi
+# marks, embeddings, overrides and isolates (U+200E/U+200F, U+202A–U+202E, U+2066–U+2069, U+061C: reorder the text)
+UNSAFE_NAME_CHARS = frozenset(
+    [chr(c) for c in (*range(0x20), *range(0x7F, 0xA0), 0x200E, 0x200F, *range(0x202A, 0x202F), 0x061C)]
+    + [chr(c) for c in range(0x2066, 0x206A)]
+)
 
 
 class _Bad(ValueError):
@@ -69,13 +82,14 @@ def integer(lo: int, hi: int) -> Check:
     return check
 
 
-def number(*, finite: bool = True, positive: bool = False, nonneg: bool = False) -> Check:
+def number(*, finite: bool = True, positive: bool = False, nonneg: bool = False, hi: float | None = None) -> Check:
     want = "a positive" if positive else "a non-negative" if nonneg else "a finite" if finite else "a"
+    want += " number" + (f" of at most {hi:g}" if hi is not None else "")
 
     def check(x, where):
         ok = _is_num(x) and (not finite or math.isfinite(x)) and (not positive or x > 0) and (not nonneg or x >= 0)
-        if not ok:
-            raise _Bad(f"{where} is {x!r:.60}, expected {want} number")
+        if not ok or (hi is not None and x > hi):
+            raise _Bad(f"{where} is {x!r:.60}, expected {want}")
         return float(x)
 
     return check
@@ -88,6 +102,18 @@ def string(*, nonempty: bool = False, max_len: int = 1000) -> Check:
         return x
 
     return check
+
+
+def coord_name(x, where):
+    """A coordinate name: a non-empty string without control or bidi characters (:data:`UNSAFE_NAME_CHARS`)."""
+    string(nonempty=True, max_len=100)(x, where)
+    bad = next((c for c in x if c in UNSAFE_NAME_CHARS), None)
+    if bad is not None:
+        raise _Bad(
+            f"{where} holds the control or bidi character U+{ord(bad):04X}; expected a name without control or "
+            "bidi characters"
+        )
+    return x
 
 
 def law_text(x, where):
@@ -246,12 +272,13 @@ REPORT = {  # the fields NNPhD reads; the report may hold more
 
 OPTIONAL_SETTINGS = ("field", "derivative_method", "families", "thin")  # absent from older files, or at their default
 SETTINGS = {  # NNPhD's arguments
-    "seed": integer(-(2**63), 2**63 - 1),
-    "steps": integer(0, 2**31),
-    "n_seeds": integer(1, 1000),
+    # the command line's ranges (a refit uses these), but steps from 0: NNPhD(steps=1) is saved (and loads)
+    "seed": integer(0, MAX_SEED),
+    "steps": integer(0, MAX_STEPS),
+    "n_seeds": integer(1, MAX_N_SEEDS),
     "laws": list_of(law_text, max_len=100),
     "law_fit": one_of("auto", "pointwise", "trajectory"),
-    "sr_time": number(nonneg=True),
+    "sr_time": number(nonneg=True, hi=MAX_SR_TIME),
     "trim": either(boolean, string(max_len=100)),
     "field": one_of("learned", "uniform", "vertical"),  # (files saved before it was a setting have none: "learned")
     # written only when not the default (nnphd.Derivatives' method "auto"; nnphd.LawLibrary's families: all)
@@ -273,7 +300,7 @@ META = obj(
     {
         "format": const("nnphd-model"),
         "version": const(1),
-        "names": list_of(string(nonempty=True, max_len=100), max_len=MAX_COORDS),
+        "names": list_of(coord_name, max_len=MAX_COORDS),
         "angles": list_of(boolean, max_len=MAX_COORDS),
         "cfg": obj(CFG, required=("n",)),
         "scaling": obj(SCALING),

@@ -37,10 +37,10 @@ without reading the rest; the header (the NPZ member names) may name at most ``M
 ``MAX_COORDS`` = 32 coordinates, each a non-empty name of at most ``MAX_NAME`` = 64 characters without surrounding
 whitespace or control characters; a file holds at most ``MAX_CELLS`` = 10⁸ values (rows × columns; raised in
 proportion with ``max_rows``), counted while streaming a CSV and from the array headers of an NPZ, whose shapes
-(1-D, equal lengths), dtypes (int, uint, float) and members (only ``.npy``, not encrypted) are all checked before any
-array is read.  Cells and names in messages are quoted (``repr``) and cut to a few dozen characters, so a message
-never carries a file's content.  Any strictly increasing sampling
-is accepted.  :func:`suggest_angles` lists coordinates not declared as angles that look like angles (name, wrapped
+(1-D, equal lengths), dtypes (int, uint, float) and members (only ``.npy``, not encrypted, their uncompressed sizes
+and header lengths bounded from the zip directory and the first bytes before numpy reads a header) are all checked
+before any array is read.  Cells and names in messages are quoted (``repr``) and cut to a few dozen characters, so a
+message never carries a file's content.  Any strictly increasing sampling is accepted.  :func:`suggest_angles` lists coordinates not declared as angles that look like angles (name, wrapped
 values, whole turns), for a report.
 """
 
@@ -60,6 +60,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nnphd.io.cache import MAX_NPY_HEADER, npy_header
 from nnphd.io.errors import DataError
 from nnphd.user.limits import (
     MAX_ABS,
@@ -485,9 +486,12 @@ def _csv_ids(path: str, cells: list[str], rows: _Rows) -> np.ndarray:
 def _read_npz(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[str, np.ndarray], _Rows]:
     """Read an .npz archive of 1-D numeric arrays.  Everything is checked from the zip directory and the arrays'
     .npy headers before any array is read: the number of members (at most MAX_COLUMNS, each a ``.npy``, not
-    encrypted), their names, shapes (1-D, one length), dtypes (int, uint or float: never objects, text or complex)
-    and sizes (rows ≤ ``max_rows``, values ≤ ``max_cells``); then each array is read from the archive with
-    :func:`numpy.lib.format.read_array` (no pickle), which reads exactly what its header declared."""
+    encrypted), each member's uncompressed size (at most a column of ``max_rows`` values) and header length (at most
+    MAX_NPY_HEADER) before numpy reads its header (:func:`nnphd.io.cache.npy_header`: a deflated header of 1 GiB of
+    spaces is refused, not read), their names, shapes (1-D, one length), dtypes (int, uint or float: never objects,
+    text or complex), sizes (rows ≤ ``max_rows``, values ≤ ``max_cells``) and that each header's shape fills its
+    member exactly; then each array is read from the archive with :func:`numpy.lib.format.read_array` (no pickle),
+    which reads exactly what its header declared."""
     with open(fd, "rb") as fh:
         if os.fstat(fh.fileno()).st_size == 0:
             raise DataError(f"{path}: the file is empty; expected an .npz archive of 1-D arrays (numpy.savez)")
@@ -521,6 +525,8 @@ def _read_npz(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[s
     return columns, _Rows(None)
 
 
+MAX_NPY_PREFIX = 12  # an .npy member's bytes before its header text: magic, version, the header length (v2.0, 3.0)
+MAX_ITEMSIZE = 16  # bytes of the widest number accepted (int64, float64; longdouble is 16 on most machines)
 _NPZ_ERRORS = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, NotImplementedError, RuntimeError)
 try:  # an LZMA member that is corrupt
     import lzma
@@ -533,6 +539,37 @@ except ImportError:  # pragma: no cover - Python built without lzma
 def _npz_members(path: str, zf: zipfile.ZipFile, max_rows: int, max_cells: int) -> dict:
     """{column name: (ZipInfo, shape, dtype)} from the zip directory and the .npy headers, every limit checked."""
     infos = zf.infolist()
+    names = _member_names(path, infos)
+    out, n_rows, first, cells = {}, None, None, 0
+    max_bytes = MAX_NPY_PREFIX + MAX_NPY_HEADER + max_rows * MAX_ITEMSIZE  # a member: a column of max_rows values
+    for name, info in zip(names, infos):
+        header = _member_header(path, zf, info, name, max_bytes)
+        shape = header.shape
+        if n_rows is None:
+            n_rows, first = shape[0], name
+        elif shape[0] != n_rows:
+            raise DataError(
+                f"{path}: array {_q(name)} has {shape[0]} values but {_q(first)} has {n_rows}; expected equal lengths"
+            )
+        if n_rows > max_rows:
+            raise DataError(_too_many(path, max_rows))
+        cells += shape[0]
+        if cells > max_cells:
+            raise DataError(_too_many_cells(path, max_cells, len(names)))
+        out[name] = (info, header)
+    for name, (_, header) in out.items():  # the file-wide limits first: their messages say what to change
+        try:
+            header.check_size()  # its data fills the member exactly: the header claims no more than is there
+        except ValueError as e:
+            raise DataError(f"{path}: array {_q(name)} {e}; expected a numpy.savez archive") from None
+    if n_rows == 0:
+        raise DataError(f"{path}: the arrays are empty; expected at least one row")
+    return {name: (info, header.shape, header.dtype) for name, (info, header) in out.items()}
+
+
+def _member_names(path: str, infos: list[zipfile.ZipInfo]) -> list[str]:
+    """The column names of an archive's members, from the zip directory: at most MAX_COLUMNS members, each a
+    ``.npy`` that is not encrypted, named as :func:`_check_names` wants."""
     if len(infos) > MAX_COLUMNS:
         raise DataError(f"{path}: the archive holds {len(infos):,} members; expected at most {MAX_COLUMNS} arrays")
     names = []
@@ -545,39 +582,27 @@ def _npz_members(path: str, zf: zipfile.ZipFile, max_rows: int, max_cells: int) 
             raise DataError(f"{path}: member {_q(info.filename)} is encrypted; expected a plain numpy.savez archive")
         names.append(info.filename[: -len(".npy")])
     _check_names(path, names, "array {}")
-    out, n_rows, first, cells = {}, None, None, 0
-    for name, info in zip(names, infos):
+    return names
+
+
+def _member_header(path: str, zf: zipfile.ZipFile, info: zipfile.ZipInfo, name: str, max_bytes: int):
+    """The .npy header of one member (:func:`nnphd.io.cache.npy_header`: its uncompressed size at most
+    ``max_bytes`` and its header length bounded before numpy reads the header), a 1-D array of numbers."""
+    try:
         with zf.open(info) as fp:
-            version = np.lib.format.read_magic(fp)
-            if version not in ((1, 0), (2, 0), (3, 0)):
-                raise DataError(f"{path}: array {_q(name)} has .npy format version {version}; expected 1.0 to 3.0")
-            # version 3.0 differs from 2.0 only in the header's encoding (utf-8: for field names, refused below)
-            read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
-            shape, _fortran_order, dtype = read(fp)
-        if len(shape) != 1:
-            raise DataError(
-                f"{path}: array {_q(name)} has shape {_cut(shape, 30)}; expected a 1-D array (one value per row)"
-            )
-        if dtype.kind not in "iuf" or dtype.hasobject:
-            raise DataError(
-                f"{path}: array {_q(name)} has dtype {_cut(dtype, 30)}; expected numbers (int or float: not "
-                "complex, text or objects)"
-            )
-        if n_rows is None:
-            n_rows, first = shape[0], name
-        elif shape[0] != n_rows:
-            raise DataError(
-                f"{path}: array {_q(name)} has {shape[0]} values but {_q(first)} has {n_rows}; expected equal lengths"
-            )
-        if n_rows > max_rows:
-            raise DataError(_too_many(path, max_rows))
-        cells += shape[0]
-        if cells > max_cells:
-            raise DataError(_too_many_cells(path, max_cells, len(names)))
-        out[name] = (info, shape, dtype)
-    if n_rows == 0:
-        raise DataError(f"{path}: the arrays are empty; expected at least one row")
-    return out
+            header = npy_header(info, fp, max_bytes)
+    except ValueError as e:
+        raise DataError(f"{path}: array {_q(name)} {e}") from None
+    if len(header.shape) != 1:
+        raise DataError(
+            f"{path}: array {_q(name)} has shape {_cut(header.shape, 30)}; expected a 1-D array (one value per row)"
+        )
+    if header.dtype.kind not in "iuf" or header.dtype.hasobject:
+        raise DataError(
+            f"{path}: array {_q(name)} has dtype {_cut(header.dtype, 30)}; expected numbers (int or float: not "
+            "complex, text or objects)"
+        )
+    return header
 
 
 def _exact_ids(path: str, label: str, a: np.ndarray) -> np.ndarray:

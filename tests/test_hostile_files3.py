@@ -15,19 +15,16 @@ import sys
 import tracemalloc
 import zipfile
 
-import jax
 import numpy as np
 import pytest
 
 import nnphd
-from nnphd.api import NNPhD
 from nnphd.cli.common import MAX_SEED, MAX_STEPS
-from nnphd.engine.models import ModelConfig, init_lnn
 from nnphd.io.cache import MAX_NPY_HEADER, npy_header, read_npz
 from nnphd.user.limits import MAX_ROWS
 from nnphd.user.modelfile import MAX_MODEL_BYTES, MAX_N_SEEDS, MAX_SR_TIME
 from nnphd.user.recording import MAX_ITEMSIZE, MAX_NPY_PREFIX, DataError, load_trajectories
-from nnphd.user.scaling import Scaling
+from tests.fixtures.modelfiles import tiny_model
 
 # ---- NPZ: a member's uncompressed size and .npy header length are bounded before numpy reads its header ----------
 BOMB_HEADER = 240 << 20  # a header of 240 MiB of spaces: over a data column's bound, under read_npz's and a model's
@@ -193,21 +190,14 @@ def test_npy_header_reads_what_numpy_writes(tmp_path, version):
 
 
 # ---- model files: the command line's ranges, plain names, a finite forward pass -----------------------------------
-CFG = ModelConfig(n=1, lnn_widths=(4, 4), uan_widths=(4,))
+
 REPORT = {"status": "detected", "new_physics": True, "confidence": 1.0, "reasons": ["a test model"], "law": None}
 
 
 @pytest.fixture(scope="module")
 def model_parts(tmp_path_factory):
     """(meta, arrays) of a valid model file: a small untrained LNN, no law (built, not fitted)."""
-    m = NNPhD(steps=1)
-    with jax.enable_x64(True):
-        lnn = init_lnn(jax.random.PRNGKey(0), CFG)
-    sc = Scaling(np.zeros(1), np.ones(1), 0.0, 1.0)
-    m._model = {"conservative": {"lnn": lnn, "cfg": CFG, "scaling": sc}, "coords": ["x"], "angles": [False]}
-    m.report_ = REPORT
-    m._set_results(REPORT, None)
-    path = m.save(tmp_path_factory.mktemp("model") / "m.npz")
+    path = tiny_model(REPORT).save(tmp_path_factory.mktemp("model") / "m.npz")
     with np.load(path, allow_pickle=False) as z:
         return json.loads(str(z["meta"])), {k: np.asarray(z[k]) for k in z.files if k != "meta"}
 

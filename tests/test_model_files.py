@@ -22,13 +22,12 @@ from hypothesis import strategies as st
 
 import nnphd
 from nnphd.api import NNPhD
-from nnphd.engine.models import ModelConfig, init_lnn
+from nnphd.engine.models import ModelConfig
 from nnphd.io import cache as cache_mod
 from nnphd.io.cache import Cache, IgnoredFileWarning
 from nnphd.user import modelfile
-from nnphd.user.scaling import Scaling
+from tests.fixtures.modelfiles import tiny_model
 
-CFG = ModelConfig(n=1, lnn_widths=(4, 4), uan_widths=(4,))
 REPORT = {
     "status": "detected",
     "new_physics": True,
@@ -43,13 +42,7 @@ Q, QD = np.array([0.5, -1.0]), np.array([0.1, 0.3])
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
     """A valid model file (a small untrained LNN, no law) and its forces at (Q, QD): built, not fitted."""
-    m = NNPhD(steps=1)
-    with jax.enable_x64(True):
-        lnn = init_lnn(jax.random.PRNGKey(0), CFG)
-    sc = Scaling(np.zeros(1), np.ones(1), 0.0, 1.0)
-    m._model = {"conservative": {"lnn": lnn, "cfg": CFG, "scaling": sc}, "coords": ["x"], "angles": [False]}
-    m.report_ = REPORT
-    m._set_results(REPORT, None)
+    m = tiny_model(REPORT)
     path = m.save(tmp_path_factory.mktemp("model") / "m.npz")
     return path, m.forces(Q, QD)[0]
 

@@ -1,4 +1,4 @@
-"""Work beside the run's own (issue 31): the thread pools of nnphd carry the caller's JAX float64 setting and its
+"""Work beside the run's own: the thread pools of nnphd carry the caller's JAX float64 setting and its
 stage, a stage run on another thread is timed as one of its own, the law table on the conservative library fitted
 beside the training is the one fitted after it, and RK4's stages written as a loop integrate as the four written
 out."""

@@ -223,3 +223,15 @@ def test_the_four_ways_in_give_the_same_data(tmp_path):
             np.testing.assert_array_equal(a.q, b.q)
     with pytest.raises(ValueError, match="expected a .csv file"):
         nnphd.Trajectories.from_csv(tmp_path / "d.npz")
+
+
+def test_every_public_name_resolves_and_the_errors_are_exported(tmp_path):
+    """Each name of nnphd.__all__ is there; a file nnphd cannot use raises nnphd.DataError (a ValueError), which a
+    notebook can catch without importing a private module; nnphd.MissingExtra is an ImportError."""
+    for name in nnphd.__all__:
+        assert getattr(nnphd, name) is not None, name
+    assert issubclass(nnphd.DataError, ValueError) and issubclass(nnphd.MissingExtra, ImportError)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,x\n0,1\n")
+    with pytest.raises(nnphd.DataError, match="bad.csv"):
+        nnphd.Trajectories.from_csv(bad)

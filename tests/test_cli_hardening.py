@@ -1,4 +1,4 @@
-"""Hardening of the command line and the execution layer (issue 28): nothing a run opens listens beyond loopback, a
+"""Hardening of the command line and the execution layer: nothing a run opens listens beyond loopback, a
 bad or unreachable --scheduler and a --p out of range are one-line input errors (exit 2), and a failed or interrupted
 run leaves no result file and no folder it created behind."""
 

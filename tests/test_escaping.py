@@ -238,7 +238,7 @@ def test_batch_summary_guards_csv_escapes_html_skips_links_and_its_out(tmp_path,
     # files given one by one that lie inside --out (a shell glob over it) are skipped, never read
     bad = d / "<img src=x onerror=alert(1)>[bold]bad.csv"
     files, skipped = batch.scan_paths([out / "summary.csv", bad, d / "key.csv"], out)
-    assert files == [bad]  # a link named on the command line is skipped as in a folder (issue 55)
+    assert files == [bad]  # a link named on the command line is skipped as in a folder
     assert skipped == [
         {"file": str(d / "key.csv"), "reason": "symbolic link, not followed"},
         {"file": str(out / "summary.csv"), "reason": "inside the --out folder (nnphd's own output), not read"},

@@ -247,7 +247,7 @@ def test_csv_round_trip(tmp_path, recs):
 
 
 def test_the_sensor_in_runs_is_ten_releases_of_the_same_oscillator(recs):
-    """The 20 Hz/1° sensor as the issue's record was: 10 runs, released from 20–40° on either side, each stopping;
+    """The 20 Hz/1° sensor as the measured record was: 10 runs, released from 20–40° on either side, each stopping;
     the same oscillator and friction as the one-run case."""
     one, runs = recs["sensor-20hz"], recs["sensor-20hz-runs"]
     for k in ("omega0", "theta0", "gamma", "mu", "c", "fs", "step"):

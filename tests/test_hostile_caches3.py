@@ -1,4 +1,4 @@
-"""Caches, checkpoints and batch inputs that nnphd did not write (issue 55): a planted or edited cache in a shared or
+"""Caches, checkpoints and batch inputs that nnphd did not write: a planted or edited cache in a shared or
 pre-created ``--out`` is recomputed, never trusted (it carries no valid HMAC of this user's key); a cached file that
 is a FIFO, a device or a link is refused without blocking; names on a batch's command line are taken like a
 folder's entries (no links, no devices); a failed run removes only the files it wrote itself.  The hostile files are

@@ -1,4 +1,4 @@
-"""Hostile files, round 3 (issue 55): NPZ header bombs, model files with settings or scales nnphd would not run, and
+"""Hostile files: NPZ header bombs, model files with settings or scales nnphd would not run, and
 a report that is a FIFO. Every hostile file is built here, at run time; each is refused with one line naming it,
 before numpy reads what it declares (the NPZ cases: shown by numpy's header readers made to fail if called, and by
 the peak of Python memory while refusing a 240 MiB header bomb), and without blocking (the FIFO: in a process that

@@ -1,4 +1,4 @@
-"""Hostile files, round 3 (issue 55): no raw terminal control reaches the console, and the smaller holes — an
+"""Hostile files: no raw terminal control reaches the console, and the smaller holes — an
 infinite NNPHD_SCHEDULER_TIMEOUT, Dask's shared scratch folder, an unchecked compile cache folder, thousands of
 --lambdas — are closed. The hostile names and folders are built here at run time; nothing trains."""
 

@@ -1,4 +1,4 @@
-"""Model files and checkpoints are untrusted input (issue 28): ``nnphd.load`` checks the whole file and refuses a bad
+"""Model files and checkpoints are untrusted input: ``nnphd.load`` checks the whole file and refuses a bad
 one with one ValueError line naming the path and the problem (never another exception, never executing a planted
 law); a damaged, foreign or non-finite checkpoint or cached result is ignored with one warning line and the run
 starts from scratch."""

@@ -1,4 +1,4 @@
-"""Motion that does not oscillate is data too (issue 29: a filmed throw got "inconclusive" in 0 s because the data gate
+"""Motion that does not oscillate is data too (a filmed throw got "inconclusive" in 0 s because the data gate
 counted samples per oscillation). Throws and falls built here — 60 Hz, 1.2 s, g = 9.81 down, 2 mm position noise — go
 through the gate on their own time scale, get record-level statistics on blocks of a fraction of the record, and a
 verdict that never claims conservation from a path that does not return to its states."""

@@ -1,4 +1,4 @@
-"""A law that adds energy where the record loses it (issue 54): :func:`nnphd.explain.wholerecord.active_share` and
+"""A law that adds energy where the record loses it: :func:`nnphd.explain.wholerecord.active_share` and
 :func:`nnphd.explain.wholerecord.passivity` on constructed rows, and the verdict's rule
 :func:`nnphd.user.rules.unclaim_active` on constructed law tables."""
 
@@ -21,7 +21,7 @@ def test_the_active_share_of_drags_pumps_and_the_encoder_pendulums_law():
     assert W.active_share(-0.4 * v, v) == 0.0  # viscous
     assert W.active_share(-0.1 * np.abs(v) * v - 0.02 * np.tanh(v / 0.01), v) == 0.0  # quadratic + dry
     assert W.active_share(0.3 * v, v) == 1.0  # anti-damping
-    # issue 54's law on a pendulum past 90°: 0.53 θ²θ̇ − 0.70 θ̇ pumps wherever |θ| > √(0.70/0.53) = 1.15 rad
+    # the law once claimed on an encoder pendulum past 90°: 0.53 θ²θ̇ − 0.70 θ̇ pumps wherever |θ| > √(0.70/0.53) = 1.15 rad
     share = W.active_share((0.53 * q**2 - 0.70) * v, v)
     assert share == pytest.approx(np.mean(np.abs(q) > np.sqrt(0.70 / 0.53)), abs=0.01)
     assert share > 0.5

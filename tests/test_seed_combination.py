@@ -162,7 +162,7 @@ def test_a_law_consistent_with_or_untested_by_the_evidence_stands(share, res):
 
 
 def test_detections_of_opposite_signs_are_no_agreement():
-    # the satellite orbit of issue 54: seed 0's learned energy decays at z = 428, seed 1's grows at z = −68
+    # a geodetic satellite orbit (laser ranging, one day): seed 0's learned energy decays at z = 428, seed 1's grows at z = −68
     seeds = [_seed(0, "detected", 0.05, z=(428.0, 0.2)), _seed(1, "detected", 0.05, z=(-68.0, -0.1))]
     status, new, conf, reasons = combine_seeds(seeds)
     assert (status, new) == ("inconclusive", False)

@@ -1,4 +1,4 @@
-"""The law table's faster paths give the numbers of the plain ones, bit for bit (issue 31): the shooting's residuals
+"""The law table's faster paths give the numbers of the plain ones, bit for bit: the shooting's residuals
 and derivatives from their own compiled functions, the Levenberg–Marquardt search that keeps a trial's residuals,
 the candidates' fits and the stops' integrations side by side on threads."""
 

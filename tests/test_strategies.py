@@ -1,4 +1,4 @@
-"""NNPhD's strategy objects (issue 32, as pysindy's ``SINDy(differentiation_method=…, feature_library=…)``):
+"""NNPhD's strategy objects (as pysindy's ``SINDy(differentiation_method=…, feature_library=…)``):
 nnphd.Derivatives (how q̇ and q̈ are estimated) and nnphd.LawLibrary (which candidate laws are ranked, and how), their
 checks, their defaults = what ran before, the older keywords mapped onto them, and the law families threaded from
 ``NNPhD(...)`` to the ranking. No training: the fit's later stages are stood in for."""

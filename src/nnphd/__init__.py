@@ -26,12 +26,14 @@ from nnphd._config import default_compile_cache as default_compile_cache
 __version__ = "0.1.0"
 
 __all__ = [
+    "DataError",
     "DataQualityResult",
     "Derivatives",
     "DetectResult",
     "LambdaPResult",
     "Law",
     "LawLibrary",
+    "MissingExtra",
     "NNPhD",
     "PredictionResult",
     "Status",
@@ -49,6 +51,14 @@ _STRATEGIES = ("Derivatives", "LawLibrary")  # NNPhD's strategy objects (how q̇
 
 
 def __getattr__(name: str):  # the API loads on first use, so `import nnphd` stays light and inert
+    if name == "DataError":  # a data file or array nnphd cannot use (a ValueError, one line)
+        from nnphd.io.errors import DataError
+
+        return DataError
+    if name == "MissingExtra":  # an optional extra (nnphd[astro], [symbolic]) is not installed (an ImportError)
+        from nnphd._extras import MissingExtra
+
+        return MissingExtra
     if name in _API:
         from nnphd import api
 

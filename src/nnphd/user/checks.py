@@ -612,7 +612,7 @@ def _status_not_oscillating(tchk, traj, n_traj) -> tuple[str, str, float]:
 
     Such a path never returns to a state it has visited, so a conservative Lagrangian can shape its potential to
     follow it whatever force acts (in 1-D V(q) = E − ½q̇(q)² reproduces every monotonic motion exactly): the LNN
-    can absorb a drag, and a silent record is no evidence of conservation — never "none". Measured (issue 29:
+    can absorb a drag, and a silent record is no evidence of conservation — never "none". Measured (
     throws of 1.2 s at 60 Hz, 2 mm noise, with 7.8 % quadratic drag and without, three noise draws × two seeds;
     1-D falls with and without drag): the LNN absorbed the drag every time — both record-level statistics |z| ≤ 2.2
     with drag and without (the energy's z even negative with drag) — four throws with drag from one point gave a

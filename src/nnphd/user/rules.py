@@ -372,7 +372,7 @@ def balanced_force_evidence(res: dict, law: dict) -> str | None:
     """The reason for "detected" on a record the checks call "none" (no net change of the energy) where the law table
     claims a force of the state that does no net work yet is no function of position (a pump and a loss in balance:
     a limit cycle), found by every conservative base as strongly as :func:`seed_free_evidence` asks; else None.
-    Measured (issue 54): a Rayleigh oscillator on its limit cycle — no energy trend (z = −0.7), its law lowering
+    Measured: a Rayleigh oscillator on its limit cycle — no energy trend (z = −0.7), its law lowering
     the held-out error by 85 % (ΔIC −2013) — was "inconclusive" (conflicting evidence)."""
     w = law.get("law")
     share, pos = law.get("_against_velocity"), law.get("by_position")
@@ -619,7 +619,7 @@ def unclaim_active(res: dict, law: dict) -> str | None:
     ACTIVE_SHARE_MAX of the rows, :func:`nnphd.explain.wholerecord.passivity`) on a record that loses energy (the
     verdict's record-level evidence), unless a fit over the whole record puts it ≥ PASSIVE_MARGIN_IC ahead of every
     eligible passive candidate. A pump (van der Pol, a drive) stays claimable where the record supports it: on a
-    limit cycle or a driven record the energy is not lost. Measured (issue 54): an encoder pendulum released from 157°
+    limit cycle or a driven record the energy is not lost. Measured: an encoder pendulum released from 157°
     with viscous-like damping was claimed 0.53 θ²θ̇ − 0.70 θ̇, anti-damping wherever |θ| > 1.15 rad. The law
     becomes ``candidate_law`` with the reason; returns it (None when the law stands). ``law["passivity"]`` keeps
     the numbers."""

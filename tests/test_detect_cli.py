@@ -1,5 +1,6 @@
 """nnphd detect: every bad input is a one-line error naming the problem, exit code 2, and nothing written."""
 
+import errno
 import os
 
 import numpy as np
@@ -82,14 +83,33 @@ def test_bad_angle_and_options(tmp_path, capsys):
         assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root can write anywhere")
-def test_unwritable_out(tmp_path, capsys):
+def _deny_under(monkeypatch, folder, name):
+    """``os.<name>`` of any path under ``folder`` fails as the kernel fails it for a user without write permission
+    there (root is never refused, so the refusal is simulated rather than set up with chmod)."""
+    real = getattr(os, name)
+
+    def denied(path, *args, **kw):
+        if os.path.abspath(os.fspath(path)).startswith(str(folder) + os.sep):
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fspath(path))
+        return real(path, *args, **kw)
+
+    monkeypatch.setattr(os, name, denied)
+
+
+@pytest.mark.parametrize(
+    "call,out",
+    [("mkdir", "sub"), ("open", "")],  # a folder that cannot be made; an existing one where no file can be written
+)
+def test_unwritable_out(call, out, tmp_path, capsys, monkeypatch):
     path = _csv(tmp_path / "d.csv", "t,x", [(r[0], r[1]) for r in _good_rows()])
     ro = tmp_path / "ro"
     ro.mkdir()
-    ro.chmod(0o500)
-    rc = main(["detect", str(path), "--out", str(ro / "sub")])
-    assert rc == 2 and "not a writable directory" in capsys.readouterr().err
+    _deny_under(monkeypatch, ro, call)
+    rc = main(["detect", str(path), "--out", str(ro / out)])
+    err = capsys.readouterr().err
+    assert rc == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"--out {str(ro / out)!r} is not a writable directory (Permission denied)" in err, err
+    assert list(ro.iterdir()) == []  # nothing written: no folder, no probe file left behind
 
 
 def test_out_is_a_file(tmp_path, capsys):

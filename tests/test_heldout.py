@@ -59,11 +59,11 @@ def test_the_ic_correlation_time_is_the_noise_of_the_fits_that_explain_the_recor
     def fits(pairs):  # (held-out χ², ρ) → the ranking entries' layout: χ² at [2], ρ at [4]
         return [(None, None, c, None, r, None, None, None) for c, r in pairs]
 
-    good = [(100.0, 0.10), (150.0, 0.30), (199.0, 0.20)]
-    misfits = [(5e3, 0.95), (9e3, 0.97), (2e4, 0.98), (8e4, 0.99), (3e5, 0.99)]
-    assert ADEQUATE_CHI2 == 2.0
-    assert _noise_correlation(fits(good + misfits)) == pytest.approx(0.20)
-    assert np.median([r for _, r in good + misfits]) == pytest.approx(0.96)  # what the median over all gave
-    assert _noise_correlation(fits([(100.0, 0.1), (201.0, 0.9)])) == pytest.approx(0.1)  # just past the factor
-    assert _noise_correlation(fits([(100.0, 0.99)])) == 0.95  # clipped, as before
+    edge = ADEQUATE_CHI2 * 100.0  # the largest held-out χ² still adequate beside a best of 100
+    good = [(100.0, 0.10), (0.5 * (100.0 + edge), 0.30), (edge, 0.20)]  # median ρ 0.20
+    misfits = [(50 * edge, 0.95), (90 * edge, 0.97), (2e2 * edge, 0.98), (8e2 * edge, 0.99), (3e3 * edge, 0.99)]
+    assert _noise_correlation(fits(good + misfits)) == pytest.approx(0.20)  # over all eight: 0.96
+    assert _noise_correlation(fits(misfits[:1] + good)) == pytest.approx(0.20)  # the order does not matter
+    assert _noise_correlation(fits([(100.0, 0.1), (1.005 * edge, 0.9)])) == pytest.approx(0.1)  # just past the factor
+    assert _noise_correlation(fits([(100.0, 0.99)])) == 0.95  # clipped at 0.95
     assert _noise_correlation(fits([(100.0, -0.4), (120.0, -0.2)])) == 0.0

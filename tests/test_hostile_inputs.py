@@ -1,7 +1,7 @@
 """Hostile or careless input to the trajectory reader (``nnphd detect FILE``) and to ``nnphd.Trajectories``: devices,
 FIFOs, endless lines, thousands of columns, NPZ headers that promise gigabytes, complex or textual arrays, unusable
 names.  Each gives one :class:`DataError` line naming the problem, within bounded time and memory; an error message
-never carries more than a short, quoted piece of the file (issue 28)."""
+never carries more than a short, quoted piece of the file."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import csv
 import io
 import os
 import threading
-import time
 import tracemalloc
 import zipfile
 
@@ -56,21 +55,42 @@ def _csv_text(n=20):
 # ---- not a regular file -------------------------------------------------------------------------------------------
 @pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="needs /dev/zero")
 @pytest.mark.parametrize("ext", [".csv", ".npz"])
-def test_link_to_dev_zero_is_refused_at_once(tmp_path, ext):
+def test_link_to_dev_zero_is_refused_at_once(tmp_path, ext, monkeypatch):
+    """Refused from ``os.stat``, before the device is opened: not one byte of it is read."""
     link = tmp_path / f"zero{ext}"
     link.symlink_to("/dev/zero")
-    start = time.perf_counter()
+    opened = _spy_on_open(monkeypatch)
     _refused(link, "not a regular file (a character device)", "expected a .csv or .npz file")
-    assert time.perf_counter() - start < 0.5
+    assert opened == []
+
+
+def _spy_on_open(monkeypatch) -> list:
+    """The paths that ``os.open`` (the reader's only way into a file) is asked to open from now on; opening a
+    device or a FIFO fails the test at once instead of reading or blocking."""
+    opened: list = []
+    real_open = os.open
+
+    def spy(path, flags, *args, **kw):
+        opened.append(os.fspath(path))
+        if not os.path.isfile(path):
+            raise AssertionError(f"os.open of {path!r}, not a regular file")
+        return real_open(path, flags, *args, **kw)
+
+    monkeypatch.setattr(os, "open", spy)
+    return opened
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
 @pytest.mark.parametrize("ext", [".csv", ".npz"])
-def test_fifo_is_refused_without_blocking(tmp_path, ext):
+def test_fifo_is_refused_without_blocking(tmp_path, ext, monkeypatch):
+    """Refused from ``os.stat`` before it is opened (the join's timeout only keeps a blocked reader from hanging the
+    run)."""
     fifo = tmp_path / f"pipe{ext}"
     os.mkfifo(fifo)
     link = tmp_path / f"link{ext}"
     link.symlink_to(fifo)
+    real_open = os.open
+    opened = _spy_on_open(monkeypatch)
     for path in (fifo, link):
         box: dict = {}
 
@@ -84,9 +104,10 @@ def test_fifo_is_refused_without_blocking(tmp_path, ext):
         th.start()
         th.join(2.0)
         if th.is_alive():  # unblock the reader before failing
-            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+            os.close(real_open(fifo, os.O_WRONLY | os.O_NONBLOCK))
             pytest.fail(f"{path}: the reader blocked on a FIFO")
         _one_line(box["e"], "not a regular file (a FIFO (named pipe))")
+    assert opened == []
 
 
 def test_missing_dangling_and_unreadable(tmp_path):
@@ -416,17 +437,18 @@ def test_api_from_dataframe_and_files():
 
 # ---- the command line --------------------------------------------------------------------------------------------
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs FIFOs")
-def test_cli_refuses_a_device_link_and_a_fifo_and_writes_nothing(tmp_path, capsys):
+def test_cli_refuses_a_device_link_and_a_fifo_and_writes_nothing(tmp_path, capsys, monkeypatch):
     fifo = tmp_path / "pipe.csv"
     os.mkfifo(fifo)
     link = tmp_path / "zero.csv"
     link.symlink_to("/dev/zero")
+    opened = _spy_on_open(monkeypatch)
     for path, kind in ((link, "a character device"), (fifo, "a FIFO (named pipe)")):
         out = tmp_path / f"out_{path.stem}"
-        start = time.perf_counter()
         rc = main(["detect", str(path), "--out", str(out)])
         err = capsys.readouterr().err
-        assert rc == 2 and time.perf_counter() - start < 5
+        # refused before it was opened: nothing read from the device, nothing to block on
+        assert rc == 2 and all(os.path.isfile(p) for p in opened), opened
         assert len(err.strip().splitlines()) == 1 and err.startswith("error: "), err
         assert f"not a regular file ({kind})" in err
         assert not out.exists()

@@ -1,6 +1,7 @@
 """Prediction experiment (paper Fig. 4): rollout alignment, physics of the baselines, determinism, CLI."""
 
 import json
+import re
 
 import jax
 import jax.numpy as jnp
@@ -146,7 +147,13 @@ def test_cli_writes_results_and_figure(tmp_path, capsys):
     assert (out / "prediction.png").stat().st_size > 1000
     assert (out / "energy_balance.png").stat().st_size > 1000
     text = capsys.readouterr().out
-    assert "NNPhD" in text and "black box" in text and ("met" in text)
+    assert "NNPhD" in text and "black box" in text
+    # each claim of results.json printed once, as "met: …" or "not met: …" with our numbers, as judged there
+    flat = " ".join(text.split())  # the console wraps long lines
+    assert len(re.findall(r"\b(?:not )?met: ", flat)) == len(res["claims"]) > 0, text
+    for c in res["claims"]:
+        line = f"met: {c['claim']} — {c['ours']}"
+        assert (f"not {line}" in flat) is not c["met"] and line in flat, (c, text)
 
 
 @pytest.mark.parametrize(

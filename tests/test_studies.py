@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 
 import pytest
 
@@ -35,8 +36,17 @@ def test_sharpness_of_step_and_flat_curves():
     step = [n * (1e-3 if x < 1 else 0.3) for x, n in zip(GRID, noise)]
     t = transition_sharpness(GRID, step)
     assert t["kind"] == "jump" and t["sharpness"] > 5 and t["rise_fraction"] == pytest.approx(1.0, abs=0.15)
+    # flat with noise: it falls across λ = 1 (from 1.2e-3 at λ = 0.5 to 1.0e-3 at λ = 2), so no transition; the
+    # steepest other step is 0.02 → 0.05 (1.3e-3 → 0.8e-3)
     flat = [n * 1e-3 for n in noise]
-    assert transition_sharpness(GRID, flat)["kind"] in ("none", "ambiguous", "smooth")
+    t = transition_sharpness(GRID, flat)
+    steepest = math.log(1.3 / 0.8) / math.log(0.05 / 0.02)
+    assert t["slope_across"] == pytest.approx(math.log(1.0 / 1.2) / math.log(2.0 / 0.5), rel=1e-12)
+    assert t["slope_max_other"] == pytest.approx(steepest, rel=1e-12) and t["kind"] == "none"
+    # the same noise mirrored rises across λ = 1, but less steeply than elsewhere: smooth, not a jump
+    t = transition_sharpness(GRID, flat[::-1])
+    assert t["sharpness"] == pytest.approx(math.log(1.2 / 1.0) / math.log(4.0) / steepest, rel=1e-12)
+    assert t["kind"] == "smooth"
     falling = [1e-2 if x < 1 else 1e-3 for x in GRID]
     assert transition_sharpness(GRID, falling)["kind"] == "none"
     with pytest.raises(ValueError):
@@ -143,8 +153,19 @@ def test_lambda_p_cached_rerun_and_cli(lp, capsys):
     )
     assert rc == 0
     text = capsys.readouterr().out
-    assert "loaded 4 of 4 sweeps from the cache" in text and "verdicts" in text and ("met" in text)
-    assert json.loads((out / "results.json").read_text())["curves"] == res.to_dict()["curves"]
+    assert "loaded 4 of 4 sweeps from the cache" in text and "verdicts" in text
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["curves"] == res.to_dict()["curves"]
+    _assert_claims_printed(text, saved["claims"])
+
+
+def _assert_claims_printed(text: str, claims: list[dict]) -> None:
+    """Each claim of results.json printed once, as "met: …" or "not met: …" with our numbers, as judged there."""
+    flat = " ".join(text.split())  # the console wraps long lines
+    assert len(re.findall(r"\b(?:not )?met: ", flat)) == len(claims) > 0, text
+    for c in claims:
+        line = f"met: {c['claim']} — {c['ours']}"
+        assert (f"not {line}" in flat) is not c["met"] and line in flat, (c, text)
 
 
 # ---- data-quality study ---------------------------------------------------------------------------------------

@@ -225,26 +225,75 @@ def test_result_is_frozen_and_to_dict_is_a_copy(cls, make):
     assert res.to_dict() == make()
 
 
-def test_lambda_p_typed_fields_hold_the_numbers():
+def _assert_fields(record, d: dict) -> None:
+    """Each field of a flat row holds the value of its key in the dict (the key: its metadata's "key", or its name)."""
+    assert [f.metadata.get("key", f.name) for f in fields(record)] == list(d), (type(record).__name__, list(d))
+    for f in fields(record):
+        assert getattr(record, f.name) == d[f.metadata.get("key", f.name)], (type(record).__name__, f.name)
+
+
+def _with_claims_met(d: dict, met: list[bool]) -> dict:
+    d = copy.deepcopy(d)
+    d["claims"] = [{"claim": f"claim {i}", "ours": "x", "met": m} for i, m in enumerate(met)]
+    return d
+
+
+def test_lambda_p_typed_fields_are_the_dicts_and_the_derived_ones_are_recomputed():
     d = _lambda_p()
-    res = LambdaPResult.from_dict(d)
-    v = res.verdict("ho+ld", 1)
-    assert v.ratio == d["verdicts"][0]["ratio"] == 39.6016 and v.new_physics and v.correct
-    assert v.sharpness == math.inf and v.transition == "jump"
-    assert res.verdict("ho+ld", "mse").sharpness is None and res.verdict("ho+ld", "mse").cached
+    res = LambdaPResult.from_dict(copy.deepcopy(d))
+    assert list(res.curves) == list(d["curves"])
+    for s, by_p in d["curves"].items():
+        assert list(res.curves[s]) == list(by_p)
+        for p, rows in by_p.items():
+            assert len(res.curves[s][p]) == len(rows)
+            for row, r in zip(res.curves[s][p], rows):
+                assert isinstance(row, CurveRow)
+                _assert_fields(row, r)
+    assert len(res.verdicts) == len(d["verdicts"])
+    for v, dv in zip(res.verdicts, d["verdicts"]):
+        _assert_fields(v, dv)
+        assert res.verdict(dv["system"], dv["p"]) is v  # found by system and loss
+        if dv["p"] != "mse":
+            assert res.verdict(dv["system"], float(dv["p"])) is v  # the loss as a number
     with pytest.raises(KeyError, match="no verdict for ho\\+ld with p=2"):
         res.verdict("ho+ld", 2)
-    row = res.curves["ho+ld"]["1"][1]
-    assert isinstance(row, CurveRow) and (row.lam, row.L_e, row.m_c) == (2.0, 0.4871, 0.027)
-    assert row.L_b == d["curves"]["ho+ld"]["1"][1]["L_b"] == 0.25
-    assert res.cached == ("ho+ld/p=mse",) and res.train_wall_time_s == 6.5 == d["train_wall_time_s"]
-    assert res.compile_time_s == 12.75 and res.all_claims_met is False
-    al = res.alignment
-    assert al.fn_true_rms == 0.4987 and [r.m_c for r in al.by_p["mse"]] == [0.052, 0.044]
-    assert al.forces["mse"] is None
-    f = al.forces["1"]
-    assert f.q == (0.5, -1.25, 2.0) and [a.lam for a in f.by_lambda] == [0.1, 2.0]
-    assert f.by_lambda[1].fn == (0.001, -0.002, 0.0)
+    # read off the verdicts and claims: recomputed here from the dict's verdicts and claims
+    assert res.cached == tuple(f"{v['system']}/p={v['p']}" for v in d["verdicts"] if v["cached"])
+    assert res.train_wall_time_s == math.fsum(v["train_wall_time_s"] for v in d["verdicts"])
+    assert res.all_claims_met is all(c["met"] for c in d["claims"])
+    # the alignment: its rows repeat the curves' columns; its forces are the dict's arrays, by λ
+    al, dal = res.alignment, d["alignment"]
+    assert (al.system, al.truth, al.fn_true_rms) == (dal["system"], dal["truth"], dal["fn_true_rms"])
+    for p, rows in al.by_p.items():
+        cols = [(c.lam, c.m_c, c.m_n, c.fn_rms) for c in res.curves[al.system][p]]
+        assert [(r.lam, r.m_c, r.m_n, r.fn_rms) for r in rows] == cols
+    assert list(al.forces) == list(dal["forces"])
+    for p, f in al.forces.items():
+        df = dal["forces"][p]
+        if df is None:
+            assert f is None
+            continue
+        assert f.evaluated_on == df["evaluated_on"]
+        assert [list(getattr(f, k)) for k in ("q", "qd", "fc_true", "fn_true")] == [
+            df[k] for k in ("q", "qd", "fc_true", "fn_true")
+        ]
+        assert [(f"{a.lam:g}", a.lam, list(a.fc), list(a.fn)) for a in f.by_lambda] == [
+            (key, at["lam"], at["fc"], at["fn"]) for key, at in df["by_lambda"].items()
+        ]
+    for c, dc in zip(res.claims, d["claims"], strict=True):
+        _assert_fields(c, dc)
+
+
+def test_lambda_p_derived_fields_follow_the_verdicts_and_claims():
+    """Other cache flags, training times and claims than the fixture's: the derived fields move with them."""
+    d = _with_claims_met(_lambda_p(), [True, True, True])
+    for v, cached, wall in zip(d["verdicts"], (True, False), (1.25, 40.5)):
+        v.update(cached=cached, train_wall_time_s=wall)
+    d["cached"], d["train_wall_time_s"] = ["ho+ld/p=1"], 41.75  # as the study writes them
+    res = LambdaPResult.from_dict(d)
+    assert res.cached == ("ho+ld/p=1",) and res.train_wall_time_s == 1.25 + 40.5 and res.all_claims_met
+    assert LambdaPResult.from_dict(_with_claims_met(d, [True, False, True])).all_claims_met is False
+    assert LambdaPResult.from_dict(_with_claims_met(d, [])).all_claims_met is True  # none to fail
 
 
 def test_lambda_p_without_ho_ld_has_no_alignment():
@@ -254,31 +303,49 @@ def test_lambda_p_without_ho_ld_has_no_alignment():
     assert res.alignment is None and res.to_dict() == d
 
 
-def test_data_quality_typed_fields_hold_the_numbers():
+def test_data_quality_typed_fields_are_the_dicts_and_the_derived_ones_are_recomputed():
     d = _data_quality()
-    res = DataQualityResult.from_dict(d)
-    a, b = res.alpha.table, res.beta.table
-    assert all(isinstance(r, AlphaRow) for r in a) and all(isinstance(r, BetaRow) for r in b)
-    assert [r.alpha for r in a] == [0.25, 1.0] == [r.fraction for r in a] and [r.beta for r in b] == [0.5, 1.0]
-    assert a[1].L_e == d["alpha"]["table"][1]["L_e"] == 0.4986 and b[0].m_c == 0.055
-    assert list(a[0].to_dict())[:2] == ["alpha", "L_e"] and list(b[0].to_dict())[0] == "beta"
-    assert res.alpha.kind == "alpha" and res.beta.kind == "beta" and res.alpha.cached and not res.beta.cached
-    assert res.cached == ("alpha",) and res.train_wall_time_s == 6.75 and res.evaluated_on == d["evaluated_on"]
-    assert res.all_claims_met
+    res = DataQualityResult.from_dict(copy.deepcopy(d))
+    for kind, grid, row_type in (("alpha", res.alpha, AlphaRow), ("beta", res.beta, BetaRow)):
+        dg = d[kind]
+        assert grid.kind == kind == dg["settings"]["kind"] and grid.settings == dg["settings"]
+        assert (grid.train_wall_time_s, grid.evaluated_on, grid.fingerprint, grid.cached) == (
+            dg["train_wall_time_s"], dg["evaluated_on"], dg["fingerprint"], dg["cached"]
+        )  # fmt: skip
+        assert len(grid.table) == len(dg["table"])
+        for row, r in zip(grid.table, dg["table"]):
+            assert isinstance(row, row_type) and row.fraction == r[kind]
+            assert row.to_dict() == r and list(row.to_dict()) == list(r)  # the grid's value first
+            assert all(getattr(row, k) == v for k, v in r.items())
+    # read off the two grids and the claims: recomputed here from the dict's grids and claims
+    assert res.cached == tuple(k for k in ("alpha", "beta") if d[k]["cached"])
+    assert res.train_wall_time_s == d["alpha"]["train_wall_time_s"] + d["beta"]["train_wall_time_s"]
+    assert res.evaluated_on == d["alpha"]["evaluated_on"]
+    assert res.all_claims_met is all(c["met"] for c in d["claims"])
+    # with the other cache flags, and a claim not met, they move with them
+    d["alpha"]["cached"], d["beta"]["cached"], d["cached"] = False, True, ["beta"]
+    d = _with_claims_met(d, [True, False])
+    other = DataQualityResult.from_dict(d)
+    assert other.cached == ("beta",) and other.all_claims_met is False
 
 
-def test_prediction_typed_fields_hold_the_numbers():
+def test_prediction_typed_fields_are_the_dicts():
     d = _prediction()
-    res = PredictionResult.from_dict(d)
-    assert list(res.metrics) == ["nnphd", "lnn", "blackbox"]
-    m = res.metrics["nnphd"]
-    assert isinstance(m, ModelMetrics) and m.energy_rmse_30_200 == 0.0351
-    assert m.t_error_exceeds == d["metrics"]["nnphd"]["t_error_exceeds_0.1"] == 41.3
-    assert res.metrics["blackbox"].t_error_exceeds is None and m.diverged_at is None
-    assert res.truth.energy_loss == 0.0485 and res.energy_balance.rollout_finite is True
-    assert res.energy_balance.dHdt_vs_power_corr == 0.99999944 and res.decomposition.fn_rel_error_test == 0.062
-    assert res.lnn_energy_constancy.lnn_true_energy_drift_over_truth_drift == 0.0267
-    assert res.train_time_s == {"nnphd": 12.5, "lnn": 8.25, "blackbox": 6.0} and res.all_claims_met
+    res = PredictionResult.from_dict(copy.deepcopy(d))
+    assert list(res.metrics) == list(d["metrics"])
+    for name, m in res.metrics.items():
+        assert isinstance(m, ModelMetrics)
+        _assert_fields(m, d["metrics"][name])  # t_error_exceeds under its key "t_error_exceeds_0.1"
+    for part in ("truth", "lnn_energy_constancy", "decomposition", "energy_balance"):
+        _assert_fields(getattr(res, part), d[part])
+    for c, dc in zip(res.claims, d["claims"], strict=True):
+        _assert_fields(c, dc)
+    assert res.train_time_s == d["train_time_s"] and list(res.train_time_s) == list(d["train_time_s"])
+    assert (res.experiment, res.settings, res.jax_version, res.wall_time_s) == (
+        d["experiment"], d["settings"], d["jax_version"], d["wall_time_s"]
+    )  # fmt: skip
+    assert res.all_claims_met is all(c["met"] for c in d["claims"])
+    assert PredictionResult.from_dict(_with_claims_met(d, [True, False])).all_claims_met is False
 
 
 def test_nan_survives_the_round_trip():
@@ -388,12 +455,23 @@ def test_from_dict_refuses_a_non_object_and_names_where(cls, _make):
         cls.from_dict([], where="out/results.json")
 
 
-def test_write_results_writes_to_dict_with_the_wall_time(tmp_path):
+def test_write_results_writes_to_dict_with_the_wall_time(tmp_path, monkeypatch):
+    """wall_time_s is the clock after the figures are drawn less t0 (a stand-in clock: 995.0 until the figure is
+    drawn, then 1000.25)."""
     res = DataQualityResult.from_dict(_data_quality())
+    now = [995.0]
+    monkeypatch.setattr(time, "perf_counter", lambda: now[0])
     drawn = []
-    done = write_results(tmp_path, res, {"f.png": lambda d: drawn.append(d) or _figure()}, time.perf_counter())
+
+    def draw(d):
+        drawn.append(d)
+        now[0] = 1000.25
+        return _figure()
+
+    done = write_results(tmp_path, res, {"f.png": draw}, 990.0)
+    monkeypatch.undo()
     assert drawn == [res.to_dict()] and (tmp_path / "f.png").stat().st_size > 0
-    assert done is not res and res.wall_time_s == 7.5 and 0 <= done.wall_time_s < 60
+    assert done is not res and res.wall_time_s == 7.5 and done.wall_time_s == 1000.25 - 990.0
     assert (tmp_path / "results.json").read_text() == _dump(done.to_dict()) + "\n"
     assert write_results(None, res) is res
 

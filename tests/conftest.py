@@ -5,6 +5,9 @@ interpreter.
 Compiled programs are cached on disk for the whole test run (one fresh folder, shared by the pytest-xdist processes,
 the Dask workers the tests start and the CLI calls, removed at the end): most of the suite's time is XLA compiling
 the same small programs in different processes. The cached program is the compiled one, so no number changes.
+
+The user's cache folder ($XDG_CACHE_HOME: the key that signs nnphd's caches) is a fresh one of the test run too, so
+the tests neither read nor write the real ~/.cache, and run where it is not writable.
 """
 
 import os
@@ -13,7 +16,10 @@ import tempfile
 
 import nnphd
 
-_OWN_CACHE = None
+_OWN_CACHE = _OWN_HOME = None
+if "NNPHD_TEST_CACHE_HOME" not in os.environ:  # the main pytest process; its xdist workers inherit it
+    _OWN_HOME = tempfile.mkdtemp(prefix="nnphd-test-cache-home-")
+    os.environ["NNPHD_TEST_CACHE_HOME"] = os.environ["XDG_CACHE_HOME"] = _OWN_HOME
 if nnphd.COMPILE_CACHE_ENV not in os.environ:  # set here in the main pytest process; its xdist workers inherit it
     _OWN_CACHE = tempfile.mkdtemp(prefix="nnphd-test-jax-cache-")
     os.environ[nnphd.COMPILE_CACHE_ENV] = _OWN_CACHE
@@ -21,5 +27,7 @@ nnphd.configure()
 
 
 def pytest_unconfigure(config):
-    if _OWN_CACHE is not None and not hasattr(config, "workerinput"):
-        shutil.rmtree(_OWN_CACHE, ignore_errors=True)
+    if not hasattr(config, "workerinput"):
+        for own in (_OWN_CACHE, _OWN_HOME):
+            if own is not None:
+                shutil.rmtree(own, ignore_errors=True)

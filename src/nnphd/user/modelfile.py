@@ -10,7 +10,7 @@ law's text without executing it; its coefficients of the right sizes and finite)
 the model reads. The settings a refit would use get the command line's ranges (``steps`` at most
 :data:`nnphd.user.limits.MAX_STEPS`: 2³¹ steps would allocate ~16 GB of minibatch keys; the seed as ``--seed``;
 ``n_seeds`` and ``sr_time`` at most :data:`MAX_N_SEEDS` and :data:`MAX_SR_TIME`), and the coordinate names hold no
-control or bidi characters (:data:`UNSAFE_NAME_CHARS`: a name is printed and drawn; ESC or U+202E would send
+control or bidi characters (those :func:`nnphd.io.escape.terminal` escapes: a name is printed and drawn; ESC or U+202E would send
 terminal commands or reorder what is shown). Anything wrong raises one ValueError line: ``<path>: not a valid nnphd
 model file: <what>``. (:func:`nnphd.load` then runs the model once at states of the file's own scales and refuses
 it in the same form if its forces are not finite.)
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,21 +28,16 @@ import numpy as np
 
 from nnphd.explain.families import SIGN_FORMS
 from nnphd.io.cache import check_array, one_line, read_npz
+from nnphd.io.escape import TERMINAL_ESCAPED
 from nnphd.user.derivatives import METHODS as DERIVATIVE_METHODS
 from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
 
-__all__ = ["MAX_MODEL_BYTES", "MAX_N_SEEDS", "MAX_SR_TIME", "UNSAFE_NAME_CHARS", "ModelFile", "read_model_file"]
+__all__ = ["MAX_MODEL_BYTES", "MAX_N_SEEDS", "MAX_SR_TIME", "ModelFile", "read_model_file"]
 
 MAX_MODEL_BYTES = 256 << 20  # a model of 4 layers of 2000 units is 100 MB
 MAX_COORDS = 32  # as nnphd.user.limits.MAX_COORDS: no model is trained on more coordinates
 MAX_SPARSE_COORDS = 6  # the sparse law's monomials are enumerated over 4^(2n) exponents (n = 6: ~5 s)
 MAX_TEXT = 10_000  # characters of a user law
-# characters refused in a coordinate name: C0 controls, DEL, C1 controls (ESC, CSI: terminal commands), the bidi
-# marks, embeddings, overrides and isolates (U+200E/U+200F, U+202A–U+202E, U+2066–U+2069, U+061C: reorder the text)
-UNSAFE_NAME_CHARS = frozenset(
-    [chr(c) for c in (*range(0x20), *range(0x7F, 0xA0), 0x200E, 0x200F, *range(0x202A, 0x202F), 0x061C)]
-    + [chr(c) for c in range(0x2066, 0x206A)]
-)
 
 
 class _Bad(ValueError):
@@ -105,9 +101,11 @@ def string(*, nonempty: bool = False, max_len: int = 1000) -> Check:
 
 
 def coord_name(x, where):
-    """A coordinate name: a non-empty string without control or bidi characters (:data:`UNSAFE_NAME_CHARS`)."""
+    """A coordinate name: a non-empty string without a character the terminal would be sent as a command or that
+    reorders text — those :func:`nnphd.io.escape.terminal` shows as escapes (controls such as ESC, the bidi marks
+    and overrides such as U+202E: :data:`nnphd.io.escape.TERMINAL_ESCAPED`)."""
     string(nonempty=True, max_len=100)(x, where)
-    bad = next((c for c in x if c in UNSAFE_NAME_CHARS), None)
+    bad = next((c for c in x if unicodedata.category(c) in TERMINAL_ESCAPED), None)
     if bad is not None:
         raise _Bad(
             f"{where} holds the control or bidi character U+{ord(bad):04X}; expected a name without control or "

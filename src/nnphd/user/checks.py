@@ -83,21 +83,9 @@ script (benchmarks/trust_table.py, 24 runs at each of the two configs, none wron
   correlated blocks; shooting: max of jackknife and model), set before looking at the stress set; on it
   (tests/fixtures/recordings.py, benchmarks/detect_recordings.py) the conservative recordings gave |z| ≤ 1.7 for
   both statistics and the damped ones z ≥ 4.1 (shooting) and ≥ 34 (energy).
-* EFFECT_MIN = 1e-5
-# a learned-energy trend counts only when its change over the record is at least this multiple of the energy the
-# residual's power moves in and out within one period (:func:`within_fit_error`). Measured (internal seeds 0, 1 of
-# `detect --seed 0`; nnphd.astro.controls and the damped records of benchmarks/): conservative — the Moon about the
-# Earth over a year (DE405; its Kepler energy has no trend: −1e-6 per orbit) 1.1 and 1.2 with the learned energy
-# decaying at z = 8 and 10; a LAGEOS-like satellite under J2 0.39 and 0.06 (z = −414, −88), in the Earth-fixed frame
-# 0.24 and 2.35 (z = 4.1); the Earth in a frame turning with Jupiter 3.7 and 3.1 — damped: a real seismometer 5.9 and
-# 6.5, the camera double-pendulum look-alike 6.8 and 7.4, a real encoder pendulum 14 and 17, the string pendulum
-# look-alike 42. The threshold sits in that gap, closer to the conservative side; a rotating frame reached 3.7, so it
-# is no guarantee: a conservative record above it still needs a second statistic or Z_ONE to be "detected"
-FIT_ERROR_RATIO = 3.0
-# ... and below this multiple the trend is within a single period's fit error: it counts as no change at all (the
-# Moon's 1.1, 1.2); between the two a significant trend makes a "none" "inconclusive" — the camera look-alike of a
-# damped double pendulum (two 10-s takes) reached only 2.1 and 2.3 (z = 4.7, 8.8), below the rotating Earth's 3.7
-FIT_ERROR_NONE = 1.5 of the energy per period (0.001 %/period): a z-score says how sure a change is, not that it is
+* FIT_ERROR_RATIO = 3 and FIT_ERROR_NONE = 1.5 (a learned-energy trend against the Lagrangian's own fit error):
+  measured as their comments below say.
+* EFFECT_MIN = 1e-5 of the energy per period (0.001 %/period): a z-score says how sure a change is, not that it is
   physics. On exact data a learned Lagrangian's own bias can trend at a high z: one trajectory of the conservative
   Morse oscillator (benchmarks/trust_table.py, seed 0, 2026-11-27) gave an energy trend of 1.2e-7 per period at
   z = 16.9 (a "detection", confidence 0.48) and 3.8e-8 at z = 5.7; the smallest change of a detected
@@ -371,7 +359,7 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
     # (FIT_ERROR_NONE) and significant it is no evidence of its absence either — its z is kept for the reasons
     # (:func:`_weak_evidence`: "inconclusive", never "none"), not for a detection
     undecided = own and not tiny["energy"] and fit_error_ratio(trend) >= FIT_ERROR_NONE
-    shown_zt = zt
+    zt_measured = zt  # (zeroed below where the trend does not count)
     if own:
         tiny["energy"] = True
     if tiny["energy"]:
@@ -410,7 +398,7 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
         "significant": bool(sig),
         "within_fit_error": own,
         "negligible": [k for k, v in tiny.items() if v and not (k == "energy" and own)],
-        "z_energy": shown_zt if undecided else zt,
+        "z_energy": zt_measured if undecided else zt,
         "z_shooting": zs,
         "direction": "loses energy" if sign > 0 else ("gains energy" if sign < 0 else "none"),
         "valid": zt is not None or zs is not None,

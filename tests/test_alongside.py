@@ -142,14 +142,15 @@ def test_rk4_stages_in_a_loop_integrate_as_the_four_written_out(nsub):
 def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(tmp_path, monkeypatch):
     """detect_data starts the law table on the conservative library on a thread of its own before the training
     (:func:`nnphd.user.detect._library_alongside`): the same table as :func:`find_law` one after another."""
-    from nnphd.user.detect import LIBRARY_ALONGSIDE, _dataset, _library_alongside, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.detect import LIBRARY_ALONGSIDE, _library_alongside, find_law
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 
     monkeypatch.delenv("NNPHD_WORKER", raising=False)
     rec = F.make("heavy-damping", seed=0)
     ud = load_trajectories(rec.write_csv(tmp_path / "hd.csv"), rec.angles)
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     rows = info.pop("_rows")
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     angles = [bool(a) for a in ud.is_angle]
@@ -173,13 +174,14 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
 def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):
     from concurrent.futures import CancelledError
 
-    from nnphd.user.detect import _dataset, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.detect import find_law
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 
     rec = F.make("heavy-damping", seed=0)
     ud = load_trajectories(rec.write_csv(tmp_path / "hd.csv"), rec.angles)
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     rows = info.pop("_rows")
     traj = np.zeros(len(data.t), int)
     stop = threading.Event()

@@ -179,17 +179,18 @@ def _userdata(tmp_path, t, q, names):
 
 def test_a_throw_does_not_oscillate_and_a_declared_field_refuses_one_that_does(tmp_path):
     from nnphd.user.assess import motion_period
-    from nnphd.user.detect import _check_declared_field, _dataset
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.detect import _check_declared_field
 
     t, _, _, _, noisy = _throw()
     ud = _userdata(tmp_path, t, noisy, ("x", "y"))
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     assert motion_period(data) == np.inf
     _check_declared_field("uniform", data, None, ud, info)  # a throw: accepted
     tt = np.arange(600) / 50.0  # a damped oscillation of period 2: refused before any training
     q = (np.exp(-0.05 * tt) * np.cos(np.pi * tt))[:, None] + 1e-3 * np.random.default_rng(0).standard_normal((600, 1))
     ud = _userdata(tmp_path, tt, q, ("x",))
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     assert motion_period(data) == pytest.approx(2.0, rel=0.05)
     _check_declared_field("learned", data, None, ud, info)
     with pytest.raises(
@@ -220,12 +221,13 @@ def test_a_vertical_field_is_one_column_along_the_last_coordinate():
 
 @pytest.mark.slow  # two trajectory-level law tables, ~25 s
 def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
-    from nnphd.user.detect import _dataset, _fitted_field, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.detect import _fitted_field, find_law
 
     for c in (0.0, 0.012):
         t, _, _, _, noisy = _throw(c=c)
         ud = _userdata(tmp_path, t, noisy, ("x", "y"))
-        data, info, _ = _dataset(ud, "auto")
+        data, info, _ = Derivatives().dataset(ud)
         row_err = info.pop("_rows", None)
         tab = find_law(data, np.zeros(len(data.t), int), ["x", "y"], [False, False], info, row_err, field="uniform")
         assert tab.settings["library"] == "minimal"
@@ -246,13 +248,14 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
     free direction linear drag is Δχ² 10 behind quadratic in a whole-trajectory fit, with the field vertical 23 (seeds
     0, 1: −1.9 / 8.6 and 5.2 / 6.5). Declared vertical: quadratic drag is claimed within 5 % and the field has no x
     component (it is not fitted)."""
-    from nnphd.user.detect import _dataset, _fitted_field, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.detect import _fitted_field, find_law
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 
     rec = F.make("throw-2d", seed=2)
     ud = load_trajectories(rec.write_csv(tmp_path / "throw.csv"), rec.angles)
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     row_err = info.pop("_rows", None)
     traj = np.zeros(len(data.t), int)
     tab = find_law(data, traj, ["x", "y"], [False, False], info, row_err, field="vertical")

@@ -13,6 +13,7 @@ from nnphd.user.checks import (
     EFFECT_MIN,
     Z_BOTH,
     Z_ONE,
+    by_learned_power,
     clock_testable,
     effect_text,
     seed_status,
@@ -221,6 +222,14 @@ def test_verdict_refuses_when_derivatives_are_too_noisy_and_the_record_is_silent
     swing[0]["slow_ratio_median"] = 5.0
     status, reason, _ = seed_status(*swing, weak, good, 1)
     assert status == "inconclusive" and "swings slowly" in reason
+    # ... owed to the learned Lagrangian's power alone (a fit of the positions decides: nnphd.user.rules), unless
+    # there are ≥ 3 trajectories or the record-level evidence itself is too strong for a "none"
+    assert by_learned_power(status, *swing, weak, good, 1)
+    assert not by_learned_power(status, *swing, weak, good, 3)
+    three_sigma = weak | {"z_energy": 3.4, "z_shooting": 0.2}
+    status3, reason3, _ = seed_status(*swing, three_sigma, good, 1)
+    assert status3 == "inconclusive" and not by_learned_power(status3, *swing, three_sigma, good, 1)
+    assert not by_learned_power("none", *_checks(), weak, good, 1)
     unusable = {"usable": False, "pointwise_ok": False, "reason": "the positions are mostly noise"}
     assert seed_status(*_checks(), strong, unusable, 1)[0] == "inconclusive"
 

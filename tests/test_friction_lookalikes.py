@@ -15,12 +15,12 @@ from tests.fixtures import friction as F
 
 
 def _law_table(name, tmp_path):
-    from nnphd.user.detect import _dataset
+    from nnphd.user.derivatives import Derivatives
     from nnphd.user.recording import load_trajectories
 
     rec = F.make(name, seed=0)
     ud = load_trajectories(rec.write_csv(tmp_path / f"{name}.csv"), rec.angles)
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     rows = info.pop("_rows")
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     return rec, find_law(data, traj, list(ud.coords), [bool(a) for a in ud.is_angle], info, rows)

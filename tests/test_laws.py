@@ -91,11 +91,12 @@ def test_user_law_linear_and_nonlinear_parameters():
 
 def _law_from_csv(path, angles=()):
     """A recording through the user-data path: positions only → derivatives → find_law (no LNN)."""
-    from nnphd.user.detect import _dataset, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.detect import find_law
     from nnphd.user.recording import load_trajectories
 
     ud = load_trajectories(path, angles)
-    data, info, _ = _dataset(ud, "auto")
+    data, info, _ = Derivatives().dataset(ud)
     rows = info.pop("_rows")
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     return find_law(data, traj, list(ud.coords), [bool(x) for x in ud.is_angle], info, rows)
@@ -198,7 +199,7 @@ def test_table2_families_through_the_joint_fit(name, truth):
 
 
 def test_a_candidate_of_the_state_that_does_no_net_work_leaves_none_alone():
-    """Issue 54: on one DE405 orbit a sparse polynomial odd in q̇ lowered the LNN's held-out error by 76 % (ΔIC −68)
+    """Measured: on one DE405 orbit a sparse polynomial odd in q̇ lowered the LNN's held-out error by 76 % (ΔIC −68)
     where the checks said "none" — on a path each position of which comes with one velocity it stands in for a
     correction of the learned potential, and it does no net work. It does not contradict "none"; a drag (share 1),
     a pump (−1), a force that is no function of position (a Rayleigh pump on its limit cycle) and a drive do."""
@@ -224,6 +225,27 @@ def test_a_candidate_of_the_state_that_does_no_net_work_leaves_none_alone():
     assert reconcile(res, law)[0] == "inconclusive"
     drive = {"law": "drive", "title": "drive A cos(ω t + φ)", "heldout_ratio": 0.68, "delta_ic": -17.2}
     assert reconcile(res, {"law": drive, "_against_velocity": 0.0, "by_position": 1.0})[0] == "inconclusive"
+    # no net work over the pool, no function of position, but working along each trajectory — pumping some and
+    # braking others (a van der Pol law fitted to 8 trajectories of a conservative Morse oscillator): each
+    # trajectory keeps its energy, so it contradicts nothing; in balance along each trajectory it does
+    for per, status in ((LAW_WORK_MIN, "none"), (LAW_WORK_MIN - 0.01, "inconclusive"), (None, "inconclusive")):
+        law = {"law": sparse, "_against_velocity": -0.1, "by_position": -0.1, "work_per_trajectory": per}
+        assert reconcile(res, law)[0] == status, per
+
+
+def test_the_work_per_trajectory_sees_a_pump_and_a_brake_that_cancel_over_the_pool():
+    from nnphd.user.rules import against_velocity, work_per_trajectory
+
+    t = np.linspace(0.0, 10.0, 200)
+    v = np.c_[np.cos(t), np.sin(2 * t)]
+    qd, traj = np.vstack([v, v]), np.r_[np.zeros(200, int), np.ones(200, int)]
+    f = np.vstack([0.3 * v, -0.3 * v])  # a pump on the first trajectory, a brake on the second
+    assert against_velocity(f, qd) == pytest.approx(0.0, abs=1e-12)
+    assert work_per_trajectory(f, qd, traj) == pytest.approx(1.0)
+    assert work_per_trajectory(np.vstack([-0.3 * v, -0.3 * v]), qd, traj) == pytest.approx(1.0)  # a drag
+    across = np.c_[-v[:, 1], v[:, 0]]
+    assert work_per_trajectory(np.vstack([across, across]), qd, traj) == pytest.approx(0.0, abs=1e-12)
+    assert work_per_trajectory(f[:200], qd[:200], traj[:200]) is None  # one trajectory: the pooled share says it
 
 
 def test_a_force_in_balance_found_by_every_base_is_detected_on_a_record_that_keeps_its_energy():
@@ -242,6 +264,9 @@ def test_a_force_in_balance_found_by_every_base_is_detected_on_a_record_that_kee
     assert law["law"] is w
     law["against_velocity"] = law.pop("_against_velocity")
     assert unclaim_unidentifiable(law) is None and law["law"] is w
+    # in balance over the pool only (pumping some trajectories, braking others): no limit cycle, not detected
+    pooled = {**law, "against_velocity": None, "_against_velocity": 0.02, "work_per_trajectory": 0.8}
+    assert reconcile(res, pooled)[0] == "none"
     # one base without the law: the conflict stands ("inconclusive")
     weak = {**law, "_against_velocity": 0.02, "settings": {"bases": [bases[0], {**bases[1], "status": "none"}]}}
     assert reconcile(res, weak)[0] == "inconclusive"

@@ -118,6 +118,7 @@ __all__ = [
     "trajectory_evidence",
     "data_quality",
     "motion_time_scale",
+    "by_learned_power",
 ]
 
 # thresholds (see the module docstring for how they were set)
@@ -580,6 +581,21 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
         f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}); {no_traj}{lim}; {clock}",
         1.0 - agree if agree is not None else 1.0,
     )
+
+
+def by_learned_power(status: str, drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> bool:
+    """Is this seed's "inconclusive" owed only to the pointwise net power of the learned Lagrangian's residual — the
+    slow swing of its energy (Z ≥ Z_MIN) or a net power that the record-level evidence does not confirm — on fewer
+    than 3 trajectories? True when :func:`seed_status` with those statistics silenced (ρ, Z and significance of the
+    drift set to nothing) says "none". Such evidence comes from the learned Lagrangian alone: on one orbit that moves
+    through its states (a rotating frame, precession) its own approximation error swings its energy as much
+    (measured: the Earth–Moon barycentre in a frame turning with Jupiter, DE405, Z = 2.2–3.4; a J2 satellite in the
+    Earth-fixed frame, Z = 2.4) as a drive off resonance does (Z = 2.1–2.2 on one trajectory), so a fit of the
+    positions decides (:func:`nnphd.user.rules.reconcile`)."""
+    if status != "inconclusive" or n_traj >= 3:
+        return False
+    quiet = drift | {"rho_median": 0.0, "slow_ratio_median": 0.0, "significant": False}
+    return seed_status(quiet, tchk, gap, cap, traj, quality, n_traj)[0] == "none"
 
 
 def _weak_evidence(traj: dict) -> str:

@@ -32,6 +32,7 @@ from nnphd.user.rules import (
     unclaim_active,
     unclaim_against_evidence,
     unclaim_unidentifiable,
+    work_per_trajectory,
 )
 
 
@@ -643,6 +644,7 @@ def _law_table(
     if table.law is not None:  # the law's share against the velocity: a drag's is 1, a thrust's −1
         f_law = table.law.predict(data.q, data.qd, data.t)
         out["_against_velocity"] = against_velocity(f_law, data.qd)
+        out["work_per_trajectory"] = work_per_trajectory(f_law, data.qd, traj)
         period = table.settings.get("period", np.nan)
         out["by_position"] = position_explained(f_law, data.q, data.t, traj, period)
         out["by_state"] = position_explained(f_law, np.hstack([data.q, data.qd]), data.t, traj, period)

@@ -29,6 +29,7 @@ from nnphd.engine.shooting import shooting_fit
 from nnphd.engine.train import SweepPoint, TrainConfig, lambda_sweep, make_trainer, pnorm
 from nnphd.engine.verdict import verdict as naive_verdict
 from nnphd.user.checks import (
+    by_learned_power,
     capacity_check,
     drift_check,
     effect_text,
@@ -464,24 +465,21 @@ def _checks(ctx: dict, seed: int, d: _Split, cons: _Rounds, rep, free_err, clock
     }
 
 
-def _seed_status(ctx: dict, cons: _Rounds, chk: dict) -> tuple[str, str, float]:
-    """The seed's (status, reason, bootstrap agreement) from its checks (:func:`nnphd.user.checks.seed_status`);
-    inconclusive where the conservative model diverged."""
+def _seed_status(ctx: dict, cons: _Rounds, chk: dict) -> tuple[str, str, float, bool]:
+    """The seed's (status, reason, bootstrap agreement, ``by_learned_power``) from its checks
+    (:func:`nnphd.user.checks.seed_status`); inconclusive where the conservative model diverged.
+    ``by_learned_power``: the status is "inconclusive" only because of the pointwise net power of the learned
+    Lagrangian's residual (:func:`nnphd.user.checks.by_learned_power`)."""
     if np.all(np.isfinite(cons.power)) and np.isfinite(cons.train_err):
-        return seed_status(
-            chk["drift"],
-            chk["time"],
-            chk["gap"],
-            chk["capacity"],
-            chk["trajectory_evidence"],
-            ctx["quality"],
-            len(ctx["segs"]),
-        )
+        args = (chk["time"], chk["gap"], chk["capacity"], chk["trajectory_evidence"], ctx["quality"], len(ctx["segs"]))
+        status, reason, agree = seed_status(chk["drift"], *args)
+        return status, reason, agree, by_learned_power(status, chk["drift"], *args)
     return (
         "inconclusive",
         "the conservative model diverged (non-finite forces): "
         "lower the learning rates or standardise the data differently",
         1.0,
+        False,
     )
 
 
@@ -533,7 +531,7 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
 
     # checks
     chk = _checks(ctx, seed, d, cons, rep, free_err, clock_errs, trend, shoot)
-    status, reason, boot_agree = _seed_status(ctx, cons, chk)
+    status, reason, boot_agree, learned_only = _seed_status(ctx, cons, chk)
     watch.done("checks_s")
     times = watch.times
     times["per_lambda_s"] = {f"{lam:g}": sec for lam, sec in sorted(per_lambda.items())}
@@ -543,6 +541,7 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
         "status": status,
         "reason": reason,
         "agreement": boot_agree,
+        "by_learned_power": learned_only,
         "drift": chk["drift"],
         "uan_power": chk["uan_power"],
         "time": chk["time"],

@@ -54,6 +54,7 @@ def run_one(control, seed: int) -> dict:
         wall = time.perf_counter() - t0
     law = rep.get("law") or {}
     claimed = (law.get("law") or {}).get("law") if law.get("status") == "claimed" else None
+    cand = law.get("law") or law.get("candidate_law") or {}
     return {
         "record": control.name,
         "seed": seed,
@@ -65,6 +66,9 @@ def run_one(control, seed: int) -> dict:
         "confidence": rep.get("confidence"),
         "law_claimed": claimed,
         "reason": (rep.get("reasons") or [""])[0],
+        "candidate": cand.get("law"),
+        "candidate_omega": (cand.get("params") or {}).get("omega"),
+        "known_drive_omega": control.drive_omega,
         **_zs(rep),
         "wall_s": round(wall, 1),
     }
@@ -82,6 +86,13 @@ def summary(rows: list[dict]) -> dict:
             "inconclusive": sum(r["status"] == "inconclusive" for r in rs),
             "none_share": sum(r["status"] == "none" for r in rs) / len(rs),
         }
+        auto = [r for r in rs if r.get("known_drive_omega") is None]  # no known explicit-time force (not the Moon)
+        if auto and len(auto) < len(rs):
+            out[str(s)]["autonomous"] = {
+                "runs": len(auto),
+                "none": sum(r["status"] == "none" for r in auto),
+                "none_share": sum(r["status"] == "none" for r in auto) / len(auto),
+            }
     return out
 
 
@@ -111,10 +122,18 @@ def main() -> None:
                     with open(tmp, "w") as f:
                         json.dump({"runs": done, "summary": summary(done)}, f, indent=1)
                     os.replace(tmp, a.json)
+            law = r["law_claimed"] or "-"
+            if r.get("candidate"):
+                law = f"{law} (candidate {r['candidate']}"
+                if r.get("candidate_omega") is not None:
+                    law += f", ω = {abs(r['candidate_omega']):.4g}"
+                    if r.get("known_drive_omega") is not None:
+                        law += f"; the Sun's tide {r['known_drive_omega']:.4g}"
+                law += ")"
             ze = ", ".join("-" if z is None else f"{z:.1f}" for z in r["z_energy"])
             zs = ", ".join("-" if z is None else f"{z:.1f}" for z in r["z_shooting"])
             print(f"| {r['record']} | {seed} | {r['status']} | {r['confidence']:.2f} | {ze} | {zs} | "
-                  f"{r['law_claimed'] or '-'} | {r['wall_s']:.0f} | {r['reason'][:140]} |", flush=True)  # fmt: skip
+                  f"{law} | {r['wall_s']:.0f} | {r['reason'][:140]} |", flush=True)  # fmt: skip
     print(json.dumps(summary([r for r in done if r["record"] in names and r["seed"] in seeds]), indent=1))
 
 

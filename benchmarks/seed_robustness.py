@@ -74,6 +74,17 @@ def _drive(rep: dict) -> dict | None:
     return {"A": max(amp) if amp else None, "omega": p.get("omega"), "params": p}
 
 
+def _candidate(lw: dict) -> dict | None:
+    """The law table's best law, claimed or withheld, with the numbers the verdict's rules weigh it by."""
+    c = lw.get("law") or lw.get("candidate_law")
+    if not c:
+        return None
+    keys = ("by_position", "by_state", "work_per_trajectory")
+    return {"law": c.get("law"), "delta_ic": c.get("delta_ic"), "heldout_ratio": c.get("heldout_ratio"),
+            "fn_rel": c.get("fn_rel"), "against_velocity": lw.get("against_velocity"),
+            **{k: lw.get(k) for k in keys}}  # fmt: skip
+
+
 def _release_compiled() -> None:
     """Drop JAX's in-memory compiled programs between runs (the persistent cache keeps them on disk): one process
     running many files otherwise keeps every executable mapped, and after ~15 runs of ``detect`` XLA:CPU failed
@@ -102,6 +113,7 @@ def run_file(set_name: str, name: str, seeds: list[int], folder: str) -> dict:
             "law": law.get("law"),
             "law_status": lw.get("status"),
             "drive": _drive(rep),
+            "candidate": _candidate(lw),
             "reason": rep["reasons"][0] if rep["reasons"] else "",
             "seconds": round(time.perf_counter() - t0, 1),
         })  # fmt: skip

@@ -12,7 +12,10 @@ The records (:func:`records`; each a single trajectory, times in days or hours, 
   orbits: Mercury, Venus, the Earth–Moon barycentre, Mars, Jupiter, Saturn. The planets' mutual pulls are ~10⁻⁵–10⁻³
   of the Sun's and change the energy only periodically (no secular change of the semi-major axes, Laplace);
 * the Moon about the Earth from DE405 over a year (13 orbits); the Sun's tide is ~1 % of the Earth's pull and
-  periodic;
+  periodic — but in a geocentric frame it depends on time explicitly (the Sun's direction turns): its part that no
+  function of the Moon's state can stand in for varies at ω = |n + Ω − 2n☉| (n the Moon's sidereal mean motion, n☉
+  the Sun's, Ω the frame's rate; the tide 3(r·ŝ)ŝ − r with r at n − Ω and ŝ at n☉ − Ω), kept as
+  :attr:`Control.drive_omega`. A drive found there is the real Sun, so "inconclusive" is right there too;
 * uniformly rotating frames of the same data (about the ecliptic pole, at a rate Ω chosen per record);
 * a constructed laser-ranging satellite (:func:`satellite_j2`, LAGEOS' orbit: a = 12 270 km, e = 0.0045,
   i = 109.8°): the Earth's point mass plus its oblateness J2 (both conservative), integrated to 10⁻¹³, one day of
@@ -42,6 +45,7 @@ class Control:
     what: str
     frame: str
     source: str
+    drive_omega: float | None = None  # rad per time unit of a known explicit-time force in this frame (the Moon's)
 
     def write_csv(self, path) -> None:
         """The file ``nnphd detect`` reads: ``t,<names>``, full precision."""
@@ -86,6 +90,8 @@ _MOON = {
     "moon-3d": (2010.0, 1.0, 0.5, "icrf", 3, 0.0),
     "moon-rotating-2d": (1750.0, 1.0, 0.5, "ecliptic", 2, 2 * np.pi / 10.0),
 }
+_MOON_N = 2 * np.pi / 27.321662  # the Moon's sidereal mean motion, rad/day
+_SUN_N = 2 * np.pi / 365.256363  # the Sun's apparent (the Earth's sidereal) mean motion, rad/day
 _SATELLITE = {"satellite-j2-inertial": False, "satellite-j2-earth-fixed": True}
 NAMES = (*_PLANETS, *_MOON, *_SATELLITE)
 
@@ -111,8 +117,9 @@ def records(names=None, seed: int = 0) -> list[Control]:
             t = jd - jd[0]
             q = (_rotate(r, t, om) if om else r)[:, :dims] * 1e3  # 1000ths of an AU (~150 000 km)
             frame = f"geocentric, {axes} axes" + (f", turning at {om:.4g} rad/day" if om else ", inertial")
-            what = "the Earth's pull; the Sun's tide (~1 % of it, periodic)"
-            out.append(Control(name, t, q, ("x", "y", "z")[:dims], what, frame, "DE405"))
+            what = "the Earth's pull; the Sun's tide (~1 % of it, periodic, explicit in time in this frame)"
+            tide = abs(_MOON_N + om - 2 * _SUN_N)
+            out.append(Control(name, t, q, ("x", "y", "z")[:dims], what, frame, "DE405", tide))
         elif name in _SATELLITE:
             t, q = satellite_j2(earth_fixed=_SATELLITE[name], seed=seed)
             frame = (

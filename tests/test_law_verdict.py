@@ -121,6 +121,39 @@ def test_a_swing_of_the_learned_energy_alone_gives_way_to_a_fit_of_the_positions
     assert reconcile(res, law)[0] == "inconclusive"
 
 
+def _trend_only(probes=(-1.04,), cand_dic=2.1, clock=False):
+    """A J2 satellite in the Earth-fixed frame (constructed, conservative): the detecting seed's learned energy
+    decays at z = 6.2 while its shooting probe finds anti-damping (z = −1.04), and no candidate beats no law."""
+    seeds = [
+        {"seed": k + 1, "status": "detected", "time": {"significant": clock, "valid": clock},
+         "trajectory_evidence": {"significant": True, "z_energy": 6.2, "z_shooting": zs}}
+        for k, zs in enumerate(probes)
+    ]  # fmt: skip
+    res = _report(status="detected", seeds=()) | {"checks": {"per_seed": seeds}}
+    quad = {"law": "quadratic", "title": "quadratic drag", "delta_ic": cand_dic, "heldout_ratio": 0.5, "fn_rel": 1e-3}
+    best = quad if cand_dic <= LAW_CONFLICT_DIC else None
+    law = {"law": best, "status": "claimed" if best else "none", "ties": [], "reason": "", "settings": {},
+           "candidates": [{"law": "none", "delta_ic": 0.0, "heldout_ratio": 1.0}, quad]}  # fmt: skip
+    return res, law
+
+
+def test_a_detection_that_rests_on_the_learned_energy_alone_is_inconclusive():
+    res, law = _trend_only()
+    status, new, conf, reasons = reconcile(res, law)
+    assert (status, conf) == ("inconclusive", 0.5)
+    assert "seed 1: energy trend z = 6.2, shooting probe z = -1.0" in reasons[0]
+    assert law["law"] is None
+    # the probe agrees in sign (however weakly), a strong candidate law, a clock, or one of two detecting seeds
+    # whose probe agrees: the detection stands
+    for res, law in (
+        _trend_only(probes=(0.7,)),
+        _trend_only(cand_dic=-25.0),
+        _trend_only(clock=True),
+        _trend_only(probes=(-1.04, 0.3)),
+    ):
+        assert reconcile(res, law)[0] == "detected"
+
+
 def _drive(dic=-480.0, ratio=0.027, status="claimed", testable=True, verdict="none"):
     w = {"law": "drive", "title": "drive A cos(ω t + φ)", "delta_ic": dic, "heldout_ratio": ratio,
          "params": {"A_cos": 0.12, "A_sin": -0.16, "omega": 0.7003}}  # fmt: skip

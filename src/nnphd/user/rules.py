@@ -9,20 +9,22 @@ The order in which :func:`reconcile` applies them:
    error by ≥ LAW_EFFECT_MIN, fits to the noise (χ²/N ≤ FIELD_FIT_MSE) and opposes the velocity
    (≥ DRAG_ALONG_MIN of its force: a drag); "none" when the field alone fits and nothing beats it; else
    "inconclusive" with the reason.
-2. **A drive** the law table claims, on trajectories whose clock can be told, is "detected" with the drive as the
+2. **A detection that rests on the learned Lagrangian alone** — its energy trend, with the shooting probe pointing
+   the other way and no strong candidate law — is "inconclusive" (:func:`trend_unsupported`).
+3. **A drive** the law table claims, on trajectories whose clock can be told, is "detected" with the drive as the
    law (:func:`drive_evidence`: ΔIC ≤ LAW_CONFLICT_DIC, error −DRIVE_EFFECT_MIN or more).
-3. **"none" against a strong law**: a candidate with ΔIC ≤ LAW_CONFLICT_DIC that lowers the held-out error by
+4. **"none" against a strong law**: a candidate with ΔIC ≤ LAW_CONFLICT_DIC that lowers the held-out error by
    ≥ LAW_EFFECT_MIN makes a "none" "inconclusive" (confidence 0.5: the evidence is split) — when the record shows
    the law to be non-conservative (:func:`does_work`) and it is ≥ MIN_RELATIVE_SIZE of the force; "detected" where
    that law does no net work, is no function of position and every conservative base finds it
    (:func:`balanced_force_evidence`: a limit cycle).
-4. **"inconclusive" from the learned energy alone**: seeds that are "inconclusive" only because their learned
+5. **"inconclusive" from the learned energy alone**: seeds that are "inconclusive" only because their learned
    Lagrangian's energy swings slowly (one or two trajectories), on a record whose law table — a drive included —
    has no candidate that would contradict "none", give "none" (:func:`learned_power_unconfirmed`).
-5. **"inconclusive" with every conservative base agreeing** (one coordinate: the seed-free library and the seed's
+6. **"inconclusive" with every conservative base agreeing** (one coordinate: the seed-free library and the seed's
    LNN each find a law with ΔIC ≤ LAW_DETECT_DIC and error −LAW_DETECT_EFFECT or more) is "detected"
    (:func:`seed_free_evidence`).
-6. Otherwise the seeds' status stands; a record that does not oscillate gets a hint of what would decide
+7. Otherwise the seeds' status stands; a record that does not oscillate gets a hint of what would decide
    (:func:`uniform_field_hint`).
 
 No law is claimed unless the final status is "detected" (:func:`withhold`), nor one that pumps energy into a record
@@ -242,6 +244,8 @@ def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, 
     """The verdict after the law table (which ``law``, the table as a dict, is made to agree with: no law is claimed
     unless the final status is "detected").
 
+    - "detected" by the learned-energy trend alone — the shooting probe pointing the other way, no strong candidate
+      law — is "inconclusive", confidence 0.5 (:func:`trend_unsupported`).
     - "none" while a candidate law beats no law on held-out data by ΔIC ≤ LAW_CONFLICT_DIC, and by at least
       LAW_EFFECT_MIN of the held-out error (an effect below it does not contradict "none", however significant),
       whose force the record shows to be non-conservative (:func:`does_work`) and is at least the paper's floor
@@ -267,6 +271,9 @@ def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, 
         withhold(law, status, None if status == "detected" else why)
         return status, status != "none", conf, [why, *reasons]
     cand = law.get("law") or law.get("candidate_law")
+    if status == "detected" and (alone := trend_unsupported(res, law)):
+        withhold(law, "inconclusive", alone + " — no law is claimed")
+        return "inconclusive", True, 0.5, [alone, *reasons]
     drive = drive_evidence(res, law) if status != "detected" else None
     if drive is not None:
         return "detected", True, DRIVE_CONFIDENCE, [drive, *reasons]
@@ -319,6 +326,42 @@ def _strong(cand: dict) -> bool:
         cand.get("delta_ic", math.inf) <= LAW_CONFLICT_DIC
         and 1 - cand.get("heldout_ratio", 1.0) >= LAW_EFFECT_MIN
         and cand.get("fn_rel", 1.0) >= MIN_RELATIVE_SIZE
+    )
+
+
+def trend_unsupported(res: dict, law: dict) -> str | None:
+    """Why a detection rests on the learned Lagrangian alone, or None: every detecting seed was detected by its
+    record-level evidence (not by a clock), through its learned-energy trend while its shooting probe — the fit of
+    the positions — points the other way (the energy falls, the probe finds anti-damping, or the reverse), and no
+    candidate of the law table beats no law as strongly as :func:`contradicts_none` asks (:func:`_strong`). Then
+    nothing outside the learned Lagrangian shows the change, and on an orbit that moves through its states that
+    Lagrangian's own error makes trends (:data:`nnphd.user.checks.FIT_ERROR_RATIO`). Measured: a J2 satellite in the
+    Earth-fixed frame (constructed, conservative; benchmarks/conservative_controls.py, seed 1): internal seed 2's
+    learned energy decayed 0.099 %/period at z = 6.2, 3.9× its fit error, while the probe found d = −4.3·10⁻⁴ ±
+    4.1·10⁻⁴ and every candidate law cost more than it gained (ΔIC ≥ +2.1) — "detected" (confidence 0.29) before."""
+    seeds = (res.get("checks") or {}).get("per_seed") or []
+    detecting = [s for s in seeds if s.get("status") == "detected"]
+    if not detecting:
+        return None
+    for s in detecting:
+        te, clock = s.get("trajectory_evidence") or {}, s.get("time") or {}
+        ze, zs = te.get("z_energy"), te.get("z_shooting")
+        if not te.get("significant") or (clock.get("significant") and clock.get("valid")):
+            return None
+        if ze is None or zs is None or not ze or not zs or np.sign(ze) == np.sign(zs):
+            return None
+    if any(_strong(c) for c in law.get("candidates") or [] if c.get("law") != "none"):
+        return None
+    said = "; ".join(
+        f"seed {s['seed']}: energy trend z = {s['trajectory_evidence']['z_energy']:.1f}, shooting probe z = "
+        f"{s['trajectory_evidence']['z_shooting']:.1f}"
+        for s in detecting
+    )
+    return (
+        f"the learned energy changes along the record, but nothing outside the learned Lagrangian shows it ({said}): "
+        "the fit of the positions by integration points the other way and no candidate law beats no law by the "
+        "margin that would count — on an orbit that moves through its states the learned Lagrangian's own error "
+        "makes such trends; a record with more trajectories or more periods would decide"
     )
 
 

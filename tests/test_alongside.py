@@ -32,13 +32,13 @@ def test_every_thread_pool_computes_in_the_callers_precision(x64):
     """``jax.enable_x64`` is thread-local: ``NNPhD.fit`` runs inside ``with jax.enable_x64(True)``, and its pool
     threads computed in float32 (its trajectory-level law fits failed). The test process has float64 on globally,
     so the pools are checked with the caller's setting off as well as on."""
-    from nnphd.explain.trajectory import _fit_rows, map_in_threads
+    from nnphd.explain.trajectory import fit_rows, map_in_threads
 
     want = "float64" if x64 else "float32"
     with jax.enable_x64(x64):
         assert _dtype() == want
         assert map_in_threads(_dtype, [0, 1, 2], 2) == [want] * 3
-        assert [d for _, d in _fit_rows(_fit_dtype, "zero", ["a", "b"], 2)] == [want] * 3
+        assert [d for _, d in fit_rows(_fit_dtype, "zero", ["a", "b"], 2)] == [want] * 3
         outs = run_units([Unit(f"u{i}", _dtype, {}) for i in range(2)], workers=2, threads=True)
         assert [o.value for o in outs.values()] == [want] * 2
         future, _cancel = alongside(lambda cancel: _dtype())
@@ -141,9 +141,9 @@ def test_rk4_stages_in_a_loop_integrate_as_the_four_written_out(nsub):
 
 def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(tmp_path, monkeypatch):
     """detect_data starts the law table on the conservative library on a thread of its own before the training
-    (:func:`nnphd.user.detect._library_alongside`): the same table as :func:`find_law` one after another."""
+    (:func:`nnphd.user.detect.library_alongside`): the same table as :func:`find_law` one after another."""
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import LIBRARY_ALONGSIDE, _library_alongside, find_law
+    from nnphd.user.detect import LIBRARY_ALONGSIDE, find_law, library_alongside
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 
@@ -155,7 +155,7 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     angles = [bool(a) for a in ud.is_angle]
     with StageTimer() as timer:
-        job = _library_alongside(data, traj, ud, info, rows, (), "auto", 0, "learned", None, timer)
+        job = library_alongside(data, traj, ud, info, rows, (), "auto", 0, "learned", None, timer)
         assert job is not None
         beside = job[0].result(timeout=600)
     plain = find_law(data, traj, list(ud.coords), angles, info, rows, level="auto", seed=0)
@@ -165,10 +165,10 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
     )
     assert {s["stage"]: s.get("alongside") for s in timer.to_dict()["stages"]} == {LIBRARY_ALONGSIDE: True}
     # not wanted beside: another field, a pointwise law, several coordinates, a worker of a batch (one core)
-    assert _library_alongside(data, traj, ud, info, rows, (), "pointwise", 0, "learned", None, timer) is None
-    assert _library_alongside(data, traj, ud, info, rows, (), "auto", 0, "uniform", None, timer) is None
+    assert library_alongside(data, traj, ud, info, rows, (), "pointwise", 0, "learned", None, timer) is None
+    assert library_alongside(data, traj, ud, info, rows, (), "auto", 0, "uniform", None, timer) is None
     monkeypatch.setenv("NNPHD_WORKER", "1")
-    assert _library_alongside(data, traj, ud, info, rows, (), "auto", 0, "learned", None, timer) is None
+    assert library_alongside(data, traj, ud, info, rows, (), "auto", 0, "learned", None, timer) is None
 
 
 def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):

@@ -8,7 +8,7 @@ import pytest
 from test_detect_file import _write_positions
 
 from nnphd.cli import main
-from nnphd.user.batch import _names, expand_paths
+from nnphd.user.batch import expand_paths, unique_names
 
 QUICK = [
     "--steps", "100", "--repeats", "1", "--sr-time", "0", "--law-fit", "pointwise", "--width", "16",
@@ -89,7 +89,9 @@ def test_expand_and_names(tmp_path):
     (tmp_path / "a.npz").write_bytes(b"")
     (tmp_path / "sub").mkdir()
     assert [p.name for p in expand_paths([tmp_path])] == ["a.npz", "b.CSV"]
-    assert _names([tmp_path / "x/run.csv", tmp_path / "y/run.csv", tmp_path / "RUN.npz", tmp_path / "summary.csv"]) == [
+    assert unique_names(
+        [tmp_path / "x/run.csv", tmp_path / "y/run.csv", tmp_path / "RUN.npz", tmp_path / "summary.csv"]
+    ) == [
         "run",
         "run-2",
         "RUN-3",

@@ -180,23 +180,23 @@ def _userdata(tmp_path, t, q, names):
 def test_a_throw_does_not_oscillate_and_a_declared_field_refuses_one_that_does(tmp_path):
     from nnphd.user.assess import motion_period
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import _check_declared_field
+    from nnphd.user.detect import check_declared_field
 
     t, _, _, _, noisy = _throw()
     ud = _userdata(tmp_path, t, noisy, ("x", "y"))
     data, info, _ = Derivatives().dataset(ud)
     assert motion_period(data) == np.inf
-    _check_declared_field("uniform", data, None, ud, info)  # a throw: accepted
+    check_declared_field("uniform", data, None, ud, info)  # a throw: accepted
     tt = np.arange(600) / 50.0  # a damped oscillation of period 2: refused before any training
     q = (np.exp(-0.05 * tt) * np.cos(np.pi * tt))[:, None] + 1e-3 * np.random.default_rng(0).standard_normal((600, 1))
     ud = _userdata(tmp_path, tt, q, ("x",))
     data, info, _ = Derivatives().dataset(ud)
     assert motion_period(data) == pytest.approx(2.0, rel=0.05)
-    _check_declared_field("learned", data, None, ud, info)
+    check_declared_field("learned", data, None, ud, info)
     with pytest.raises(
         DataError, match=r"declared uniform, under which nothing oscillates.*\(period 2 in its time unit\)"
     ):
-        _check_declared_field("uniform", data, None, ud, info)
+        check_declared_field("uniform", data, None, ud, info)
 
 
 def test_a_vertical_field_is_one_column_along_the_last_coordinate():
@@ -222,7 +222,7 @@ def test_a_vertical_field_is_one_column_along_the_last_coordinate():
 @pytest.mark.slow  # two trajectory-level law tables, ~25 s
 def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import _fitted_field, find_law
+    from nnphd.user.detect import find_law, fitted_field
 
     for c in (0.0, 0.012):
         t, _, _, _, noisy = _throw(c=c)
@@ -233,7 +233,7 @@ def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
         assert tab.settings["library"] == "minimal"
         zero = next(r for r in tab.rows if r.key == "none")
         law = tab.law if c else zero
-        f = _fitted_field(tab, law, ["x", "y"], [False, False], data.q)
+        f = fitted_field(tab, law, ["x", "y"], [False, False], data.q)
         for k, g in (("x", 0.0), ("y", -G)):  # gravity within 4 standard errors and 0.3 % of g
             assert abs(f["g"][k] - g) <= max(4 * f["stderr"][k], 0.003 * G), (c, f)
         if c:
@@ -249,7 +249,7 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
     0, 1: −1.9 / 8.6 and 5.2 / 6.5). Declared vertical: quadratic drag is claimed within 5 % and the field has no x
     component (it is not fitted)."""
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import _fitted_field, find_law
+    from nnphd.user.detect import find_law, fitted_field
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 
@@ -262,7 +262,7 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
     assert tab.settings["library"] == "vertical" and tab.settings["conservative_columns"] == 1
     assert tab.status == "claimed" and tab.law.key == "quadratic", tab.reason
     assert tab.law.params["c"] == pytest.approx(0.021, rel=0.05)
-    f = _fitted_field(tab, tab.law, ["x", "y"], [False, False], data.q)
+    f = fitted_field(tab, tab.law, ["x", "y"], [False, False], data.q)
     assert f["g"]["x"] == 0.0 and abs(f["g"]["y"] + 9.81) <= max(4 * f["stderr"]["y"], 0.003 * 9.81), f
 
 

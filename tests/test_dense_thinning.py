@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nnphd.user.detect import THIN_MIN_PER_PERIOD, THIN_ROWS, _prepared, dense_thinned
+from nnphd.user.detect import THIN_MIN_PER_PERIOD, THIN_ROWS, dense_thinned, prepared_data
 from nnphd.user.recording import from_arrays
 
 
@@ -23,7 +23,7 @@ def _damped(rate: float, seconds: float, n_traj: int = 1, period: float = 1.0, s
 
 
 def _thin(ud):
-    data, info, _, row_err, traj = _prepared(ud, "auto")
+    data, info, _, row_err, traj = prepared_data(ud, "auto")
     full = (data, {k: v.copy() for k, v in row_err.items()}, traj.copy())
     return full, dense_thinned(data, info, row_err, traj, ud), info
 
@@ -96,7 +96,7 @@ def test_the_rest_margin_counts_the_rows_that_remain():
         info = {"per_coordinate": {"x": {"noise": 1e-4, "quantization_step": 0.0, "qdd": {"windows": [31]}}}}
         info |= thinned
         with mock.patch("nnphd.user.rest.rest_mask", rest_mask):
-            detect._moving_rows(data, np.zeros(1000, int), ["x"], info, None, None, 0.4)
+            detect.moving_rows(data, np.zeros(1000, int), ["x"], info, None, None, 0.4)
         assert seen[-1] == margin
 
 

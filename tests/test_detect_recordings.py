@@ -87,7 +87,7 @@ def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
 
 
 def test_noisy_derivatives_are_warned_about():
-    from nnphd.user.detect import _warnings
+    from nnphd.user.detect import derivative_warnings
 
     info = {
         "per_coordinate": {
@@ -98,9 +98,9 @@ def test_noisy_derivatives_are_warned_about():
         "trim": True,
         "n_samples": 10,
     }
-    w = _warnings(info, ["x", "y", "z"])
+    w = derivative_warnings(info, ["x", "y", "z"])
     assert len(w) == 1 and "'x'" in w[0] and "70%" in w[0]
-    assert len(_warnings(info | {"trim": False}, ["y"])) == 1
+    assert len(derivative_warnings(info | {"trim": False}, ["y"])) == 1
 
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "data" / "real"  # ../shared beside the checkout (CI too)

@@ -12,8 +12,8 @@ from scipy.integrate import solve_ivp
 
 from nnphd.explain.envelope import (
     Orbit,
-    _envelope_curve,
     _pooled_row,
+    envelope_curve,
     fit_envelope,
     measured_envelope,
     swing_centre,
@@ -63,14 +63,14 @@ def test_the_envelope_of_an_amplitude_equation_is_its_closed_form():
     grid = np.geomspace(0.01, 2.0, 400)
     t = np.linspace(0, 10, 50)
     # dry friction: a linear fall that stops at the grid's floor
-    A = _envelope_curve(np.full(len(grid), -0.1), grid, 1.0, t)
+    A = envelope_curve(np.full(len(grid), -0.1), grid, 1.0, t)
     live = 1.0 - 0.1 * t > 0.02
     assert np.allclose(A[live], 1.0 - 0.1 * t[live], atol=1e-3)
     # viscous: exponential
-    A = _envelope_curve(-0.15 * grid, grid, 1.0, t)
+    A = envelope_curve(-0.15 * grid, grid, 1.0, t)
     assert np.allclose(A, np.exp(-0.15 * t), rtol=5e-3)
     # self-excitation a·A − b·A³ grows to its limit cycle √(a/b) and stalls there
-    A = _envelope_curve(0.5 * grid - 2.0 * grid**3, grid, 0.1, np.array([0.0, 2.0, 40.0]))
+    A = envelope_curve(0.5 * grid - 2.0 * grid**3, grid, 0.1, np.array([0.0, 2.0, 40.0]))
     exact = 0.1 * np.exp(0.5 * 2.0) / np.sqrt(1 + 4 * 0.01 * (np.exp(2 * 0.5 * 2.0) - 1))  # Bernoulli's solution
     assert A[1] == pytest.approx(exact, rel=0.01)
     assert A[2] == pytest.approx(0.5, rel=0.01)
@@ -84,7 +84,7 @@ def test_a_rate_too_small_to_invert_stalls_the_envelope_without_a_warning():
     grid = np.geomspace(0.01, 2.0, 300)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        A = _envelope_curve(np.full(len(grid), -1e-310), grid, 0.7, np.linspace(0, 20, 9))
+        A = envelope_curve(np.full(len(grid), -1e-310), grid, 0.7, np.linspace(0, 20, 9))
     assert np.all(A == 0.7)
 
 
@@ -184,7 +184,7 @@ def test_a_dissipative_envelope_never_rises_and_never_jumps_below_its_floor(gamm
     grid = np.geomspace(0.01, 2.0, 300)
     rate = -(0.5 * gamma * grid + mu + c * grid**2)
     t = np.linspace(0, 20, 60)
-    A = _envelope_curve(rate, grid, A0, t)
+    A = envelope_curve(rate, grid, A0, t)
     assert A[0] == pytest.approx(A0)
     assert np.all(np.diff(A) <= 1e-12) and np.all(A >= grid[0] - 1e-12)
-    assert np.allclose(_envelope_curve(np.zeros(len(grid)), grid, A0, t), A0)
+    assert np.allclose(envelope_curve(np.zeros(len(grid)), grid, A0, t), A0)

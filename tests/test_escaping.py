@@ -187,7 +187,7 @@ def test_batch_summary_guards_csv_escapes_html_skips_links_and_its_out(tmp_path,
             if "bad" in u.key:
                 res[u.key] = Outcome(u.key, False, error="-DataError: <script>alert(1)</script> [/x]")
             else:
-                res[u.key] = Outcome(u.key, True, batch._row(u.key, u.kwargs["path"], rep, False))
+                res[u.key] = Outcome(u.key, True, batch.summary_row(u.key, u.kwargs["path"], rep, False))
         return res
 
     monkeypatch.setattr(batch, "run_units", fake_run_units)

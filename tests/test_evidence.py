@@ -295,7 +295,7 @@ def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
 def test_lm_judges_trial_steps_on_the_residuals_alone():
     """Levenberg–Marquardt with ``res`` (residuals only for a trial step, derivatives only where a step is accepted)
     reaches the same fit as with the derivatives at every trial, with fewer derivative evaluations."""
-    from nnphd.engine.shooting import _damping_rhs, lm_windows, model_residuals, model_residuals_and_jac, pad_windows
+    from nnphd.engine.shooting import damping_rhs, lm_windows, model_residuals, model_residuals_and_jac, pad_windows
 
     t, q, qd = _pendulum(0.011)
     wins = shooting_windows([np.arange(t.size)], t, 2 * np.pi / W0)
@@ -303,7 +303,7 @@ def test_lm_judges_trial_steps_on_the_residuals_alone():
     tw = tw - tw[:, :1]
     p, t0w, inv_sigma = jnp.asarray(1.01 * W0**2), jnp.zeros(len(wins)), jnp.asarray([1 / 0.0025])
     args = (p, jnp.asarray(tw), t0w, jnp.asarray(qw), jnp.asarray(mask), inv_sigma)
-    rhs = _damping_rhs(_accel)
+    rhs = damping_rhs(_accel)
     calls = {"jac": 0, "res": 0}
 
     def resjac(s, th):

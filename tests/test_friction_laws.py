@@ -12,7 +12,7 @@ from scipy.integrate import solve_ivp
 from nnphd.explain.envelope import measured_envelope, predicted_envelope
 from nnphd.explain.families import families
 from nnphd.explain.laws import rank_laws
-from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, Candidate, _phase_locked, select_law
+from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, Candidate, phase_locked, select_law
 from nnphd.user.rest import rest_mask, without_rest
 
 
@@ -120,10 +120,10 @@ def test_a_simpler_family_that_is_no_special_case_of_the_best_is_a_rival_not_the
 def test_a_drive_in_step_with_the_motion_is_phase_locked_and_a_distinct_one_is_not():
     t = np.linspace(0, 10, 1001)
     qd = -np.sin(2.0 * t)[:, None]  # the motion at ω = 2, five periods
-    assert _phase_locked(2.0, qd, t) == 1.0
-    assert _phase_locked(2.05, qd, t) == 1.0  # within half a beat over 10 s (0.05·10 < π)
-    assert _phase_locked(0.7, qd, t) == 0.0
-    assert _phase_locked(2.5, qd, t) == 0.0  # 0.5·10 = 5 > π: the beat shows
+    assert phase_locked(2.0, qd, t) == 1.0
+    assert phase_locked(2.05, qd, t) == 1.0  # within half a beat over 10 s (0.05·10 < π)
+    assert phase_locked(0.7, qd, t) == 0.0
+    assert phase_locked(2.5, qd, t) == 0.0  # 0.5·10 = 5 > π: the beat shows
 
 
 def _stuck_record(noise=0.002, seed=0):
@@ -200,14 +200,14 @@ def test_the_tabulated_envelope_is_the_stepped_one(law, pendulum):
     """The report's predicted envelope of a law that does not depend on time, from its cycle-averaged rate tabulated
     on amplitudes (one call) and inverted as the envelope evidence does, against RK4 steps of the same balance: the
     same curve to 0.1 % while the amplitude is above 5 % of its start (measured: ≤ 0.02 %)."""
-    from nnphd.explain.envelope import PICTURE_GRID, Orbit, _envelope_curve, tabulated_rate
+    from nnphd.explain.envelope import PICTURE_GRID, Orbit, envelope_curve, tabulated_rate
 
     w, A0 = 3.0, 0.8
     orbit = Orbit(w, 0.1, pendulum=pendulum)
     t = np.linspace(0, 5, 41)
     grid = np.geomspace(1e-3 * 0.05, 2 * A0, PICTURE_GRID)
     rate = tabulated_rate(law, grid, orbit, (0.0, 5.0))
-    fast = _envelope_curve(rate, grid, A0, t)
+    fast = envelope_curve(rate, grid, A0, t)
     slow = predicted_envelope(law, t, A0, 0.1, w, orbit)
     live = slow > 0.05 * A0
     assert live.sum() >= 10

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from nnphd.user.detect import _best_formula, _law_formula, find_law
+from nnphd.user.detect import best_formula, find_law, law_formula
 from tests.fixtures import friction as F
 
 
@@ -105,11 +105,11 @@ def test_no_law_on_the_conservative_control(tmp_path):
 
 
 def test_a_blind_formula_is_a_hint_and_a_tie_names_both_families():
-    hint = _best_formula({"sparse": {"readable": True, "rel_rms": 0.1, "formula": {"x_ddot": "-0.1*x_dot"}}})
+    hint = best_formula({"sparse": {"readable": True, "rel_rms": 0.1, "formula": {"x_ddot": "-0.1*x_dot"}}})
     assert hint["method"].startswith("hint only") and "not a law" in hint["method"]
     law = {
         "status": "tie",
         "law": {"title": "A", "method": "trajectory", "formula": {}, "heldout_ratio": 1, "params": {}, "stderr": {}},
         "ties": [{"title": "B"}],
     }
-    assert _law_formula(law)["method"].startswith("tie") and "A or B" in _law_formula(law)["method"]
+    assert law_formula(law)["method"].startswith("tie") and "A or B" in law_formula(law)["method"]

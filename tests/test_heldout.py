@@ -54,7 +54,7 @@ def test_the_ic_correlation_time_is_the_noise_of_the_fits_that_explain_the_recor
     """ρ of the IC's correlation time: the median lag-one correlation of the fits within ADEQUATE_CHI2 of the lowest
     held-out χ² — the smooth residuals of the fits that miss the record (ρ near 1) are misfit, counted by their χ²,
     and must not shrink every candidate's n_eff (an offset-rest look-alike: ρ 0.93 over all 13 fits, n_eff 6)."""
-    from nnphd.explain.trajectory import ADEQUATE_CHI2, _noise_correlation
+    from nnphd.explain.trajectory import ADEQUATE_CHI2, noise_correlation
 
     def fits(pairs):  # (held-out χ², ρ) → the ranking entries' layout: χ² at [2], ρ at [4]
         return [(None, None, c, None, r, None, None, None) for c, r in pairs]
@@ -62,8 +62,8 @@ def test_the_ic_correlation_time_is_the_noise_of_the_fits_that_explain_the_recor
     edge = ADEQUATE_CHI2 * 100.0  # the largest held-out χ² still adequate beside a best of 100
     good = [(100.0, 0.10), (0.5 * (100.0 + edge), 0.30), (edge, 0.20)]  # median ρ 0.20
     misfits = [(50 * edge, 0.95), (90 * edge, 0.97), (2e2 * edge, 0.98), (8e2 * edge, 0.99), (3e3 * edge, 0.99)]
-    assert _noise_correlation(fits(good + misfits)) == pytest.approx(0.20)  # over all eight: 0.96
-    assert _noise_correlation(fits(misfits[:1] + good)) == pytest.approx(0.20)  # the order does not matter
-    assert _noise_correlation(fits([(100.0, 0.1), (1.005 * edge, 0.9)])) == pytest.approx(0.1)  # just past the factor
-    assert _noise_correlation(fits([(100.0, 0.99)])) == 0.95  # clipped at 0.95
-    assert _noise_correlation(fits([(100.0, -0.4), (120.0, -0.2)])) == 0.0
+    assert noise_correlation(fits(good + misfits)) == pytest.approx(0.20)  # over all eight: 0.96
+    assert noise_correlation(fits(misfits[:1] + good)) == pytest.approx(0.20)  # the order does not matter
+    assert noise_correlation(fits([(100.0, 0.1), (1.005 * edge, 0.9)])) == pytest.approx(0.1)  # just past the factor
+    assert noise_correlation(fits([(100.0, 0.99)])) == 0.95  # clipped at 0.95
+    assert noise_correlation(fits([(100.0, -0.4), (120.0, -0.2)])) == 0.0

@@ -122,7 +122,7 @@ def _stub_detect(calls):
 
 def _plant(out, data, report_text):
     """A batch cache as an attacker makes it: batch.json with the (public) fingerprint of the file and settings."""
-    key = {"file_sha256": batch._sha256(data), "angles": [], "max_rows": None}
+    key = {"file_sha256": batch.file_sha256(data), "angles": [], "max_rows": None}
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "batch.json", {"settings": key, "finished": 0, "fingerprint": fingerprint(normalise(key))})
     if report_text is not None:
@@ -185,12 +185,12 @@ def test_reproduce_does_not_wait_on_a_fifo_results_json(tmp_path):
         write_json(d / "results.json", {"value": len(runs)})
         return {"value": len(runs)}
 
-    assert reproduce._run_unit(d, SETTINGS, fn, {}) == {"value": 1}
-    assert _quiet(lambda: reproduce._run_unit(d, SETTINGS, fn, {})) == {"value": 1}  # sealed: loaded
+    assert reproduce.run_unit(d, SETTINGS, fn, {}) == {"value": 1}
+    assert _quiet(lambda: reproduce.run_unit(d, SETTINGS, fn, {})) == {"value": 1}  # sealed: loaded
     (d / "results.json").unlink()
     os.mkfifo(d / "results.json")
     done = {}
-    worker = threading.Thread(target=lambda: done.update(v=_ignored(lambda: reproduce._run_unit(d, SETTINGS, fn, {}))))
+    worker = threading.Thread(target=lambda: done.update(v=_ignored(lambda: reproduce.run_unit(d, SETTINGS, fn, {}))))
     worker.start()
     worker.join(timeout=20)
     if worker.is_alive():  # unblock the reader so that the test run does not hang
@@ -241,7 +241,7 @@ def test_a_file_swapped_for_a_fifo_after_the_scan_is_not_waited_on(tmp_path):
     fifo = tmp_path / "x.csv"
     os.mkfifo(fifo)
     with pytest.raises(ValueError, match="x.csv: not a regular file"):
-        batch._sha256(fifo)
+        batch.file_sha256(fifo)
 
 
 # ---- a failed run removes only what it wrote ---------------------------------------------------------------------

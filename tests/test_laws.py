@@ -175,7 +175,7 @@ def test_table2_families_through_the_joint_fit(name, truth):
     from nnphd.engine.data import trajectory_dataset
     from nnphd.engine.features import FEATURE_SETS
     from nnphd.engine.systems import get_system, gw_k
-    from nnphd.paper.discover import _table2_params, joint_laws
+    from nnphd.paper.discover import joint_laws, table2_params
 
     sysm = get_system(name)
     sysm = replace(sysm, n_steps=1000) if name == "neptune" else sysm
@@ -187,7 +187,7 @@ def test_table2_families_through_the_joint_fit(name, truth):
     table = joint_laws(sysm, d, fl, SimpleNamespace(coefs=c, fc=fc), n_boot=10)
     assert table.law is not None
     hyp = next(r for r in table.rows if r.key == sysm.law_family)
-    got, se = _table2_params(sysm, hyp)
+    got, se = table2_params(sysm, hyp)
     if name == "gw":
         truth = {"k": gw_k(sysm.params), "m": 4.0}
     for k, v in truth.items():

@@ -480,10 +480,10 @@ def _one_warning(caught, path, why):
 def test_a_sweep_checkpoint_of_another_layout_is_ignored(tmp_path):
     """The λ-sweep's checkpoint builder: a checkpoint with the sweep's fingerprint but other step metadata (the
     TypeError of SweepPoint(**m) before) or non-finite losses is refused, so restore ignores it with the warning."""
-    from nnphd.paper.sweep import _sweep_point
+    from nnphd.paper.sweep import checkpointed_point
 
     good = {"L_e": 0.1, "L_b": 0.2, "L_e_train": 0.1, "L_b_train": 0.2, "m_c": None, "m_n": 0.9}
-    assert _sweep_point(0.5, good, None).L_b == 0.2
+    assert checkpointed_point(0.5, good, None).L_b == 0.2
     for bad, why in (
         ({**good, "evil": 1.0}, "not the numbers of a λ-sweep point"),
         ({k: v for k, v in good.items() if k != "m_c"}, "not the numbers of a λ-sweep point"),
@@ -492,9 +492,9 @@ def test_a_sweep_checkpoint_of_another_layout_is_ignored(tmp_path):
         ({**good, "L_b": True}, "L_b is True"),
     ):
         with pytest.raises(ValueError, match=re.escape(why)):
-            _sweep_point(0.5, bad, None)
+            checkpointed_point(0.5, bad, None)
     Cache(tmp_path, {"run": "toy"}).checkpoint({1.0: ({"L_e": 1.0}, LIKE)})
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        assert Cache(tmp_path, {"run": "toy"}).restore(LIKE, build=_sweep_point) == {}
+        assert Cache(tmp_path, {"run": "toy"}).restore(LIKE, build=checkpointed_point) == {}
     _one_warning(caught, tmp_path / Cache.CHECKPOINT, "not the numbers of a λ-sweep point")

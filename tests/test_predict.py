@@ -12,7 +12,15 @@ from nnphd.cli import main
 from nnphd.engine.data import trajectory_dataset
 from nnphd.engine.models import ModelConfig, lnn_accel
 from nnphd.engine.systems import get_system
-from nnphd.paper.predict import MODELS, _claims, init_model, learned_power, model_forces, rollout, run_prediction
+from nnphd.paper.predict import (
+    MODELS,
+    init_model,
+    learned_power,
+    model_forces,
+    prediction_claims,
+    rollout,
+    run_prediction,
+)
 from nnphd.paper.study_results import PredictionResult
 
 SMALL = dict(steps=200, widths=(32, 32), n_traj=600)  # train t ≤ 30, extrapolate to t = 60
@@ -114,9 +122,9 @@ def test_small_run_numbers(small):
     # not drift, meets all four; one with a huge error meets none that compare it (the drift claim is the LNN's)
     perfect = {**m, "nnphd": {**m["nnphd"], "energy_rmse_30_200": 0.0, "train_force_error": 0.0}}
     still = {**c, "lnn_true_energy_drift_over_truth_drift": 0.0}
-    assert [cl["met"] for cl in _claims(perfect, still, None)] == [True, True, True, True]
+    assert [cl["met"] for cl in prediction_claims(perfect, still, None)] == [True, True, True, True]
     awful = {**m, "nnphd": {**m["nnphd"], "energy_rmse_30_200": 1e300, "train_force_error": 1e300}}
-    assert [cl["met"] for cl in _claims(awful, still, None)] == [False, False, True, False]
+    assert [cl["met"] for cl in prediction_claims(awful, still, None)] == [False, False, True, False]
     assert PredictionResult.from_dict(json.loads(json.dumps(d))).to_dict() == d  # JSON-able, and reads back
 
 

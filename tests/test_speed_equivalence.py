@@ -12,7 +12,7 @@ import pytest
 
 import nnphd  # noqa: F401  (float64)
 from nnphd.engine.shooting import (
-    _damping_rhs,
+    damping_rhs,
     lm_windows,
     model_jac,
     model_residuals,
@@ -44,7 +44,7 @@ def _windows(gamma=0.02, noise=0.0025, seed=0):
 
 def test_residuals_and_derivatives_alone_are_those_of_the_joint_function():
     args, s0 = _windows()
-    rhs = _damping_rhs(_accel)
+    rhs = damping_rhs(_accel)
     for th in (np.zeros(2), np.array([0.03, 0.05])):
         r, jac = model_residuals_and_jac(s0, th, *args, rhs=rhs, nsub=2)
         assert np.array_equal(np.asarray(model_residuals(s0, th, *args, rhs=rhs, nsub=2)), np.asarray(r))
@@ -55,7 +55,7 @@ def test_the_search_that_keeps_its_trials_residuals_takes_the_same_steps():
     """lm_windows with the residuals and the derivatives from their own functions (a trial's residuals kept at an
     accepted point) ends where it ends with the joint function, bit for bit, with fewer simulations."""
     args, s0 = _windows()
-    rhs = _damping_rhs(_accel)
+    rhs = damping_rhs(_accel)
     calls = {"resjac": 0, "res": 0, "jac": 0}
 
     def counted(name, f):
@@ -81,9 +81,9 @@ def test_the_search_that_keeps_its_trials_residuals_takes_the_same_steps():
 
 @pytest.mark.parametrize("threads", [1, 2, 3])
 def test_the_candidates_fits_come_back_in_order_whatever_the_threads(threads):
-    """_fit_rows: the zero law's entry first, then the candidates' in their order (those without one left out); the
+    """fit_rows: the zero law's entry first, then the candidates' in their order (those without one left out); the
     candidates start only once the zero law's fit is done, from it (its ``warm`` value)."""
-    from nnphd.explain.trajectory import _fit_rows
+    from nnphd.explain.trajectory import fit_rows
 
     done = threading.Event()
     started = []
@@ -98,14 +98,14 @@ def test_the_candidates_fits_come_back_in_order_whatever_the_threads(threads):
         return (None if row == "bad" else (ci, row)), ("unused", ci)
 
     cands = ["a", "bad", "c", "d", "bad", "f"]
-    out = _fit_rows(fit, "zero", cands, threads)
+    out = fit_rows(fit, "zero", cands, threads)
     assert out == [(0, "zero"), (1, "a"), (3, "c"), (4, "d"), (6, "f")]
     assert sorted(started) == [1, 2, 3, 4, 5, 6]
 
 
 @pytest.mark.parametrize("threads", [1, 2])
 def test_without_the_zero_laws_fit_nothing_is_ranked(threads):
-    from nnphd.explain.trajectory import _fit_rows
+    from nnphd.explain.trajectory import fit_rows
 
     seen = []
 
@@ -113,7 +113,7 @@ def test_without_the_zero_laws_fit_nothing_is_ranked(threads):
         seen.append(ci)
         return None, None
 
-    assert _fit_rows(fit, "zero", ["a", "b"], threads) is None
+    assert fit_rows(fit, "zero", ["a", "b"], threads) is None
     assert seen == [0]  # the candidates are not fitted at all
 
 
@@ -159,7 +159,7 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
     from nnphd.explain.families import families
     from nnphd.explain.stuck import stop_contradictions
     from nnphd.explain.table import LawTable, law_row, zero_row
-    from nnphd.user.detect import _moving_rows
+    from nnphd.user.detect import moving_rows
 
     (q1, t1), (q2, t2) = _swing(0.3), _swing(0.25)
     q, t = np.concatenate([q1, q2]), np.concatenate([t1, t2])
@@ -168,7 +168,7 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
     data = SimpleNamespace(q=q, qd=qd, qdd=np.zeros_like(q), t=t)
     info = {"per_coordinate": {"th": {"noise": 1e-4, "quantization_step": 0.0, "qdd": {"windows": [4]}}}}
     period = 2 * np.pi / np.sqrt(50.0)
-    *_, rest = _moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
+    *_, rest = moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
     assert len(rest["final"]) == 2
 
     def row(key, beta):
@@ -194,20 +194,20 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
 def test_lowest_first_orders_the_starts_by_their_chi2():
     """The candidates' starts (the zero law's fit with the law at zero, at its pointwise values, the pointwise fit):
     the lowest χ² first, a start that blows up last, ties in their order."""
-    from nnphd.explain.trajectory import _lowest_first
+    from nnphd.explain.trajectory import lowest_first
 
     def res(s, u):
         return np.array([s, u]) if u != "inf" else np.array([np.inf])
 
     starts = [(1.0, 3.0, "a"), (0.0, 1.0, "b"), (1.0, "inf", "c"), (1.0, 0.0, "d"), (0.0, 1.0, "e")]
-    assert [x[2] for x in _lowest_first(res, starts)] == ["b", "d", "e", "a", "c"]
+    assert [x[2] for x in lowest_first(res, starts)] == ["b", "d", "e", "a", "c"]
 
 
 def test_lm_says_whether_it_converged():
     """lm_windows's ``info``: converged once χ² stops falling by more than ``tol``; not when the iterations run out
     first — the trajectory-level law fits start the candidates from the zero law's fit only where it converged."""
     args, s0 = _windows()
-    rhs = _damping_rhs(_accel)
+    rhs = damping_rhs(_accel)
 
     def res(s, th):
         return model_residuals(s, th, *args, rhs=rhs, nsub=2)

@@ -97,7 +97,7 @@ def test_only_a_rest_that_ends_its_trajectory_is_evidence():
     0.02 rad: only the final rest is the body's own (the first was a hand)."""
     from types import SimpleNamespace
 
-    from nnphd.user.detect import _moving_rows
+    from nnphd.user.detect import moving_rows
 
     dt, w2, mu, gam = 0.01, 40.0, 0.8, 0.3
     q, v, qs = 0.3, 0.0, [0.3] * 100
@@ -112,7 +112,7 @@ def test_only_a_rest_that_ends_its_trajectory_is_evidence():
     data = SimpleNamespace(q=q, qd=np.gradient(q, dt, axis=0), qdd=np.zeros_like(q), t=t)
     info = {"per_coordinate": {"th": {"noise": 1e-4, "quantization_step": 0.0, "qdd": {"windows": [4]}}}}
     traj = np.zeros(len(q), int)
-    *_, rest = _moving_rows(data, traj, ["th"], info, None, None, 2 * np.pi / np.sqrt(w2), margin=False)
+    *_, rest = moving_rows(data, traj, ["th"], info, None, None, 2 * np.pi / np.sqrt(w2), margin=False)
     assert rest is not None and len(rest["stretches"]) == 2  # the hold and the final rest
     assert rest["stretches"][0][0] == 0.0
     (final,) = rest["final"]
@@ -136,9 +136,9 @@ def _swing(gam, mu, *, q0=0.3, w2=A, dt=0.01, seconds=9.0, step=0.0):
 
 
 def _final_rest(data, traj, info, period):
-    from nnphd.user.detect import _moving_rows
+    from nnphd.user.detect import moving_rows
 
-    *_, rest = _moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
+    *_, rest = moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
     assert rest is not None and rest["final"]
     return rest["final"]
 

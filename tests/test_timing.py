@@ -57,20 +57,20 @@ def test_time_measured_elsewhere_is_a_stage_of_its_own():
 
 
 def test_compilation_on_worker_processes_is_added_to_the_training_stage():
-    from nnphd.user.detect import _with_workers
+    from nnphd.user.detect import with_workers
 
     tm = {"total_s": 10.0, "compile_s": 1.0, "other_s": 0.0, "note": "wall seconds",
           "stages": [{"stage": "derivatives", "s": 1.0, "compile_s": 0.0},
                      {"stage": "training and trust checks", "s": 8.0, "compile_s": 1.0}]}  # fmt: skip
     seeds = [{"seed": 0, "compile_s": 3.0, "where": "tcp://127.0.0.1:1"}, {"seed": 1, "compile_s": 2.5, "where": "x"}]
-    out = _with_workers(tm, seeds)
+    out = with_workers(tm, seeds)
     assert out["compile_s"] == 6.5 and out["stages"][1]["compile_s"] == 6.5 and out["stages"][0]["compile_s"] == 0
     assert out["per_seed"] == seeds and "worker processes" in out["note"]
     assert tm["compile_s"] == 1.0 and tm["stages"][1]["compile_s"] == 1.0 and "worker" not in tm["note"]  # unchanged
     here = [{"seed": 0, "compile_s": 3.0, "where": "in-process"}]  # seen by this process's listener already
-    assert _with_workers(tm, here)["compile_s"] == 1.0
+    assert with_workers(tm, here)["compile_s"] == 1.0
     threads = [
         {"seed": 0, "compile_s": 0.5, "where": "thread 1 of 2"},
         {"seed": 1, "compile_s": 3.0, "where": "thread 2 of 2"},
     ]
-    assert _with_workers(tm, threads)["compile_s"] == 1.0  # threads of this process: seen already
+    assert with_workers(tm, threads)["compile_s"] == 1.0  # threads of this process: seen already

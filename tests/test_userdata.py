@@ -109,13 +109,13 @@ def test_pendulum_derivative_accuracy(pend, noise):
 
 def test_savgol_is_scipy_and_error_model_uses_its_weights():
     """The estimate is scipy's savgol_filter(mode='interp'); the stencils behind the error model reproduce it."""
-    from nnphd.user.localpoly import _sg_weights
+    from nnphd.user.localpoly import sg_weights
 
     t = 0.1 * np.arange(60)
     y = np.sin(t) + 0.01 * np.random.default_rng(1).standard_normal(60)
     for m, d in ((9, 1), (13, 2)):
         ref = savgol_filter(y, m, 4, deriv=d, delta=0.1, mode="interp")
-        w_c, w_e = _sg_weights(m, d)
+        w_c, w_e = sg_weights(m, d)
         half = m // 2
         np.testing.assert_allclose(np.correlate(y, w_c, "valid") / 0.1**d, ref[half:-half], rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(w_e @ y[:m] / 0.1**d, ref[:half], rtol=1e-9, atol=1e-9)
@@ -479,7 +479,7 @@ def test_spring_cart_in_integer_pixels():
 
 
 def test_local_polynomial_is_exact_and_reproduces_savgol():
-    from nnphd.user.localpoly import _local_fit
+    from nnphd.user.localpoly import local_fit
 
     rng = np.random.default_rng(7)
     t = 0.1 * np.arange(300) + rng.normal(0.0, 0.01, 300)  # 10 % jitter
@@ -488,7 +488,7 @@ def test_local_polynomial_is_exact_and_reproduces_savgol():
     d1 = np.polyval(np.polyder(c[::-1], 1), t)
     d2 = np.polyval(np.polyder(c[::-1], 2), t)
     for m in (5, 9, 31, 101):
-        est, ns, mom = _local_fit(t, y, m)
+        est, ns, mom = local_fit(t, y, m)
         np.testing.assert_allclose(est[0], d1, rtol=0, atol=1e-8 * np.abs(d1).max())
         np.testing.assert_allclose(est[1], d2, rtol=0, atol=1e-8 * np.abs(d2).max())
         assert np.all(ns > 0) and np.all(np.isfinite(mom))
@@ -498,7 +498,7 @@ def test_local_polynomial_is_exact_and_reproduces_savgol():
     tu = 0.1 * np.arange(300)  # uniform: the same weights as scipy's savgol_filter
     yu = np.sin(tu) + 0.01 * rng.standard_normal(300)
     for m, p in ((9, 4), (31, 4), (101, 4), (31, 6)):
-        est, _, _ = _local_fit(tu, yu, m, degree=p)
+        est, _, _ = local_fit(tu, yu, m, degree=p)
         for d in (1, 2):
             ref = savgol_filter(yu, m, p, deriv=d, delta=0.1, mode="interp")
             np.testing.assert_allclose(est[d - 1], ref, rtol=0, atol=1e-9 * np.abs(ref).max())

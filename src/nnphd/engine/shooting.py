@@ -114,7 +114,7 @@ def rowwise_combination(f):
 
 
 @functools.lru_cache(maxsize=64)
-def _damping_rhs(accel):
+def damping_rhs(accel):
     """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
     object per ``accel``, so the shooting fit compiles once per model)."""
 
@@ -131,7 +131,7 @@ def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
     direction (one direction perturbs the same component of every window's initial state; windows are independent)
     and every global one (see :func:`model_residuals_and_jac`) — by the two programs :func:`_lm` runs (the numbers
     of :func:`model_residuals_and_jac`, bit for bit), so that no third is compiled."""
-    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), _damping_rhs(accel)
+    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), damping_rhs(accel)
     args = (params, tw, t0w, qw, mask, inv_sigma)
     return model_residuals(s, theta, *args, rhs=rhs, nsub=nsub), model_jac(s, theta, *args, rhs=rhs, nsub=nsub)
 
@@ -178,7 +178,7 @@ def schur_complement(AtA, AtB, BtB, Atr, Btr, mu, free):
 def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
     """Levenberg–Marquardt over window initial states and the free global parameters."""
 
-    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), _damping_rhs(accel)
+    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), damping_rhs(accel)
 
     def jac(s_, th_):  # at an accepted point: its trial's residuals are kept, the simulation not run again
         return model_jac(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)

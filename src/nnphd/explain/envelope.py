@@ -136,7 +136,7 @@ def tabulated_rate(law, grid, orbit: Orbit, times: tuple[float, float]) -> np.nd
     the law depends on time (it differs at the record's first and last ``times``: a drive) or overflows — then the
     envelope is integrated step by step (:func:`predicted_envelope`). A record of 900 half swings took 44 s to draw
     four candidates' envelopes by RK4 steps (284 160 cycle averages); the table takes one call per candidate, and
-    :func:`_envelope_curve` inverts it as the envelope evidence does."""
+    :func:`envelope_curve` inverts it as the envelope evidence does."""
     qs, vs = orbit.states(grid)
     q, v = qs.reshape(-1, 1), vs.reshape(-1, 1)
     with np.errstate(all="ignore"):
@@ -179,7 +179,7 @@ def envelope_report(
         for kk in np.unique(k):
             m = k == kk
             if rate is not None:
-                pred[m] = _envelope_curve(rate, grid, float(A[m][0]), tm[m] - tm[m][0])
+                pred[m] = envelope_curve(rate, grid, float(A[m][0]), tm[m] - tm[m][0])
             else:
                 pred[m] = predicted_envelope(law, tm[m], A[m][0], q0, omega, orbit)
         ok = np.isfinite(pred) & (pred > 0)
@@ -271,7 +271,7 @@ def orbit_misfit(orbit: Orbit, tm, A, k) -> float:
     return float(np.median(e)) if e.size else float("inf")
 
 
-def _envelope_curve(rate: np.ndarray, grid: np.ndarray, A0: float, dt: np.ndarray) -> np.ndarray:
+def envelope_curve(rate: np.ndarray, grid: np.ndarray, A0: float, dt: np.ndarray) -> np.ndarray:
     """A at the times dt ≥ 0 after A(0) = A0 under the autonomous dA/dt = rate(A), tabulated on the increasing
     ``grid``: the time to go from A0 to a is ∫ da/rate, so A(t) follows by inverting a cumulative quadrature — down
     the grid where the rate at A0 is negative (decay), up it where positive (growth); where the rate changes sign
@@ -325,7 +325,7 @@ def fit_envelope(rows, tm, A, k, sigma: float, orbit: Orbit) -> list[dict]:
             res = np.empty(len(A))
             for j, kk in enumerate(trajs):
                 m = k == kk
-                curve = _envelope_curve(rate, grid, float(np.exp(p[nb + j])), tm[m] - tm[m][0])
+                curve = envelope_curve(rate, grid, float(np.exp(p[nb + j])), tm[m] - tm[m][0])
                 res[m] = (np.log(np.maximum(curve, 1e-300)) - logA[m]) * w[m]
             return res
 

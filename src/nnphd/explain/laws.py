@@ -5,7 +5,7 @@ Model. q̈ = f_c(q, q̇) + g(q, q̇, t; β, θ), fitted to the rows (q, q̇, q̈
 
 * **f_c, the conservative part**, linear in its coefficients α: :mod:`nnphd.explain.conservative`.
 * **g, the candidate law**, linear in β given a few nonlinear parameters θ: :mod:`nnphd.explain.families` (here:
-  the drive's start frequencies from the conservative residual's spectrum, :func:`_drive_omegas`, and the supports
+  the drive's start frequencies from the conservative residual's spectrum, :func:`drive_start_omegas`, and the supports
   of the sparse polynomial, thresholded jointly with f_c, :func:`_sparse_supports`).
 * **the joint fit** under the paper's minimal-f_n principle, held-out error and bootstrap uncertainties:
   :mod:`nnphd.explain.jointfit`.
@@ -89,7 +89,7 @@ def lomb_scargle_grid(t, y, w0: float, dw: float, M: int) -> np.ndarray:
     return 0.5 * (Zr.real**2 / CC + Zr.imag**2 / SS)
 
 
-def _drive_omegas(t, r, segs, n_peaks: int = 3) -> list[float]:
+def drive_start_omegas(t, r, segs, n_peaks: int = 3) -> list[float]:
     """Angular frequencies of the largest peaks of the residual's Lomb–Scargle spectrum (all components)."""
     dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1])
     dt = float(np.median(dts[dts > 0])) if np.any(dts > 0) else 1.0
@@ -251,7 +251,7 @@ def _candidates(prob: JointProblem, zero, q, t, w, segs, names, v_rms, include, 
     the context of their fits (the drive's start frequencies from the zero law's residual)."""
     N, n = q.shape
     r0 = zero["r"].reshape(N, n) / w
-    ctx = {"drive_omegas": _drive_omegas(t, r0, segs), "q": q, "t": t, "residual": r0}
+    ctx = {"drive_omegas": drive_start_omegas(t, r0, segs), "q": q, "t": t, "residual": r0}
     fams = [f for f in families(n, names, v_rms) if include is None or f.key in include]
     if (perturber or (include is not None and "perturber" in include)) and n == 2:
         fams.append(perturber_family(names))

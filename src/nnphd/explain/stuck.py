@@ -230,7 +230,7 @@ def stop_contradictions(
     measured; a law that cannot stop a swing predicts a swing where the record is still.
 
     ``stretches``: dicts with "t0" (start), "traj" (its trajectory id), "seconds", "tolerance" (n,) (from
-    ``nnphd.user.detect._moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
+    ``nnphd.user.detect.moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
     ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible. The
     rests' integrations run side by side on ``threads`` threads (None: one per core,
     :func:`nnphd.explain.trajectory.default_threads`), with the same numbers whatever the number."""

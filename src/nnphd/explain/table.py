@@ -132,7 +132,7 @@ class Candidate:
         rms = np.sqrt(np.mean(B**2, axis=(0, 1)))
         self.shares = {p: float(x / total) if total > 0 else 0.0 for p, x in zip(self.family.coef_names, rms)}
         if self.family.key == "drive":
-            self.state_like = max(_state_r2(self.fn, q, qd), _phase_locked(float(self.theta[0]), qd, t))
+            self.state_like = max(_state_r2(self.fn, q, qd), phase_locked(float(self.theta[0]), qd, t))
 
     def predict(self, q, qd, t, xp=np):
         """The law at new states (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an integrator)."""
@@ -233,7 +233,7 @@ def _state_r2(fn: np.ndarray, q: np.ndarray, qd: np.ndarray) -> float:
     return 1.0 - res / tot if tot > 0 else 1.0
 
 
-def _phase_locked(omega: float, qd: np.ndarray, t: np.ndarray) -> float:
+def phase_locked(omega: float, qd: np.ndarray, t: np.ndarray) -> float:
     """1.0 when a drive at angular frequency ``omega`` stays within half a beat of the motion's own frequency (from
     the mean crossings of each velocity) over the record — over a free decay of a few periods a drive in phase with
     q̇ is a damping force in disguise (it fitted a servo's free drop better than any friction law) — else 0.0."""

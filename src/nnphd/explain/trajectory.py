@@ -222,7 +222,7 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
     return s, th, r, jac, chi2, bool(info.get("converged"))
 
 
-def _lowest_first(res, starts: list) -> list:
+def lowest_first(res, starts: list) -> list:
     """``starts`` ((window states, u, …)) by their χ² (``res(s, u)``), the lowest first (a start whose χ² is not
     finite last; ties in their order)."""
 
@@ -288,7 +288,7 @@ def _candidate_statistics(row, th, r, jac, chi2, free, n_fit, *, Kc, n, W, group
 ADEQUATE_CHI2 = 2.0  # fits within this factor of the lowest held-out χ²: their residuals are the noise's
 
 
-def _noise_correlation(results) -> float:
+def noise_correlation(results) -> float:
     """The residuals' lag-one correlation ρ that sets the IC's correlation time: the median over the fits whose
     held-out χ² is within :data:`ADEQUATE_CHI2` of the lowest — a fit that misses the record leaves a smooth residual,
     and its correlation is misfit (which its χ² counts already), not the noise's."""
@@ -299,11 +299,11 @@ def _noise_correlation(results) -> float:
 
 def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
     """The table's rows from the ranking entries: IC with n_eff = n_res/τ residuals, τ = (1 + ρ)/(1 − ρ)·ĉ from the
-    lag-one correlation ρ of the adequate fits (:func:`_noise_correlation`) and the overdispersion ĉ; each row with
+    lag-one correlation ρ of the adequate fits (:func:`noise_correlation`) and the overdispersion ĉ; each row with
     its joint fit's conservative part. Returns (rows, n_eff, τ)."""
     Kc = settings["conservative_columns"]
     N = q_pos.shape[0]
-    rho = _noise_correlation(results)
+    rho = noise_correlation(results)
     c_hat = overdispersion_c_hat([x[5] for x in results], [x[2] for x in results])
     tau = (1 + rho) / (1 - rho) * c_hat
     n_eff = n_res / tau
@@ -334,7 +334,7 @@ def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **
 
     Starts: the row's pointwise fit (window states ``s0`` from the data) and, given ``warm`` (the zero law's
     trajectory-level fit, where LM converged), the zero law's window states and α with this row's law at zero and at its pointwise values
-    — the lowest χ² first (:func:`_lowest_first`). The pointwise α is far from the trajectory-level optimum (χ² 100×
+    — the lowest χ² first (:func:`lowest_first`). The pointwise α is far from the trajectory-level optimum (χ² 100×
     the optimum's on a double pendulum's 43 conservative columns): LM spent a third of its Jacobians getting from
     there to where the zero law's fit already is."""
     import jax.numpy as jnp
@@ -366,7 +366,7 @@ def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **
         u_z = u_w.copy()
         if fam is not None:
             u_z[Kc : Kc + len(fam.coef_names)] = 0.0
-        starts = _lowest_first(res, [(s_w, u_z, MU_WARM), (s_w, u_w, MU_WARM), *starts])
+        starts = lowest_first(res, [(s_w, u_z, MU_WARM), (s_w, u_w, MU_WARM), *starts])
     fit = _shoot_candidate((res, jac), starts, free, fam, Kc, n_fit)
     if fit is None:
         return None, None
@@ -409,7 +409,7 @@ def map_in_threads(fn, items: list, threads: int | None = None) -> list:
             raise
 
 
-def _fit_rows(fit, zero, cands, threads: int | None) -> list | None:
+def fit_rows(fit, zero, cands, threads: int | None) -> list | None:
     """The ranking entries of the zero law and ``cands`` (``fit(ci, row, warm=…)`` → (entry, warm):
     :func:`_fit_row`; a candidate without an entry left out), or None when the zero law has none — nothing is
     ranked against it then, and the candidates are not fitted. The zero law is fitted first; the candidates start
@@ -461,7 +461,7 @@ def rank_trajectory(
     a zero law that runs away over a whole trajectory is started again from the candidates' conservative fits.
 
     ``threads``: the candidates are fitted side by side on that many threads (None: :func:`default_threads`;
-    :func:`_fit_rows`), the same numbers whatever the number.
+    :func:`fit_rows`), the same numbers whatever the number.
     """
     if table.settings.get("conservative_extra", 0):
         raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
@@ -492,7 +492,7 @@ def rank_trajectory(
         _fit_row, cands=cands, layout=(slots, P_dir, nl_defaults, alpha0, Kc), model=(args, rhs, nsub), s0=s0,
         in_sample=in_sample, n=n, W=W, groups=groups, n_res=n_res, n_boot=n_boot, seed=seed,
     )  # fmt: skip
-    results = _fit_rows(fit, zero, cands, threads)
+    results = fit_rows(fit, zero, cands, threads)
     if results is None or len(results) < 2:  # no zero law, or nothing beside it: the table stands
         return table
     rows, n_eff, tau = _trajectory_rows(results, table.settings, q_pos, qd, t, n_res)

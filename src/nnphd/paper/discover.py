@@ -60,7 +60,7 @@ PAPER_TABLE2 = {
 }
 
 
-def _table2_params(sysm, row) -> tuple[dict, dict]:
+def table2_params(sysm, row) -> tuple[dict, dict]:
     """The Table II parameters (paper's names) and their standard errors from a law-table row."""
     key = sysm.law_params
     return (
@@ -214,7 +214,7 @@ def _settings(sysm, paper_n_steps, sw, steps, sweep_steps, lam, seed, standardiz
 def _table2_rows(sysm, paper: dict, hyp, fit) -> list[dict]:
     """Our Table II rows: per quantity the truth, the paper's value, ours (the joint fit of the hypothesis family's
     law-table row ``hyp``) ± stderr, the goal, and the post-hoc parametric ``fit`` of the UAN's output."""
-    joint, joint_se = _table2_params(sysm, hyp)
+    joint, joint_se = table2_params(sysm, hyp)
     rows = []
     for key, tv in sysm.truth.items():
         ours = joint[key]

@@ -234,7 +234,7 @@ def run_prediction(
     balance, series = _energy_balance(sysm, cfg, params, rolls, test, uan_time, dt)
     lnn_const = _lnn_energy_constancy(cfg, params["lnn"], rolls["lnn"], test, e_true)
     decomposition = _decomposition(cfg, params["nnphd"], train, test, uan_time)
-    claims = _claims(metrics, lnn_const, e_true)
+    claims = prediction_claims(metrics, lnn_const, e_true)
 
     results = PredictionResult(
         experiment=f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
@@ -473,7 +473,7 @@ def _lnn_energy_constancy(cfg, lnn_params, roll, test: Dataset, e_true) -> dict:
 CONSTANCY_TOL = 0.1  # the LNN's energy drift must stay below this fraction of the truth's energy drift
 
 
-def _claims(metrics, lnn_const, e_true) -> list[dict]:
+def prediction_claims(metrics, lnn_const, e_true) -> list[dict]:
     e = {k: metrics[k]["energy_rmse_30_200"] for k in MODELS}
     drift = lnn_const["lnn_true_energy_drift_over_truth_drift"]
     return [

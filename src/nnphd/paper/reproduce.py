@@ -96,7 +96,7 @@ def plan(quick: bool = False, overrides: dict[str, dict] | None = None) -> dict[
     return out
 
 
-def _run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dict:
+def run_unit(d: Path, settings: dict, fn: Callable[[], dict], log: dict) -> dict:
     """Load the unit's results from ``d`` when its marker (:class:`nnphd.io.cache.Cache`) records exactly
     ``settings``, else run ``fn`` (which writes ``d/results.json``) and mark ``d``."""
     cache = Cache(d, settings)
@@ -149,7 +149,7 @@ def experiment_unit(
     Returns {"result", "log"}."""
     log: dict = {}
     path = ensure_writable_dir(d)
-    res = _run_unit(path, settings, lambda: _run_experiment(exp, name, path, seed, kw, progress), log)
+    res = run_unit(path, settings, lambda: _run_experiment(exp, name, path, seed, kw, progress), log)
     return {"result": res, "log": log}
 
 

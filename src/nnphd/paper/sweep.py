@@ -28,7 +28,7 @@ from nnphd.paper.sweep_result import SweepResult, SweepRow
 _POINT_NUMBERS = ("L_e", "L_b", "L_e_train", "L_b_train")  # a checkpointed λ's metadata: these, and m_c, m_n
 
 
-def _sweep_point(lam: float, m: dict, params) -> SweepPoint:
+def checkpointed_point(lam: float, m: dict, params) -> SweepPoint:
     """A checkpointed λ back as a SweepPoint; ValueError (the checkpoint is then ignored) if its metadata is not
     that of a sweep point: other keys, or losses that are not finite numbers."""
     if set(m) != {*_POINT_NUMBERS, "m_c", "m_n"}:
@@ -57,7 +57,7 @@ class SweepPlan:
 
     def run(self, progress: Progress | None = None) -> SystemSweep:
         """Train (resuming from the checkpoint, saving one after every λ) and read the verdict."""
-        done = self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg), build=_sweep_point)
+        done = self.cache.restore(init_nnphd(jax.random.PRNGKey(0), self.cfg), build=checkpointed_point)
         resumed = sorted(done)
 
         def on_point(pt: SweepPoint):

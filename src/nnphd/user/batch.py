@@ -149,7 +149,7 @@ def _scan_folder(p: Path, out_r: Path | None, skipped: list[dict[str, str]]) -> 
     return found
 
 
-def _names(paths: Sequence[Path]) -> list[str]:
+def unique_names(paths: Sequence[Path]) -> list[str]:
     """A unique folder name per file: its stem (characters other than letters, digits and ``-_.+`` as ``_``; a leading
     ``.`` as ``_``, so ``..csv`` and ``...csv`` stay inside ``out``), with ``-2``, ``-3`` … where stems repeat."""
     names, used = [], set()
@@ -165,7 +165,7 @@ def _names(paths: Sequence[Path]) -> list[str]:
     return names
 
 
-def _sha256(path: str | Path) -> str:
+def file_sha256(path: str | Path) -> str:
     """The SHA-256 of a data file, streamed, opened as a regular file only: a FIFO or device swapped in after the
     scan is refused, never read or waited on."""
     h = hashlib.sha256()
@@ -203,7 +203,7 @@ def _tie_prefix(law: dict) -> str:
     return "tie (" + " or ".join(r.get("law", "?") for r in [law.get("law") or {}, *law.get("ties", [])]) + "): "
 
 
-def _row(name: str, path: str, rep: dict, cached: bool) -> dict:
+def summary_row(name: str, path: str, rep: dict, cached: bool) -> dict:
     law = (rep.get("law") or {}).get("law") or {}
     formula = law.get("formula") or {}  # a blind hint is never a law
     return {
@@ -239,17 +239,17 @@ def detect_one(path: str, out: str, name: str, angles: tuple = (), max_rows: int
     cached one when ``out/batch.json`` records the same file content and settings); returns its summary row."""
     from nnphd.user.detect import detect_file
 
-    key = {"file_sha256": _sha256(path), "angles": list(angles), "max_rows": max_rows, **settings}
+    key = {"file_sha256": file_sha256(path), "angles": list(angles), "max_rows": max_rows, **settings}
     cache = Cache(out, key)
     sealed = cache.load_sealed(MARKER, "report.json")
     if sealed is not None:
         try:
-            return _row(name, path, _cached_report(sealed[1]), True)
+            return summary_row(name, path, _cached_report(sealed[1]), True)
         except (ValueError, KeyError, TypeError) as e:  # a report of another version: run the file again
             warn_ignored(Path(out) / "report.json", f"not a report this version can summarise: {e}")
     rep = detect_file(path, out, angles=angles, max_rows=max_rows, **settings)
     cache.seal({"settings": key, "finished": time.time()}, MARKER, ("report.json",))
-    return _row(name, path, rep, False)
+    return summary_row(name, path, rep, False)
 
 
 def detect_batch(
@@ -269,7 +269,7 @@ def detect_batch(
     t0 = time.perf_counter()
     files, skipped = scan_paths(paths, out)
     outdir = ensure_writable_dir(out)
-    names = _names(files)
+    names = unique_names(files)
     units = [
         Unit(
             n,

@@ -95,7 +95,7 @@ def check_field(field: str, law_fit: str = "auto") -> None:
         )
 
 
-def _check_declared_field(field: str, data, traj, ud, info) -> None:
+def check_declared_field(field: str, data, traj, ud, info) -> None:
     """A declared uniform field cannot make motion oscillate (no force of position): refuse an oscillating record
     before any training, with the period found as :func:`nnphd.user.assess.assess` finds it."""
     if field not in DECLARED_FIELDS:
@@ -214,18 +214,18 @@ def _report(
         "quality": res["quality"],
         "angles": [c for c, a in zip(coords, res["angles"]) if a],
         "angle_suggestions": [list(x) for x in suggest_angles(ud)],
-        "warnings": _warnings(info, coords),
+        "warnings": derivative_warnings(info, coords),
         "clock": res["clock"],
         "checks": res["checks"],
         "table": res["table"],
         "lambda_forces": res["lambda_forces"],
         "noise": {c: info["per_coordinate"][c] for c in coords},
         "data": {k: v for k, v in info.items() if k != "per_coordinate"},
-        "formula": _law_formula(law),
+        "formula": law_formula(law),
         "law": law,
         "field": field,
         "blind": blind,
-        "hint": _best_formula(blind),
+        "hint": best_formula(blind),
         "settings": {**settings, **res.get("settings", {})},
         "units": "forces in the file's units (coordinate units / time unit²)",
     }
@@ -273,12 +273,12 @@ def detect_data(
         timer.add("reading the file", read_s)
     with timer:
         with timer.stage("derivatives"):
-            data, info, trim, row_err, traj = _prepared(ud, trim, derivative_method)
-            _check_declared_field(field, data, traj, ud, info)
+            data, info, trim, row_err, traj = prepared_data(ud, trim, derivative_method)
+            check_declared_field(field, data, traj, ud, info)
             if thin:
                 data, row_err, traj = dense_thinned(data, info, row_err, traj, ud)
         coords = list(ud.coords)
-        library = _library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer)
+        library = library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer)
         try:
             say("λ-sweep and trust checks")
             with timer.stage("training and trust checks"):
@@ -317,7 +317,7 @@ def detect_data(
         report = _report(ud, res, info, coords, law, verdict, _field_entry(field, fitted, declared), blind, settings)
 
         def stamp() -> None:  # the times so far: every stage but the writing of report.json/html itself
-            report["timings"] = _with_workers(timer.to_dict(), res.get("timings_per_seed", []))
+            report["timings"] = with_workers(timer.to_dict(), res.get("timings_per_seed", []))
             report["wall_time_s"] = report["timings"]["total_s"]
 
         if out is not None:
@@ -342,7 +342,7 @@ LIBRARY_ALONGSIDE = "law table: library base (alongside training)"
 LIBRARY_WAIT = "law table: library base, waited for"
 
 
-def _library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer):
+def library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer):
     """The law table on the conservative library base (:func:`_law_table`), started beside the training on a thread
     of its own — it needs no network — when it will be wanted: one coordinate, the learned field, a trajectory-level
     fit. (future, cancel) of :func:`nnphd.parallel.alongside`, or None: then it is fitted after the training, as
@@ -387,7 +387,7 @@ def _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer):
     return alongside(figures)[0]
 
 
-def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
+def with_workers(tm: dict, per_seed: list[dict]) -> dict:
     """The run's timings with each seed's (``per_seed``); compilation on worker processes, which this process's
     listener does not see, is added to the training stage (compile seconds are then summed over processes, and
     workers run side by side: they can exceed the stage's wall time; so can the seeds on threads of this process,
@@ -401,7 +401,7 @@ def _with_workers(tm: dict, per_seed: list[dict]) -> dict:
     return tm | {"stages": stages, "compile_s": tm["compile_s"] + elsewhere, "note": note, "per_seed": per_seed}
 
 
-def _prepared(ud, trim, method: str = "auto"):
+def prepared_data(ud, trim, method: str = "auto"):
     """(data set, info, trim used, per-row errors, trajectory id per row) of validated data, the derivatives by
     ``method``; a trim that leaves too few rows of a trajectory is refused."""
     data, info, trim = _dataset(ud, trim, method)
@@ -445,7 +445,7 @@ def _blind(data, coords, fn, sr_time, seed, say, reasons) -> dict:
 WARN_QDD_ERR = 0.2  # a coordinate whose estimated relative q̈ error exceeds this gets a warning
 
 
-def _warnings(info: dict, coords) -> list[str]:
+def derivative_warnings(info: dict, coords) -> list[str]:
     """Plain-language warnings about the derivatives (the verdict itself accounts for them)."""
     out = []
     for c in coords:
@@ -524,7 +524,7 @@ def _dataset(ud, trim, method: str = "auto"):
     return Derivatives(method, trim if isinstance(trim, str) and trim == "auto" else bool(trim)).dataset(ud)
 
 
-def _best_formula(blind: dict) -> dict | None:
+def best_formula(blind: dict) -> dict | None:
     """The readable blind formula with the smaller residual (sparse wins ties: fewer, library terms) — a *hint* when
     no candidate law fits, never reported as the law (a blind fit of the learned f_n is a curve: on a noisy record it
     was a 13th-degree polynomial in q̇); marked as such."""
@@ -539,7 +539,7 @@ def _best_formula(blind: dict) -> dict | None:
     }
 
 
-def _law_formula(law: dict) -> dict | None:
+def law_formula(law: dict) -> dict | None:
     w = law.get("law")
     if not w:
         return None
@@ -618,7 +618,7 @@ def _law_table(
     if ok and (len(coords) == 1 or arcs) and level != "pointwise":
         from nnphd.explain.table import combine_bases
 
-        if library is not None:  # started beside the training (:func:`_library_alongside`)
+        if library is not None:  # started beside the training (:func:`library_alongside`)
             with timer.stage(LIBRARY_WAIT) if timer is not None else nullcontext():
                 lib = library[0].result()
         else:
@@ -639,7 +639,7 @@ def _law_table(
     if field in DECLARED_FIELDS:
         out["noise"] = arc_noise(data, traj, coords, info)
         zero = next((r for r in table.rows if r.key == "none"), None)
-        out["_field"] = {k: _fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
+        out["_field"] = {k: fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
                          (("alone", zero), ("with_law", table.law))}  # fmt: skip
     if table.law is not None:  # the law's share against the velocity: a drag's is 1, a thrust's −1
         f_law = table.law.predict(data.q, data.qd, data.t)
@@ -685,7 +685,7 @@ def arc_noise(data, traj, coords, info) -> dict:
 
 
 def field_force(fitted: dict, q, is_angle, xp=np):
-    """The fitted declared field's acceleration at positions ``q`` (N, n) (:func:`_fitted_field`)."""
+    """The fitted declared field's acceleration at positions ``q`` (N, n) (:func:`fitted_field`)."""
     from nnphd.explain.conservative import conservative_basis
 
     center = fitted["center"]
@@ -695,7 +695,7 @@ def field_force(fitted: dict, q, is_angle, xp=np):
     return xp.einsum("nik,k->ni", B, xp.asarray(fitted["coefficients"]))
 
 
-def _fitted_field(table, row, coords, is_angle, q) -> dict | None:
+def fitted_field(table, row, coords, is_angle, q) -> dict | None:
     """The declared uniform field as the joint trajectory-level fit of ``row`` (a Candidate: the zero law or the law)
     found it: its conservative coefficients over the library's columns (:func:`nnphd.explain.conservative.
     conservative_basis`, library "minimal"), their centring, and the field g with its standard error per coordinate
@@ -836,8 +836,8 @@ def _pointwise_table(
         library = "vertical" if field == "vertical" and library is None else library
     # the positions are fitted up to the moment the body sticks; the pointwise rows also lose the q̈ estimator's
     # half window before it (their q̈ is smeared across the jump of the force)
-    moving, traj_m, _, _, rest = _moving_rows(data, traj, coords, info, None, None, period, margin=False)
-    data_p, traj_p, err, fc, _ = _moving_rows(data, traj, coords, info, err, fc, period)
+    moving, traj_m, _, _, rest = moving_rows(data, traj, coords, info, None, None, period, margin=False)
+    data_p, traj_p, err, fc, _ = moving_rows(data, traj, coords, info, err, fc, period)
     whole = (data, traj)  # rests included: a final rest is evidence (nnphd.explain.stuck)
     data, traj = moving, traj_m
     table = rank_laws(
@@ -974,7 +974,7 @@ def _thinned(t, traj, period: float) -> np.ndarray:
     return np.concatenate([s[::k] for s in segs])
 
 
-def _moving_rows(data, traj, coords, info, err, fc, period, margin: bool = True):
+def moving_rows(data, traj, coords, info, err, fc, period, margin: bool = True):
     """The data set without its stretches at rest (:mod:`nnphd.user.rest`) for the law fits: (data, traj, err, fc,
     rest) with rest = {"rows", "stretches" [[t0, t1], …], "text"}, or the inputs and None when nothing rests (or
     too little would be left to fit)."""

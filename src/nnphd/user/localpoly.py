@@ -2,7 +2,7 @@ r"""Local polynomial estimates of q̇ and q̈: Savitzky–Golay on uniform grids
 times, the error model that chooses order and window, and the end rows — items 3 to 5 of the derivative estimation
 of :mod:`nnphd.user.derivatives` (the items referred to below are its).
 
-3. **Local polynomial regression** (:func:`_local_fit`; Savitzky–Golay generalised): at row i the least-squares
+3. **Local polynomial regression** (:func:`local_fit`; Savitzky–Golay generalised): at row i the least-squares
    polynomial of order p in the offsets t_j − t_i over the m samples nearest by index (one-sided at the ends, as
    ``mode='interp'``), differentiated at t_i.  Batched over rows through power sums (only S_k = Σ u_jᵏ and
    Σ u_jˡ(y_j − y_i) touch the samples; weights, ‖w‖² and moments follow from them); on a uniform grid it reproduces
@@ -67,7 +67,7 @@ def _window_grid(n: int, p: int = POLYORDER) -> list[int]:
     return grid
 
 
-def _sg_weights(m: int, d: int, p: int = POLYORDER, edges: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+def sg_weights(m: int, d: int, p: int = POLYORDER, edges: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """SG weights (units of dt⁻ᵈ) of the d-th derivative with window m and order p, as savgol_filter(mode='interp')
     applies them: the centred interior stencil (m,) and the left-edge stencils (half, m) of rows r = 0…half-1, which
     evaluate the polynomial fitted to the first m samples at row r (the right edge mirrors them: reversed, times
@@ -89,7 +89,7 @@ def _sg_stats(m: int, d: int, p: int = POLYORDER):
     of the left-edge stencils (half,), and the Taylor bias moments Mₖ = Σ_j w_j o_jᵏ/k! (k = p+1, p+2; offsets o_j
     from the row) of the interior (2,) and of each left-edge row (half, 2); the right edge has the same norms and
     moments up to the sign (-1)ᵈ⁺ᵏ."""
-    w_c, w_e = _sg_weights(m, d, p)
+    w_c, w_e = sg_weights(m, d, p)
     half = m // 2
     o = (np.arange(m)[None, :] - np.arange(half + 1)[:, None]).astype(np.float64)  # rows 0…half (half: interior)
     w = np.vstack([w_e, w_c])
@@ -107,7 +107,7 @@ def _sg_stats(m: int, d: int, p: int = POLYORDER):
 def _pair_acf_sq(a: int, b: int, d: int, p: int) -> float:
     """Σ acf² of the difference of the uniform interior stencils of windows a < b: the correlation of the filtered
     noise, used for the standard deviation of the Richardson statistic (also on non-uniform grids, approximately)."""
-    wa, wb = _sg_weights(a, d, p, edges=False)[0], _sg_weights(b, d, p, edges=False)[0]
+    wa, wb = sg_weights(a, d, p, edges=False)[0], sg_weights(b, d, p, edges=False)[0]
     pad = (b - a) // 2
     dw = wb - np.pad(wa, (pad, pad))
     acf = np.correlate(dw, dw, mode="full") / np.sum(dw**2)
@@ -150,7 +150,7 @@ def _uniform_stencil(y: np.ndarray, m: int, h: float, p: int = POLYORDER, rows: 
 _CHUNK = 1 << 17  # rows × window elements per batch of the local fits
 
 
-def _local_fit(
+def local_fit(
     t: np.ndarray,
     y: np.ndarray,
     m: int,
@@ -234,7 +234,7 @@ def _stencil(tg: np.ndarray, y: np.ndarray, m: int, p: int, dt: float | None, ro
     if dt is not None:
         return _uniform_stencil(y, m, dt, p, rows)
     rows = np.arange(y.shape[0]) if rows is None else rows
-    return _Stencil(rows, *_local_fit(tg, y, m, rows, p))
+    return _Stencil(rows, *local_fit(tg, y, m, rows, p))
 
 
 def _taylor_pair(
@@ -421,7 +421,7 @@ def _low_order_sizes(tg: np.ndarray, y: np.ndarray, sigma: float, fit: _OrderFit
         if n - 2 * half < 5:
             continue
         rows = np.unique(np.linspace(half, n - half - 1, min(_R34_ROWS, n - 2 * half)).round().astype(int))
-        est, ns, mom = _local_fit(tg, y, m, rows, fit.p, (3, 4))
+        est, ns, mom = local_fit(tg, y, m, rows, fit.p, (3, 4))
         for a in range(2):
             e2 = sigma**2 * float(np.mean(ns[a])) + float(np.mean(np.sum((mom[a] * fit.r) ** 2, axis=1)))
             if best[a] is None or e2 < best[a][0]:
@@ -467,7 +467,7 @@ def _end_rows(tg, y, sigma, d, m_star, fits, r34, est, mse):
             if st.rows.size == n:
                 take(st.est[d - 1][rows], sigma**2 * st.ns[d - 1][rows], np.sum((st.mom[d - 1][rows] * r) ** 2, axis=1))
             else:
-                ep, nsp, mp = _local_fit(tg, y, m, rows, f.p, (d,))
+                ep, nsp, mp = local_fit(tg, y, m, rows, f.p, (d,))
                 take(ep[0], sigma**2 * nsp[0], np.sum((mp[0] * r) ** 2, axis=1))
     for p in _END_LOW_ORDERS:
         ks = (p + 1, p + 2)
@@ -477,6 +477,6 @@ def _end_rows(tg, y, sigma, d, m_star, fits, r34, est, mse):
             r = np.array([r34[0], r34[1]]) if p == 2 else np.array([r34[1], fits[0].r[0]])
             if not np.all(np.isfinite(r)):
                 break
-            ep, nsp, mp = _local_fit(tg, y, m, rows, p, (d,), ks)
+            ep, nsp, mp = local_fit(tg, y, m, rows, p, (d,), ks)
             take(ep[0], sigma**2 * nsp[0], np.sum((mp[0] * r) ** 2, axis=1))
     est[rows], mse[rows] = best_est, best_mse

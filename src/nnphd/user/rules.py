@@ -376,12 +376,13 @@ def learned_power_unconfirmed(res: dict, law: dict) -> str | None:
     :func:`nnphd.user.checks.by_learned_power`: a slow swing of the learned energy on one or two trajectories), when the
     law table — which fitted a drive A cos(ωt + φ), the force without net power such a swing could mean, beside the
     autonomous families — has no candidate that contradicts "none" (:func:`contradicts_none`, checked by the
-    caller, and no candidate as strong, :func:`_strong`, even one the table set aside); else None. That evidence is the learned Lagrangian's alone, and a fit of the positions that needs no force
-    wins over it. Measured: the Earth–Moon barycentre in a frame turning with Jupiter (DE405, one orbit of 8 years)
-    swung at Z = 2.2–3.4 while every candidate, the drive included, cost more than it gained (ΔIC ≥ +0.9); one
-    trajectory of a Duffing oscillator under 0.1 cos(1.3 t) swings at Z = 5.3–5.4 and its drive, which the table
-    does not claim on one trajectory, beats no law by ΔIC −2343 (error −96 %): it stays "inconclusive"
-    (benchmarks/conservative_controls.py; tests/test_trust.py)."""
+    caller, and no candidate as strong, :func:`_strong`, even one the table set aside); else None. That evidence is
+    the learned Lagrangian's alone, and a fit of the positions that needs no force wins over it. Measured: the
+    Earth–Moon barycentre in a frame turning with Jupiter (DE405, one orbit of 8 years) swung at Z = 2.2–3.4 while
+    every candidate, the drive included, cost more than it gained (ΔIC ≥ +0.9); one trajectory of a Duffing
+    oscillator under 0.1 cos(1.3 t) swings at Z = 5.3–5.4 and its drive, which the table does not claim on one
+    trajectory, beats no law by ΔIC −2343 (error −96 %): it stays "inconclusive" (benchmarks/conservative_controls.py;
+    tests/test_law_verdict.py)."""
     quality = res.get("quality") or {}
     if not quality.get("usable", True) or not quality.get("oscillating", True):
         return None

@@ -329,6 +329,11 @@ def _strong(cand: dict) -> bool:
     )
 
 
+def _any_strong(law: dict) -> bool:
+    """Is any candidate of the law table (not the zero law) :func:`_strong`?"""
+    return any(_strong(c) for c in law.get("candidates") or [] if c.get("law") != "none")
+
+
 def trend_unsupported(res: dict, law: dict) -> str | None:
     """Why a detection rests on the learned Lagrangian alone, or None: every detecting seed was detected by its
     record-level evidence (not by a clock), through its learned-energy trend while its shooting probe — the fit of
@@ -350,7 +355,7 @@ def trend_unsupported(res: dict, law: dict) -> str | None:
             return None
         if ze is None or zs is None or not ze or not zs or np.sign(ze) == np.sign(zs):
             return None
-    if any(_strong(c) for c in law.get("candidates") or [] if c.get("law") != "none"):
+    if _any_strong(law):
         return None
     said = "; ".join(
         f"seed {s['seed']}: energy trend z = {s['trajectory_evidence']['z_energy']:.1f}, shooting probe z = "
@@ -391,7 +396,7 @@ def learned_power_unconfirmed(res: dict, law: dict) -> str | None:
     if not swinging or any(s["status"] != "none" and not s.get("by_learned_power") for s in seeds):
         return None
     cands = {c.get("law"): c for c in law.get("candidates") or []}
-    if "drive" not in cands or any(_strong(c) for k, c in cands.items() if k != "none"):
+    if "drive" not in cands or _any_strong(law):
         return None
     said = "; ".join(
         f"seed {s['seed']}: slow ratio Z = {s['drift']['slow_ratio_median']:.1f}, net power "

@@ -14,14 +14,28 @@ the tests use.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 # the process-wide settings (configure) live in a module of the lowest layer; re-exported here
 from nnphd._config import COMPILE_CACHE_ENV as COMPILE_CACHE_ENV
 from nnphd._config import COMPILE_CACHE_MAX_BYTES as COMPILE_CACHE_MAX_BYTES
 from nnphd._config import ONE_THREAD_FLAGS as ONE_THREAD_FLAGS
 from nnphd._config import XLA_FLAG as XLA_FLAG
+from nnphd._config import CompileCacheWarning as CompileCacheWarning
 from nnphd._config import compile_cache_dir as compile_cache_dir
+from nnphd._config import compile_cache_problem as compile_cache_problem
 from nnphd._config import configure as configure
 from nnphd._config import default_compile_cache as default_compile_cache
+from nnphd._config import mapped_regions as mapped_regions
+from nnphd._config import release_compiled_if_crowded as release_compiled_if_crowded
+
+if TYPE_CHECKING:  # what __getattr__ loads on first use, visible to type checkers and the API reference (mkdocs)
+    from nnphd._extras import MissingExtra
+    from nnphd.api import DetectResult, Law, NNPhD, Status, Trajectories, Verdict, load, read_report
+    from nnphd.io.errors import DataError
+    from nnphd.paper.study_results import DataQualityResult, LambdaPResult, PredictionResult
+    from nnphd.paper.sweep_result import SweepResult
+    from nnphd.user.strategies import Derivatives, LawLibrary
 
 __version__ = "0.1.0"
 

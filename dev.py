@@ -4,6 +4,7 @@
 python3 dev.py demo    # λ-sweeps on HO+LD (friction: a jump at λ=1) and HO+MF (conservative: no jump); exit 1 if wrong
 python3 dev.py test    # the test suite (pytest), without the end-to-end runs marked slow (under 5 min on 2 cores)
 python3 dev.py test --slow   # only the slow ones (CI, .ci/run, runs both)
+python3 dev.py docs    # the documentation site with its API reference (mkdocs build --strict) into site/
 """
 
 import hashlib
@@ -35,7 +36,7 @@ def setup() -> None:
     if not STAMP.exists() or STAMP.read_text() != want:
         print("installing nnphd and its dependencies into .venv (first run: a few minutes)", flush=True)
         run(str(BIN / "python"), "-m", "pip", "install", "-q", "--upgrade", "pip")
-        run(str(BIN / "python"), "-m", "pip", "install", "-q", "-e", ".[all,test]")
+        run(str(BIN / "python"), "-m", "pip", "install", "-q", "-e", ".[all,test,docs]")
         STAMP.write_text(want)
 
 
@@ -57,13 +58,22 @@ def demo() -> None:
         sys.exit("error: the demo's verdicts are wrong: " + "; ".join(wrong))
 
 
+def docs() -> None:
+    """The site of docs/ and the API reference from the docstrings (mkdocs.yml), into site/ (git ignores it); strict:
+    a broken link, a missing anchor or a cross-reference that does not resolve fails the build."""
+    run(str(BIN / "mkdocs"), "build", "--strict", "--quiet", "--site-dir", str(ROOT / "site"))
+    print(f"documentation built: {ROOT / 'site' / 'index.html'}")
+
+
 def main() -> None:
     what = sys.argv[1] if len(sys.argv) > 1 else ""
-    if what not in ("demo", "test", "setup"):
-        sys.exit("usage: python3 dev.py demo|test|setup [--slow] [extra pytest arguments for test]")
+    if what not in ("demo", "test", "docs", "setup"):
+        sys.exit("usage: python3 dev.py demo|test|docs|setup [--slow] [extra pytest arguments for test]")
     setup()
     if what == "demo":
         demo()
+    elif what == "docs":
+        docs()
     elif what == "test":
         # lint and format check (ruff, settings in pyproject.toml) beside the tests: all run, any failing fails
         paths = ["src", "tests", "benchmarks", "dev.py"]

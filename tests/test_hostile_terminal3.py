@@ -282,7 +282,7 @@ def test_local_cluster_scratch_is_private_and_removed():
 
 
 def test_compile_cache_folder_created_private(tmp_path):
-    from nnphd._config import compile_cache_problem
+    from nnphd import compile_cache_problem
 
     cache = tmp_path / "xdg" / "nnphd" / "jax"
     assert compile_cache_problem(cache) is None
@@ -306,9 +306,7 @@ def _refused(cache: Path, monkeypatch) -> str:
         nnphd.configure(compile_cache=cache)
     assert jax.config.jax_compilation_cache_dir == before
     assert os.environ[nnphd.COMPILE_CACHE_ENV] == "0"  # the workers started from here skip it too
-    from nnphd._config import CompileCacheWarning
-
-    msgs = [str(w.message) for w in rec if issubclass(w.category, CompileCacheWarning)]
+    msgs = [str(w.message) for w in rec if issubclass(w.category, nnphd.CompileCacheWarning)]
     assert len(msgs) == 1 and "\n" not in msgs[0], [str(w.message) for w in rec]
     return msgs[0]
 

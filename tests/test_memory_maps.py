@@ -1,7 +1,7 @@
 """A process fitting record after record must not run out of memory mappings: XLA:CPU keeps each compiled program
 mapped, and after ~15 `detect` runs in one process (a benchmark) XLA failed with "LLVM compilation error: Cannot
 allocate memory" and the process crashed. Before each fit and each seed nnphd drops JAX's in-memory programs when
-the process holds more than MAP_SHARE_MAX of vm.max_map_count (nnphd._config.release_compiled_if_crowded)."""
+the process holds more than MAP_SHARE_MAX of vm.max_map_count (nnphd.release_compiled_if_crowded)."""
 
 from __future__ import annotations
 
@@ -11,27 +11,38 @@ import jax
 import jax.numpy as jnp
 import pytest
 
-import nnphd._config as config
+import nnphd
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc is Linux's")
 def test_the_mappings_of_this_process_and_their_limit_are_read():
-    used, limit = config.mapped_regions()
+    used, limit = nnphd.mapped_regions()
     assert 0 < used < limit
 
 
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc is Linux's")
 def test_compiled_programs_are_dropped_only_when_the_process_is_crowded(monkeypatch):
     f = jax.jit(lambda x: 2 * x + 1)
     f(jnp.ones(3))
     assert f._cache_size() == 1
-    monkeypatch.setattr(config, "mapped_regions", lambda: (30_000, 65_530))  # below half the limit: kept
-    assert config.release_compiled_if_crowded() is False and f._cache_size() == 1
-    monkeypatch.setattr(config, "mapped_regions", lambda: (40_000, 65_530))  # above: dropped
-    assert config.release_compiled_if_crowded() is True and f._cache_size() == 0
+    used, limit = nnphd.mapped_regions()
+    # a share above what the process holds (1000 mappings of room): kept; half of what it holds: dropped
+    assert nnphd.release_compiled_if_crowded(share=(used + 1000) / limit) is False and f._cache_size() == 1
+    assert nnphd.release_compiled_if_crowded(share=used / 2 / limit) is True and f._cache_size() == 0
     assert float(f(jnp.ones(3))[0]) == 3.0  # and compiled again when next called
-    assert config.release_compiled_if_crowded(share=0.7) is False  # a share of one's own
-    monkeypatch.setattr(config, "mapped_regions", lambda: None)  # no /proc: nothing to go by, nothing dropped
-    assert config.release_compiled_if_crowded() is False
+    assert f._cache_size() == 1
+    assert used + 1000 < limit / 2  # the default share is half the limit: this process is far below it
+    assert nnphd.release_compiled_if_crowded() is False and f._cache_size() == 1
+    real_open = open
+
+    def no_proc(path, *a, **k):
+        if str(path).startswith("/proc/"):
+            raise FileNotFoundError(2, "No such file or directory", str(path))
+        return real_open(path, *a, **k)
+
+    monkeypatch.setattr("builtins.open", no_proc)  # no /proc: nothing to go by, nothing dropped
+    assert nnphd.mapped_regions() is None
+    assert nnphd.release_compiled_if_crowded(share=0.0) is False and f._cache_size() == 1
 
 
 def test_every_fit_checks_first(monkeypatch, tmp_path):

@@ -22,14 +22,10 @@ from nnphd._config import COMPILE_CACHE_MAX_BYTES as COMPILE_CACHE_MAX_BYTES
 from nnphd._config import ONE_THREAD_FLAGS as ONE_THREAD_FLAGS
 from nnphd._config import XLA_FLAG as XLA_FLAG
 from nnphd._config import CompileCacheWarning as CompileCacheWarning
-from nnphd._config import CompileCacheWarning as CompileCacheWarning
 from nnphd._config import compile_cache_dir as compile_cache_dir
-from nnphd._config import compile_cache_problem as compile_cache_problem
 from nnphd._config import compile_cache_problem as compile_cache_problem
 from nnphd._config import configure as configure
 from nnphd._config import default_compile_cache as default_compile_cache
-from nnphd._config import mapped_regions as mapped_regions
-from nnphd._config import release_compiled_if_crowded as release_compiled_if_crowded
 from nnphd._config import mapped_regions as mapped_regions
 from nnphd._config import release_compiled_if_crowded as release_compiled_if_crowded
 

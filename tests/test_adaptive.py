@@ -9,7 +9,15 @@ import pytest
 
 import nnphd  # noqa: F401
 from nnphd.engine import adaptive
-from nnphd.engine.adaptive import StopRule, fast_sweep, first_lambdas, make_chunk_trainer, train_converged, undecided
+from nnphd.engine.adaptive import (
+    ChunkTrainer,
+    StopRule,
+    fast_sweep,
+    first_lambdas,
+    make_chunk_trainer,
+    train_converged,
+    undecided,
+)
 from nnphd.engine.data import gaussian_dataset
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, as_arrays, loss_terms, sweep
@@ -119,7 +127,13 @@ def test_train_converged_counts_its_steps():
         return out
 
     _, used = train_converged(
-        tr._replace(run=recording_run), p0, arrays, 0.5, jax.random.PRNGKey(2), tcfg, StopRule(20, 0.0)
+        ChunkTrainer(recording_run, tr.init, tr.objective, tr.chunk),
+        p0,
+        arrays,
+        0.5,
+        jax.random.PRNGKey(2),
+        tcfg,
+        StopRule(20, 0.0),
     )
     assert used == sum(n for _, n, _ in calls)  # the steps it reports are the steps it ran
     groups = [[(n, obj) for _, n, obj in g] for _, g in itertools.groupby(calls, key=lambda c: c[0])]

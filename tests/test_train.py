@@ -94,27 +94,26 @@ def test_vmapped_sweep_equals_independent_runs():
 
 
 @pytest.mark.slow  # an interrupted and resumed sweep: slow tier (`python3 dev.py test --slow`, and CI)
-def test_sweep_resumes_after_interruption(tmp_path):
+def test_sweep_resumes_after_interruption(tmp_path, monkeypatch):
     kw = dict(p=1.0, steps=40, seed=1, lambdas=(0.1, 0.5, 2.0, 10.0), model_cfg=SMALL, n_train=100, n_test=100)
     full = run_sweep("ho+ld", **kw)
 
     calls = {"n": 0}
-    import nnphd.paper.sweep as run_mod
+    from nnphd.io.cache import Cache
 
-    orig = run_mod._save_checkpoint
+    orig = Cache.checkpoint
 
-    def save_then_die(*a, **k):
-        orig(*a, **k)
+    def save_then_die(self, *a, **k):  # the sweep checkpoints after every λ: interrupted after the second
+        orig(self, *a, **k)
         calls["n"] += 1
         if calls["n"] == 2:
             raise KeyboardInterrupt
 
-    run_mod._save_checkpoint = save_then_die
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            run_sweep("ho+ld", out=tmp_path, **kw)
-    finally:
-        run_mod._save_checkpoint = orig
+    monkeypatch.setattr(Cache, "checkpoint", save_then_die)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep("ho+ld", out=tmp_path, **kw)
+    monkeypatch.undo()
+    assert calls["n"] == 2
     assert not (tmp_path / "results.json").exists()  # nothing half-written
     resumed = run_sweep("ho+ld", out=tmp_path, **kw)
     assert resumed.resumed_lambdas == (0.1, 0.5)

@@ -22,7 +22,7 @@ import nnphd
 from nnphd.cli.common import MAX_SEED, MAX_STEPS
 from nnphd.io.cache import MAX_NPY_HEADER, npy_header, read_npz
 from nnphd.user.limits import MAX_ROWS
-from nnphd.user.modelfile import MAX_MODEL_BYTES, MAX_N_SEEDS, MAX_SR_TIME
+from nnphd.user.modelfile import MAX_MODEL_BYTES, MAX_N_SEEDS, MAX_SR_TIME, read_model_file
 from nnphd.user.recording import MAX_ITEMSIZE, MAX_NPY_PREFIX, DataError, load_trajectories
 from tests.fixtures.modelfiles import tiny_model
 
@@ -197,7 +197,8 @@ REPORT = {"status": "detected", "new_physics": True, "confidence": 1.0, "reasons
 @pytest.fixture(scope="module")
 def model_parts(tmp_path_factory):
     """(meta, arrays) of a valid model file: a small untrained LNN, no law (built, not fitted)."""
-    path = tiny_model(REPORT).save(tmp_path_factory.mktemp("model") / "m.npz")
+    d = tmp_path_factory.mktemp("model")
+    path = tiny_model(REPORT, d / "written.npz").save(d / "m.npz")
     with np.load(path, allow_pickle=False) as z:
         return json.loads(str(z["meta"])), {k: np.asarray(z[k]) for k in z.files if k != "meta"}
 
@@ -300,24 +301,48 @@ OVERFLOWS = {  # case → (edit of meta, edit of the arrays, what the message na
 
 
 @pytest.mark.parametrize("case", list(OVERFLOWS))
-def test_extreme_finite_scales_that_overflow_the_forward_pass_are_refused(model_parts, tmp_path, case, monkeypatch):
+def test_extreme_finite_scales_that_overflow_the_forward_pass_are_refused(model_parts, tmp_path, case):
     edit, edit_arrays, expected = OVERFLOWS[case]
     path = _model(model_parts, tmp_path / "x.npz", edit, edit_arrays)
     _refused(path, expected, "at states of its own scales" if "force" in expected else "μ_q ± s_q")
-    # every field is finite and within its table: without the forward pass, the file loads and its forces are not
-    monkeypatch.setattr(nnphd.api, "_check_forward", lambda model, path: None)
-    m = nnphd.load(path)
-    sc, (a, b) = m._model["conservative"]["scaling"], np.asarray(nnphd.api.PROBE_STATES).T
-    with np.errstate(all="ignore"):  # forces() at the probe states (not compiled: faster, as the check runs it)
-        q, qd = sc.mu_q + a[:, None] * sc.s_q, b[:, None] * sc.s_q / sc.s_t
-        fc, fn = m._forces(m._fc_raw(), q, qd, sc.t0 + a * sc.s_t)
-    assert not (np.isfinite(fc).all() and np.isfinite(fn).all() and np.isfinite(q).all() and np.isfinite(qd).all())
+    # every field is finite and within its table (the file's own checks pass): only the forward pass at states of
+    # its own scales finds the forces that are not
+    q, qd, _, fc, fn = _probe_forces(read_model_file(path))
+    named = next((f for key, f in (("f_c", fc), ("f_n", fn)) if key in expected), np.r_[q.ravel(), qd.ravel()])
+    assert not np.isfinite(named).all(), case  # what the message names is what is not finite
+
+
+def _probe_forces(mf):
+    """(q, q̇, t, f_c, f_n) of a checked model file at nnphd.api.PROBE_STATES (q = μ_q + a·s_q, q̇ = b·s_q/s_t,
+    t = t₀ + a·s_t), computed here from its parts: the LNN's acceleration in the file's units, the law's basis times
+    its coefficients (zeros without a law)."""
+    import jax
+    import jax.numpy as jnp
+
+    from nnphd.engine.models import lnn_accel
+
+    sc, (a, b) = mf.meta["scaling"], np.asarray(nnphd.api.PROBE_STATES).T
+    mu, s_q, t0, s_t = (np.asarray(sc[k], float) for k in ("mu_q", "s_q", "t0", "s_t"))
+    with np.errstate(all="ignore"), jax.enable_x64(True):
+        q, qd, t = mu + a[:, None] * s_q, b[:, None] * s_q / s_t, t0 + a * s_t
+        lnn = jax.tree_util.tree_unflatten(mf.treedef, [jnp.asarray(x) for x in mf.leaves])
+        fc = np.asarray(lnn_accel(lnn, jnp.asarray((q - mu) / s_q), jnp.asarray(qd * s_t / s_q), mf.cfg))
+        fc = fc * s_q / s_t**2
+        fn = np.zeros_like(q)
+        if mf.family is not None:
+            fn = np.einsum("snk,k->sn", mf.family.basis(np, mf.theta, q, qd, t), mf.beta)
+            if mf.family.fixed is not None:
+                fn = fn + mf.family.fixed(np, mf.theta, q, qd, t)
+    return q, qd, t, fc, fn
 
 
 def test_a_model_of_far_but_sane_scales_passes_the_forward_pass(model_parts, tmp_path):
     path = _model(model_parts, tmp_path / "ok.npz", _scaled(mu_q=[1e6], s_q=[1e-3], s_t=1e3))
     m = nnphd.load(path)
     fc, fn = m.forces([1e6 + 1e-3], [1e-6])
+    assert np.isfinite(fc).all() and (fn == 0).all()
+    q, qd, t, fc, fn = _probe_forces(read_model_file(path))  # the probe's forces are forces()'s own
+    np.testing.assert_allclose(m.forces(q, qd, t)[0], fc, rtol=1e-12)
     assert np.isfinite(fc).all() and (fn == 0).all()
 
 

@@ -22,11 +22,11 @@ from hypothesis import strategies as st
 
 import nnphd
 from nnphd.api import NNPhD
-from nnphd.engine.models import ModelConfig
+from nnphd.engine.models import ModelConfig, lnn_accel
 from nnphd.io import cache as cache_mod
 from nnphd.io.cache import Cache, IgnoredFileWarning
 from nnphd.user import modelfile
-from tests.fixtures.modelfiles import tiny_model
+from tests.fixtures.modelfiles import CFG, tiny_lnn, tiny_model
 
 REPORT = {
     "status": "detected",
@@ -41,10 +41,14 @@ Q, QD = np.array([0.5, -1.0]), np.array([0.1, 0.3])
 
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
-    """A valid model file (a small untrained LNN, no law) and its forces at (Q, QD): built, not fitted."""
-    m = tiny_model(REPORT)
-    path = m.save(tmp_path_factory.mktemp("model") / "m.npz")
-    return path, m.forces(Q, QD)[0]
+    """A valid model file (a small untrained LNN, no law: built, not fitted), loaded with nnphd.load and saved again
+    with NNPhD.save, and the network's own acceleration at (Q, QD) (unit scaling: the data's units are the
+    network's)."""
+    d = tmp_path_factory.mktemp("model")
+    path = tiny_model(REPORT, d / "written.npz").save(d / "m.npz")
+    with jax.enable_x64(True):
+        fc = lnn_accel(tiny_lnn(), jnp.asarray(Q[:, None]), jnp.asarray(QD[:, None]), CFG)
+    return path, np.asarray(fc)
 
 
 def _parts(path):

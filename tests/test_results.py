@@ -12,9 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import nnphd
 from nnphd import api
 from nnphd.api import DetectResult, Law, Status, Verdict, read_report
+from tests.fixtures.modelfiles import tiny_model
 
 LAW = {
     "law": "quadratic",
@@ -69,9 +69,7 @@ def test_a_report_dict_becomes_typed_and_back():
 
 
 def test_the_estimator_holds_the_typed_result(tmp_path):
-    m = nnphd.NNPhD(steps=1)
-    m._model = {"conservative": None, "coords": ["x"], "angles": [False]}
-    m._set_results(REPORT, None)
+    m = tiny_model(REPORT, tmp_path / "m.npz")  # a model file with REPORT as its report, read by nnphd.load
     assert m.result_ == DetectResult.from_dict(REPORT)
     assert m.status_ is Status.DETECTED and m.verdict_ is m.result_.verdict and m.law_ is m.result_.law
 

@@ -308,13 +308,15 @@ def _csv(path, header, rows):
 
 
 def _no_training(monkeypatch):
-    """Any work on the data (derivatives, training) fails the test: a bad law is refused before it."""
-    import nnphd.user.detect as detect
+    """Any work on the data (its derivatives, which come before any training) fails the test: a bad law is refused
+    before it."""
+    import nnphd.user.derivatives as derivatives
 
-    def trained(*a, **k):
+    def processed(*a, **k):
         raise AssertionError("the data were processed before the law was refused")
 
-    monkeypatch.setattr(detect, "_dataset", trained)
+    monkeypatch.setattr(derivatives, "to_dataset", processed)
+    monkeypatch.setattr(derivatives.Derivatives, "dataset", processed)
 
 
 def test_cli_refuses_code_in_law_before_anything(tmp_path, capsys, monkeypatch):

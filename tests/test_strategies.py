@@ -10,6 +10,7 @@ import pytest
 
 import nnphd
 from nnphd.user.derivatives import Derivatives, estimate_derivatives, to_dataset
+from nnphd.user.recording import from_arrays
 from nnphd.user.strategies import FAMILIES, LawLibrary, family_filter
 
 T = np.arange(401) * 0.05  # 0…20 s
@@ -110,17 +111,17 @@ def test_estimate_is_accurate_and_the_method_matters():
 
 def test_dataset_auto_trim_is_the_old_rule():
     """Derivatives.dataset: what detect's data set was — trimmed when every trajectory keeps enough rows, else not."""
-    data = nnphd.Trajectories([T, T[:16]], [Q, Q[:16]], names=["x"])
-    ds, info, trim = nnphd.Derivatives().dataset(data._ud)
-    ref, ref_info = to_dataset(data._ud, trim=False)  # the 16-row trajectory cannot be trimmed: neither is
+    data = from_arrays([T, T[:16]], [Q, Q[:16]], names=["x"])  # what nnphd.Trajectories holds
+    ds, info, trim = nnphd.Derivatives().dataset(data)
+    ref, ref_info = to_dataset(data, trim=False)  # the 16-row trajectory cannot be trimmed: neither is
     assert trim is False and info["trim"] is False
     np.testing.assert_array_equal(ds.qdd, ref.qdd)
-    long = nnphd.Trajectories([T, T[:200]], [Q, Q[:200]], names=["x"])
-    ds, info, trim = nnphd.Derivatives().dataset(long._ud)
-    ref, _ = to_dataset(long._ud, trim=True)
+    long = from_arrays([T, T[:200]], [Q, Q[:200]], names=["x"])
+    ds, info, trim = nnphd.Derivatives().dataset(long)
+    ref, _ = to_dataset(long, trim=True)
     assert trim is True and len(ds) == len(ref) == 401 + 200 - 2 * 6  # 3 rows off each end
     np.testing.assert_array_equal(ds.qdd, ref.qdd)
-    ds, info, _ = nnphd.Derivatives("spline", trim=False).dataset(long._ud)
+    ds, info, _ = nnphd.Derivatives("spline", trim=False).dataset(long)
     assert info["method"] == "spline" and len(ds) == 601
 
 
@@ -175,10 +176,19 @@ class _Stop(Exception):
 
 def _stand_ins(monkeypatch, seen: dict) -> None:
     """detect_data's training and law table stood in for: what reaches them is noted in ``seen``."""
+    import nnphd.user.assess as assess_mod
+    import nnphd.user.derivatives as derivatives
     import nnphd.user.detect as detect
 
-    def assessed(data, traj, ud, info, *a, **k):
-        seen.update(method=info["method"], trim=info["trim"], rows=len(data))
+    to_dataset = derivatives.to_dataset
+
+    def derived(*a, **k):  # the derivatives as estimated (the last data set made is the one used)
+        data, info = to_dataset(*a, **k)
+        seen.update(method=info["method"], trim=info["trim"])
+        return data, info
+
+    def assess(data, traj, **k):
+        seen.update(rows=len(data))
         n = (len(data), 1)
         nan = np.full(n, np.nan)  # a conservative force that is not finite: only the library base is ranked
         return {"_conservative": {"fc": nan}, "quality": {"oscillating": True}, "f_n": nan, "f_c": nan}
@@ -187,7 +197,8 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
         seen.update(families=k["families"], laws=k["laws"], level=k["level"])
         raise _Stop
 
-    monkeypatch.setattr(detect, "_assessed", assessed)
+    monkeypatch.setattr(derivatives, "to_dataset", derived)
+    monkeypatch.setattr(assess_mod, "assess", assess)
     monkeypatch.setattr(detect, "find_law", find_law)
 
 
@@ -221,7 +232,7 @@ def test_restricted_families_are_the_only_candidates_ranked():
     ts = [np.arange(0.0, T_, 0.1) for T_ in (30.0, 25.0)]
     w = np.sqrt(1 - 0.05**2)
     xs = [x0 * np.exp(-0.05 * t) * np.cos(w * t) + 1e-4 * rng.standard_normal(t.size) for x0, t in zip((1.0, -0.7), ts)]
-    ud = nnphd.Trajectories(ts, xs, names=["x"])._ud
+    ud = from_arrays(ts, xs, names=["x"])
     ds, info, _ = nnphd.Derivatives().dataset(ud)
     rows = info.pop("_rows")
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])

@@ -170,16 +170,18 @@ def test_a_significant_but_negligible_energy_change_counts_as_none():
     good = {"usable": True, "pointwise_ok": True, "reason": ""}
     period = 6.3
     trend = {"valid": True, "z": 16.9, "rate": 1.2e-7 / period, "se": 1e-9, "rate_per_period": 1.2e-7,
-             "period": period, "n_blocks": 15, "_bootstrap_z": [16.0] * 50}  # fmt: skip
-    shoot = {"valid": True, "z": 0.1, "d_mean": 4e-7, "se_d_mean": 3e-6, "n_windows": 21, "_bootstrap_z": [0.1] * 50}
-    tiny = trajectory_evidence(trend, shoot)
+             "period": period, "n_blocks": 15}  # fmt: skip
+    shoot = {"valid": True, "z": 0.1, "d_mean": 4e-7, "se_d_mean": 3e-6, "n_windows": 21}
+    replicas = ([16.0] * 50, [0.1] * 50)
+    tiny = trajectory_evidence(trend, shoot, replicas)
     assert not tiny["significant"] and tiny["negligible"] == ["energy", "shooting"] and tiny["z_energy"] == 0.0
     assert tiny["bootstrap_fraction"] is None  # no replica to judge: both statistics count as zero
     tiny["effect"] = effect_text(tiny, trend, shoot)
     assert "too small to count" in tiny["effect"] and "0.001%/period" in tiny["effect"]
     assert seed_status(*_checks(), tiny, good, 1)[0] == "none"
     # the same z at 2× the floor (energy) is a detection; so is a damping whose 2·d·period is above it
-    above = trajectory_evidence(trend | {"rate_per_period": 2 * EFFECT_MIN}, shoot)
+    above = trajectory_evidence(trend | {"rate_per_period": 2 * EFFECT_MIN}, shoot, replicas)
+    assert above["bootstrap_fraction"] == 1.0  # every replica of the trend (z = 16) stays significant
     assert above["significant"] and above["negligible"] == ["shooting"]
     damp = trajectory_evidence(trend, shoot | {"z": 16.9, "d_mean": EFFECT_MIN / period})
     assert damp["significant"] and damp["negligible"] == ["energy"] and damp["z_shooting"] == 16.9
@@ -359,7 +361,7 @@ def test_dominant_period_is_not_fooled_by_a_body_at_rest(monkeypatch, stop):
 
 
 def test_a_learned_energy_trend_within_the_fit_errors_reach_does_not_count():
-    """Issue 54: the Moon over a year (DE405; its Kepler energy has no trend) — the learned energy decayed 0.25 %/period
+    """The Moon over a year (DE405; its Kepler energy has no trend) — the learned energy decayed 0.25 %/period
     at z = 8 while the residual's power moved 2.9 % in and out per period: 3.2 % over 13 periods < 3 × 2.9 %. A
     string pendulum in air: 4 %/period over 58 periods against 5.6 % per period counts."""
     from nnphd.user.checks import FIT_ERROR_RATIO, trajectory_evidence, within_fit_error

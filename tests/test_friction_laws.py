@@ -1,4 +1,4 @@
-"""Issue 29: mixed friction laws, ties, the effect-size floor of a term, drives phase-locked to the motion, stretches
+"""Mixed friction laws, ties, the effect-size floor of a term, drives phase-locked to the motion, stretches
 at rest and the amplitude envelope — each against an analytic truth."""
 
 from __future__ import annotations

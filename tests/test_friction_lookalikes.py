@@ -1,4 +1,4 @@
-"""Issue 29 on constructed look-alikes of real friction records (tests/fixtures/friction.py): the law stage of
+"""Friction laws on constructed look-alikes of real friction records (tests/fixtures/friction.py): the law stage of
 ``nnphd detect`` (:func:`nnphd.user.detect.find_law`, the conservative library as base — the LNN is the verdict's
 business) gets the family (or reports a tie that holds it) and the coefficients, and never a confident wrong
 family. Slow tier: tens of seconds per case."""

@@ -62,7 +62,7 @@ def _peak(read, path) -> tuple[str, int]:
 
 
 def test_an_npy_header_bomb_is_refused_by_every_npz_reader_within_bounded_memory(tmp_path):
-    """Issue 55, case 2: numpy reads and decodes all the header that its length field declares before checking its
+    """A header bomb: numpy reads and decodes all the header that its length field declares before checking its
     size — 240 MiB here, which cost ≥ 480 MiB in each reader. A data column's member is refused from the zip
     directory (it is larger than a column of MAX_ROWS values); read_npz and a model file, whose size bounds it passes,
     refuse it from the header-length field. Each reader runs once first (on a missing file), so that what is

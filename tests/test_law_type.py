@@ -1,4 +1,4 @@
-"""Issue 32: one result type for a law (nnphd.explain.law.Law) — the ranked table's law, a parametric fit and a blind
+"""One result type for a law (nnphd.explain.law.Law) — the ranked table's law, a parametric fit and a blind
 formula are all a frozen Law; dicts only at the JSON boundary (to_dict / from_dict, checked as untrusted input)."""
 
 from __future__ import annotations

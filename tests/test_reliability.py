@@ -1,4 +1,4 @@
-"""Issue 13: bad input at the edges gives one line and exit 2 with nothing written; the --out folder is claimed by one
+"""Bad input at the edges gives one line and exit 2 with nothing written; the --out folder is claimed by one
 run at a time; a defect gives one line and exit 1; big inputs are read and evaluated in bounded chunks; and the
 numbers do not depend on the units (within the checked ranges)."""
 

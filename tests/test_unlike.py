@@ -1,4 +1,4 @@
-"""Issue 54's records unlike ours, end to end through ``detect`` (slow: tens of seconds each): a Rayleigh oscillator
+"""Records unlike the constructed ones, end to end through ``detect`` (slow: tens of seconds each): a Rayleigh oscillator
 reaching its limit cycle gets its law; two filmed throws with frame-to-frame correlated tracking noise, their field
 declared vertical, are "detected" with a drag that fits to the noise; a LAGEOS-like satellite's day under J2 (a
 conservative record smooth to 10⁻⁹) is not "detected" (it was, at confidence 0.99)."""

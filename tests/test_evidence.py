@@ -118,17 +118,21 @@ def test_a_fit_that_fails_on_long_windows_is_tried_on_shorter_ones(monkeypatch):
             return {"valid": False, "n_windows": 30, "reason": "the shooting fit collapsed (…)"}
         return {"valid": True, "n_windows": 60, "d_mean": 0.1}
 
-    monkeypatch.setattr(sh, "_shooting_fit", fake)
+    monkeypatch.setattr(sh, "shooting_fit_on_windows", fake)
     r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
     assert r["valid"] and r["window_periods"] == sh.WINDOW_PERIODS / 2 and calls == [0.75, 0.375]
     assert r["fallbacks"] == ["windows of 0.75 period: the shooting fit collapsed (…)"]
     # too few windows is no failure of the fit: not retried
     calls.clear()
-    monkeypatch.setattr(sh, "_shooting_fit", lambda *a: calls.append(a[-1]) or {"valid": False, "n_windows": 2})
+    monkeypatch.setattr(
+        sh, "shooting_fit_on_windows", lambda *a: calls.append(a[-1]) or {"valid": False, "n_windows": 2}
+    )
     r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
     assert not r["valid"] and calls == [0.75]
     # every length fails: the last reason, and why the longer ones failed
-    monkeypatch.setattr(sh, "_shooting_fit", lambda *a: {"valid": False, "n_windows": 9, "reason": f"bad {a[-1]}"})
+    monkeypatch.setattr(
+        sh, "shooting_fit_on_windows", lambda *a: {"valid": False, "n_windows": 9, "reason": f"bad {a[-1]}"}
+    )
     r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
     assert not r["valid"] and r["reason"] == "bad 0.1875" and len(r["fallbacks"]) == 2
 

@@ -198,7 +198,7 @@ def test_cli_failed_units_are_one_line_exit_1(tmp_path, capsys, monkeypatch):
     def broken(**kw):
         raise ValueError("no data")
 
-    monkeypatch.setattr(lp, "_lambda_p_subrun", broken)
+    monkeypatch.setattr(lp, "lambda_p_subrun", broken)
     argv = ["study", "lambda-p", "--systems", "ho+ld", "--ps", "1", "--lambdas", "0.5,2", "--steps", "4"]
     rc = main([*argv, "--workers", "1", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err.strip()

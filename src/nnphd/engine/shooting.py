@@ -366,7 +366,7 @@ def shooting_fit(
     seed: int = 0,
     max_windows: int = 400,
 ) -> dict:
-    """See :func:`_shooting_fit`; a fit that cannot be carried out (the model's trajectories leave the finite
+    """See :func:`shooting_fit_on_windows`; a fit that cannot be carried out (the model's trajectories leave the finite
     numbers, singular normal equations) or that collapses (:func:`collapsed`) is reported as ``valid: False`` with
     the reason, never raised. Such a fit is tried again on windows half and a quarter as long (on chaotic motion a
     window long against the Lyapunov time makes the fit ill-posed: nearby states part exponentially); the
@@ -375,7 +375,7 @@ def shooting_fit(
     for periods in (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
         try:
             with np.errstate(all="ignore"):
-                out = _shooting_fit(
+                out = shooting_fit_on_windows(
                     accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows, periods
                 )
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
@@ -404,7 +404,7 @@ def collapsed(d, se_d_mean: float, d_start, period: float) -> str | None:
     return None
 
 
-def _shooting_fit(
+def shooting_fit_on_windows(
     accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows, periods=WINDOW_PERIODS
 ):
     """Multiple-shooting fit of q̈ = (1 + c) f_c(q, q̇) − diag(d) q̇ to the positions (see the module docstring).

@@ -170,7 +170,7 @@ def _rms(a) -> float:
     return float(np.sqrt(np.mean(a * a)))
 
 
-def _lambda_p_subrun(
+def lambda_p_subrun(
     system: str,
     p,
     steps: int,
@@ -305,7 +305,7 @@ def lambda_p_units(
                 system=s, p=p, steps=steps, seed=seed, lambdas=lams, subdir=sub, force_lams=force_lambdas,
                 n_train=n_train, n_test=n_test, progress=nested(progress, f"{s} p={l}: done ", base, total),
             )  # fmt: skip
-            units.append(Unit(f"{s}/p={l}", _lambda_p_subrun, kw))
+            units.append(Unit(f"{s}/p={l}", lambda_p_subrun, kw))
     return units
 
 

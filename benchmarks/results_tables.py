@@ -1,8 +1,9 @@
-"""The tables of docs/RESULTS.md that are generated from ``benchmarks/results/*.json``, so they cannot drift from
-what was measured. Each sits between ``<!-- generated: NAME -->`` and ``<!-- end generated -->``; this script
+"""The tables of docs/RESULTS.md, docs/paper.md and docs/scaling.md that are generated from
+``benchmarks/results/*.json``, so they cannot drift from what was measured. Each sits between
+``<!-- generated: NAME -->`` and ``<!-- end generated -->`` (every table in one of the pages, once); this script
 re-renders them from the JSON. The prose around them is written by hand.
 
-    python benchmarks/results_tables.py           # rewrite docs/RESULTS.md in place
+    python benchmarks/results_tables.py           # rewrite the three pages in place
     python benchmarks/results_tables.py --check   # exit 1 (and say which) when a table differs from its JSON
 
 tests/test_results_tables.py runs ``--check``'s comparison.
@@ -19,7 +20,8 @@ import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 RESULTS = os.path.join(ROOT, "benchmarks", "results")
-DOC = os.path.join(ROOT, "docs", "RESULTS.md")
+DOCS = tuple(os.path.join(ROOT, "docs", name) for name in ("RESULTS.md", "paper.md", "scaling.md"))
+DOC = DOCS[0]  # nnphd detect's results; the paper's experiments are in paper.md, time and speed in scaling.md
 BLOCK = re.compile(r"(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end generated -->)", re.S)
 
 
@@ -399,7 +401,7 @@ LOOK_CASES = {  # the case column: what each look-alike of tests/fixtures/fricti
     "jitter-clock": "k/100 s written, 2 ms jitter",
     "heavy-damping": "ratio 0.13, 4 s",
     "sensor-20hz": "torsion, whole degrees",
-    "sensor-20hz-runs": "the same, 10 runs to rest, as the issue's record",
+    "sensor-20hz-runs": "the same, 10 runs, each to rest",
     "offset-rest": "θ₀ = 0.05, stuck in the dead band",
     "throw-2d": "60 fps, 1.2 s",
     "pendulum-free": "control",
@@ -1408,7 +1410,40 @@ def uan_settled() -> str:
     return "\n".join(out) + "\n"
 
 
+def conservative_controls() -> str:
+    """results/conservative_controls.json (benchmarks/conservative_controls.py): conservative records, seeds 0–2."""
+    d = _load("conservative_controls.json")
+    seeds = sorted({r["seed"] for r in d["runs"]})
+    by = {(r["record"], r["seed"]): r for r in d["runs"]}
+    records = list(dict.fromkeys(r["record"] for r in d["runs"]))
+
+    def cell(r) -> str:
+        st = r["status"] + ("" if r["confidence"] == 1.0 else f" ({r['confidence']:.2f})")
+        if r["candidate"] == "drive" and r["candidate_omega"] is not None:
+            st += f", drive ω = {r['candidate_omega']:.4f}" + ("" if r["status"] != "none" else " not claimed")
+        return st
+
+    out = ["| record | frame | " + " | ".join(f"seed {s}" for s in seeds) + " | s |", "|---" * (3 + len(seeds)) + "|"]
+    for name in records:
+        runs = [by[name, s] for s in seeds]
+        drive = runs[0]["known_drive_omega"]
+        label = name + (f" (the Sun's tide: ω = {drive:.4f})" if drive else "")
+        secs = ", ".join(f"{r['wall_s']:.0f}" for r in runs)
+        out.append(f"| {label} | {runs[0]['frame']} | " + " | ".join(cell(r) for r in runs) + f" | {secs} |")
+    out.append("")
+    out.append(
+        "; ".join(
+            f"seed {s}: {x['detected']} detected, {x['none']} none of {x['runs']} ({100 * x['none_share']:.0f} %; "
+            f"{x['autonomous']['none']} of the {x['autonomous']['runs']} autonomous records)"
+            for s, x in sorted(d["summary"].items())
+        )
+        + "."
+    )
+    return "\n".join(out) + "\n"
+
+
 TABLES = {
+    "conservative_controls": conservative_controls,
     "stage_times": stage_times,
     "cluster_scaling": cluster_scaling,
     "declared_field_guard": declared_field_guard,
@@ -1450,7 +1485,7 @@ def render(text: str) -> tuple[str, list[str]]:
     def one(m):
         name = m.group("name")
         if name not in TABLES:
-            raise SystemExit(f"error: {DOC}: unknown generated table {name!r}; expected one of {', '.join(TABLES)}")
+            raise SystemExit(f"error: unknown generated table {name!r}; expected one of {', '.join(TABLES)}")
         body = TABLES[name]()
         if body != m.group("body"):
             changed.append(name)
@@ -1463,20 +1498,25 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--check", action="store_true", help="change nothing; exit 1 when a table differs")
     a = ap.parse_args()
-    with open(DOC, encoding="utf-8") as f:
-        text = f.read()
-    new, changed = render(text)
+    differ = []
+    for doc in DOCS:
+        with open(doc, encoding="utf-8") as f:
+            text = f.read()
+        new, changed = render(text)
+        name = os.path.relpath(doc, ROOT)
+        if a.check:
+            differ += [f"{name}: {c}" for c in changed]
+            continue
+        tmp = doc + ".tmp"
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(new)
+        os.replace(tmp, doc)
+        print(f"{name}: rewrote {', '.join(changed) or 'nothing (all up to date)'}")
+    if differ:
+        print(f"differs from the JSON: {', '.join(differ)}", file=sys.stderr)
+        raise SystemExit(1)
     if a.check:
-        if changed:
-            print(f"docs/RESULTS.md differs from the JSON in: {', '.join(changed)}", file=sys.stderr)
-            raise SystemExit(1)
-        print("docs/RESULTS.md: every generated table matches its JSON")
-        return
-    tmp = DOC + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as f:
-        f.write(new)
-    os.replace(tmp, DOC)
-    print(f"rewrote: {', '.join(changed) or 'nothing (all up to date)'}")
+        print("every generated table matches its JSON")
 
 
 if __name__ == "__main__":

@@ -12,10 +12,10 @@ from scipy.integrate import solve_ivp
 
 from nnphd.explain.envelope import (
     Orbit,
-    _pooled_row,
     envelope_curve,
     fit_envelope,
     measured_envelope,
+    pooled_row,
     swing_centre,
     swing_orbit,
 )
@@ -154,14 +154,14 @@ def test_the_windows_and_the_envelope_are_pooled_and_two_laws_are_not_one():
     t = np.linspace(0, 20, 400)
     win = _row("linear+coulomb", [0.2, 0.1], [0.02, 0.05])
     env = {"beta": np.array([0.24, 0.12]), "cov": np.diag([0.01**2, 0.01**2]), "chi2": 10.0, "k": 3}
-    new = _pooled_row(win, env, n=13, n_eff=13, q=q, qd=qd, t=t, names=["th"])
+    new = pooled_row(win, env, n=13, n_eff=13, q=q, qd=qd, t=t, names=["th"])
     # inverse-variance weights: γ (0.2 ± 0.02, 0.24 ± 0.01) → 0.232; μ (0.1 ± 0.05, 0.12 ± 0.01) → 0.1192
     assert new.params["gamma"] == pytest.approx((0.2 / 0.02**2 + 0.24 / 0.01**2) / (1 / 0.02**2 + 1 / 0.01**2))
     assert new.params["mu"] == pytest.approx((0.1 / 0.05**2 + 0.12 / 0.01**2) / (1 / 0.05**2 + 1 / 0.01**2))
     assert new.envelope["agree"] and new.significant
     # the same family with an envelope that needs a damping twice as strong: two laws, not eligible
     far = dict(env, beta=np.array([0.4, 0.12]))
-    bad = _pooled_row(win, far, n=13, n_eff=13, q=q, qd=qd, t=t, names=["th"])
+    bad = pooled_row(win, far, n=13, n_eff=13, q=q, qd=qd, t=t, names=["th"])
     assert not bad.envelope["agree"] and not bad.significant
 
 

@@ -363,7 +363,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
     Each family is fitted to the measured envelope (:func:`fit_envelope`, on the orbit of :func:`swing_orbit`); its
     envelope IC, n_eff·log(χ²/n) + k·log(n_eff) (n_eff = n/τ, τ from the lag-1 correlation of the best fit's
     residuals), relative to the zero law's, is added to its windows' IC, and its coefficients are pooled from the
-    two fits (:func:`_pooled_row`: eligible only where they agree — a Rayleigh law that pumps energy into a decaying
+    two fits (:func:`pooled_row`: eligible only where they agree — a Rayleigh law that pumps energy into a decaying
     record in the windows and damps it in the envelope is not one law). The envelope sorts the families the windows
     do not reject (windows' ΔIC < IC_TIE); it never makes a law on its own. Drives are not fitted to the envelope
     (a cycle average loses their phase): they keep their windows' IC."""
@@ -407,7 +407,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
             rows.append(replace(r, significant=r.significant if r.family is not None else True))
             continue
         d_ic = float(ic(f) - ic(zero))
-        new = _pooled_row(r, f, n, n_eff, q, qd, t, table.settings["names"])
+        new = pooled_row(r, f, n, n_eff, q, qd, t, table.settings["names"])
         new.ic, new.delta_ic = r.ic + d_ic, r.delta_ic + d_ic
         new.heldout_mse, new.heldout_ratio = r.heldout_mse, r.heldout_ratio
         new.envelope["delta_ic"] = d_ic
@@ -477,7 +477,7 @@ def blocked_by_disagreement(table):
     return min(bar, key=lambda r: r.ic) if bar else None
 
 
-def _pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
+def pooled_row(r, f: dict, n: int, n_eff: float, q, qd, t, names):
     """The row with each coefficient pooled from its two independent estimates — the windows' (the table's) and
     the envelope's — by their inverse variances; eligible when the two agree (their Mahalanobis distance within the
     :data:`AGREE_P` quantile of χ²(K): else they are two different laws), each pooled term is ≥ Z_TERM se from zero and (a sum) carries ≥

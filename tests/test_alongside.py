@@ -150,8 +150,8 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
     monkeypatch.delenv("NNPHD_WORKER", raising=False)
     rec = F.make("heavy-damping", seed=0)
     ud = load_trajectories(rec.write_csv(tmp_path / "hd.csv"), rec.angles)
-    data, info, _ = Derivatives().dataset(ud)
-    rows = info.pop("_rows")
+    d = Derivatives().dataset(ud)
+    data, info, rows = d.data, d.info, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     angles = [bool(a) for a in ud.is_angle]
     with StageTimer() as timer:
@@ -181,8 +181,8 @@ def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):
 
     rec = F.make("heavy-damping", seed=0)
     ud = load_trajectories(rec.write_csv(tmp_path / "hd.csv"), rec.angles)
-    data, info, _ = Derivatives().dataset(ud)
-    rows = info.pop("_rows")
+    d = Derivatives().dataset(ud)
+    data, info, rows = d.data, d.info, d.row_errors
     traj = np.zeros(len(data.t), int)
     stop = threading.Event()
     stop.set()

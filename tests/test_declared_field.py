@@ -184,13 +184,15 @@ def test_a_throw_does_not_oscillate_and_a_declared_field_refuses_one_that_does(t
 
     t, _, _, _, noisy = _throw()
     ud = _userdata(tmp_path, t, noisy, ("x", "y"))
-    data, info, _ = Derivatives().dataset(ud)
+    d = Derivatives().dataset(ud)
+    data, info = d.data, d.info
     assert motion_period(data) == np.inf
     check_declared_field("uniform", data, None, ud, info)  # a throw: accepted
     tt = np.arange(600) / 50.0  # a damped oscillation of period 2: refused before any training
     q = (np.exp(-0.05 * tt) * np.cos(np.pi * tt))[:, None] + 1e-3 * np.random.default_rng(0).standard_normal((600, 1))
     ud = _userdata(tmp_path, tt, q, ("x",))
-    data, info, _ = Derivatives().dataset(ud)
+    d = Derivatives().dataset(ud)
+    data, info = d.data, d.info
     assert motion_period(data) == pytest.approx(2.0, rel=0.05)
     check_declared_field("learned", data, None, ud, info)
     with pytest.raises(
@@ -227,8 +229,8 @@ def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
     for c in (0.0, 0.012):
         t, _, _, _, noisy = _throw(c=c)
         ud = _userdata(tmp_path, t, noisy, ("x", "y"))
-        data, info, _ = Derivatives().dataset(ud)
-        row_err = info.pop("_rows", None)
+        d = Derivatives().dataset(ud)
+        data, info, row_err = d.data, d.info, d.row_errors
         tab = find_law(data, np.zeros(len(data.t), int), ["x", "y"], [False, False], info, row_err, field="uniform")
         assert tab.settings["library"] == "minimal"
         zero = next(r for r in tab.rows if r.key == "none")
@@ -255,8 +257,8 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
 
     rec = F.make("throw-2d", seed=2)
     ud = load_trajectories(rec.write_csv(tmp_path / "throw.csv"), rec.angles)
-    data, info, _ = Derivatives().dataset(ud)
-    row_err = info.pop("_rows", None)
+    d = Derivatives().dataset(ud)
+    data, info, row_err = d.data, d.info, d.row_errors
     traj = np.zeros(len(data.t), int)
     tab = find_law(data, traj, ["x", "y"], [False, False], info, row_err, field="vertical")
     assert tab.settings["library"] == "vertical" and tab.settings["conservative_columns"] == 1

@@ -20,8 +20,8 @@ def _law_table(name, tmp_path):
 
     rec = F.make(name, seed=0)
     ud = load_trajectories(rec.write_csv(tmp_path / f"{name}.csv"), rec.angles)
-    data, info, _ = Derivatives().dataset(ud)
-    rows = info.pop("_rows")
+    d = Derivatives().dataset(ud)
+    data, info, rows = d.data, d.info, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     return rec, find_law(data, traj, list(ud.coords), [bool(a) for a in ud.is_angle], info, rows)
 

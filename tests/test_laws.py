@@ -96,8 +96,8 @@ def _law_from_csv(path, angles=()):
     from nnphd.user.recording import load_trajectories
 
     ud = load_trajectories(path, angles)
-    data, info, _ = Derivatives().dataset(ud)
-    rows = info.pop("_rows")
+    d = Derivatives().dataset(ud)
+    data, info, rows = d.data, d.info, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     return find_law(data, traj, list(ud.coords), [bool(x) for x in ud.is_angle], info, rows)
 

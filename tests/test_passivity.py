@@ -69,7 +69,7 @@ def _table(law, others):
 
 
 def _lib(n):
-    return LawTable([], None, "", 1.0, 1.0, "", {"_whole_record": {"t": np.zeros(n)}})
+    return LawTable([], None, "", 1.0, 1.0, "", {}, whole_record={"t": np.zeros(n)})
 
 
 def test_a_passive_law_needs_no_whole_record_fit():

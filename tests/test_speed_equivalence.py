@@ -183,7 +183,7 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
     rows = [row("linear", [2.0]), row("quadratic", [3.0])]
     zero = zero_row(["th"], 1.0, 10, "trajectory")
     zero.ic = zero.delta_ic = 0.0
-    settings = {"method": "trajectory", "names": ["th"], "library": False if with_fc else "short", "_center": None}
+    settings = {"method": "trajectory", "names": ["th"], "library": False if with_fc else "short"}
     table = LawTable([rows[0], zero, rows[1]], rows[0], "r", 10.0, 1.0, "f", settings)
     fc_fn = (lambda q_, v_: -50.0 * jnp.sin(q_)) if with_fc else None
     outs = [stop_contradictions(table, rest["final"], q, qd, t, traj, period, angles=(True,), fc_fn=fc_fn,

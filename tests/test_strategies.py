@@ -112,16 +112,19 @@ def test_estimate_is_accurate_and_the_method_matters():
 def test_dataset_auto_trim_is_the_old_rule():
     """Derivatives.dataset: what detect's data set was — trimmed when every trajectory keeps enough rows, else not."""
     data = from_arrays([T, T[:16]], [Q, Q[:16]], names=["x"])  # what nnphd.Trajectories holds
-    ds, info, trim = nnphd.Derivatives().dataset(data)
+    d = nnphd.Derivatives().dataset(data)
+    ds, info, trim = d.data, d.info, d.trim
     ref, ref_info = to_dataset(data, trim=False)  # the 16-row trajectory cannot be trimmed: neither is
     assert trim is False and info["trim"] is False
     np.testing.assert_array_equal(ds.qdd, ref.qdd)
     long = from_arrays([T, T[:200]], [Q, Q[:200]], names=["x"])
-    ds, info, trim = nnphd.Derivatives().dataset(long)
+    d = nnphd.Derivatives().dataset(long)
+    ds, info, trim = d.data, d.info, d.trim
     ref, _ = to_dataset(long, trim=True)
     assert trim is True and len(ds) == len(ref) == 401 + 200 - 2 * 6  # 3 rows off each end
     np.testing.assert_array_equal(ds.qdd, ref.qdd)
-    ds, info, _ = nnphd.Derivatives("spline", trim=False).dataset(long)
+    d = nnphd.Derivatives("spline", trim=False).dataset(long)
+    ds, info = d.data, d.info
     assert info["method"] == "spline" and len(ds) == 601
 
 
@@ -180,12 +183,12 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
     import nnphd.user.derivatives as derivatives
     import nnphd.user.detect as detect
 
-    to_dataset = derivatives.to_dataset
+    derive = derivatives.derive
 
     def derived(*a, **k):  # the derivatives as estimated (the last data set made is the one used)
-        data, info = to_dataset(*a, **k)
-        seen.update(method=info["method"], trim=info["trim"])
-        return data, info
+        d = derive(*a, **k)
+        seen.update(method=d.info["method"], trim=d.info["trim"])
+        return d
 
     def assess(data, traj, **k):
         seen.update(rows=len(data))
@@ -197,7 +200,7 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
         seen.update(families=k["families"], laws=k["laws"], level=k["level"])
         raise _Stop
 
-    monkeypatch.setattr(derivatives, "to_dataset", derived)
+    monkeypatch.setattr(derivatives, "derive", derived)
     monkeypatch.setattr(assess_mod, "assess", assess)
     monkeypatch.setattr(detect, "find_law", find_law)
 
@@ -233,8 +236,8 @@ def test_restricted_families_are_the_only_candidates_ranked():
     w = np.sqrt(1 - 0.05**2)
     xs = [x0 * np.exp(-0.05 * t) * np.cos(w * t) + 1e-4 * rng.standard_normal(t.size) for x0, t in zip((1.0, -0.7), ts)]
     ud = from_arrays(ts, xs, names=["x"])
-    ds, info, _ = nnphd.Derivatives().dataset(ud)
-    rows = info.pop("_rows")
+    d = nnphd.Derivatives().dataset(ud)
+    ds, info, rows = d.data, d.info, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
 
     def ranked(**kw):

@@ -28,7 +28,7 @@ def _row(key, beta, ic, cons=(0.0, A), se_cons=0.01):
 def _table(rows):
     zero = zero_row(["th"], 1.0, 10, "trajectory")
     zero.ic = zero.delta_ic = 0.0
-    settings = {"method": "trajectory", "names": ["th"], "library": "short", "_center": None}
+    settings = {"method": "trajectory", "names": ["th"], "library": "short"}
     best = min(rows, key=lambda r: r.ic)
     return LawTable([best, zero, *(r for r in rows if r is not best)], best, "r", 10.0, 1.0, "f", settings)
 

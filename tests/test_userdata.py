@@ -30,7 +30,7 @@ from scipy.integrate import solve_ivp
 from scipy.signal import savgol_filter
 
 import nnphd  # noqa: F401  (enables float64)
-from nnphd.user.derivatives import estimate_derivatives, to_dataset
+from nnphd.user.derivatives import derive, estimate_derivatives, to_dataset
 from nnphd.user.recording import MIN_ROWS, DataError, load_trajectories
 from nnphd.user.sampling import noise_level
 
@@ -228,15 +228,17 @@ def test_npz_matches_csv_and_info_is_json(tmp_path):
     noisy = th + 1e-3 * th.std() * np.random.default_rng(4).standard_normal(t.size)
     traj = np.r_[np.zeros(100), np.ones(t.size - 100)]
     cols = {"t": np.r_[t[:100], t[100:]], "traj": traj, "theta": noisy, "x": 0.5 * noisy + t}
-    csv_ds, csv_info = to_dataset(
+    csv = derive(
         load_trajectories(write_csv(tmp_path / "a.csv", list(cols), list(cols.values())), angles=("theta",)), trim=True
     )
+    csv_ds, csv_info = csv.data, csv.info
     np.savez(tmp_path / "a.npz", **cols)
-    npz_ds, npz_info = to_dataset(load_trajectories(tmp_path / "a.npz", angles=("theta",)), trim=True)
+    npz = derive(load_trajectories(tmp_path / "a.npz", angles=("theta",)), trim=True)
+    npz_ds, npz_info = npz.data, npz.info
     for f in ("q", "qd", "qdd", "t"):
         np.testing.assert_array_equal(getattr(csv_ds, f), getattr(npz_ds, f))
     npz_info.pop("trajectories"), csv_info.pop("trajectories")
-    rows_csv, rows_npz = csv_info.pop("_rows"), npz_info.pop("_rows")  # per-row errors: arrays, not JSON
+    rows_csv, rows_npz = csv.row_errors, npz.row_errors  # per-row errors: arrays, not JSON
     assert rows_csv["qdd_err"].shape == (len(csv_ds), 2)
     np.testing.assert_array_equal(rows_csv["qdd_err"], rows_npz["qdd_err"])
     assert csv_info == npz_info
@@ -569,8 +571,8 @@ def test_to_dataset_reports_per_row_errors(tmp_path):
     x = x_px[:n]
     path = write_csv(tmp_path / "lab.csv", ["t", "theta", "x", "x_dot"], [t, y, x, np.gradient(x, t)], fmt="%.6f")
     ud = load_trajectories(path, angles=["theta"])
-    ds, info = to_dataset(ud)
-    rows = info.pop("_rows")
+    d = derive(ud)
+    ds, info, rows = d.data, d.info, d.row_errors
     json.dumps(info)  # the rest is JSON-ready
     assert rows["qdd_err"].shape == rows["qd_err"].shape == (len(ds), 2)
     assert np.isnan(rows["qd_err"][:, 1]).all() and np.isfinite(rows["qdd_err"]).all()  # x_dot given, x_ddot not
@@ -585,9 +587,9 @@ def test_to_dataset_reports_per_row_errors(tmp_path):
     assert tr["sampling"] == "near-uniform" and tr["method"] == "local" and tr["time_base"] == "recorded"
     assert tr["dt"] is None and tr["dt_median"] == pytest.approx(1 / 6, rel=0.02) and tr["dt_ratio"] > 3
 
-    ds_t, info_t = to_dataset(ud, trim=True)
-    a, b = info_t["trajectories"][0]["kept"]
-    assert 0 < a and b < n and len(ds_t) == b - a == len(info_t["_rows"]["qdd_err"])
+    d_t = derive(ud, trim=True)
+    a, b = d_t.info["trajectories"][0]["kept"]
+    assert 0 < a and b < n and len(d_t.data) == b - a == len(d_t.row_errors["qdd_err"])
 
 
 def test_suggest_angles(tmp_path):

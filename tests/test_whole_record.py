@@ -43,7 +43,7 @@ class _Ranked:
 
 def _lib():
     ctx = {"t": np.zeros(2365)}
-    return LawTable([], None, "", 1.0, 1.0, "", {"_whole_record": ctx})
+    return LawTable([], None, "", 1.0, 1.0, "", {}, whole_record=ctx)
 
 
 N_RES = 2365  # the residuals of _lib()'s record: its n_eff with τ = 1

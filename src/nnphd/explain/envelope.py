@@ -422,6 +422,7 @@ def envelope_evidence(table, q, qd, t, traj, sigma: float, angle: bool = False):
         table.folds + f" + the amplitude envelope ({n} half swings)",
         {**table.settings, "envelope_swings": n, "envelope_omega": orbit.omega, "envelope_pendulum": orbit.pendulum},
         judge=False,
+        base=table.base,
     )
     blocked = blocked_by_disagreement(out)
     if blocked is not None:

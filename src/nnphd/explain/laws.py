@@ -34,6 +34,7 @@ from nnphd.explain.jointfit import (
 )
 from nnphd.explain.table import (
     IC_TIE,
+    BaseFit,
     Candidate,
     LawTable,
     law_row,
@@ -202,8 +203,8 @@ def rank_laws(
     y_rms = float(np.sqrt(np.mean(qdd**2)))
     relative_to_zero(rows, y_rms)
     rows = _best_sparse_only(rows)
-    settings = _table_settings(n_boot, seed, N, C, prob, fc, names, library, n_extra, alphas, center, y_rms)
-    return select_law(rows, n_eff, tau, fold_desc, settings)
+    settings = _table_settings(n_boot, seed, N, C, prob, fc, names, library, n_extra)
+    return select_law(rows, n_eff, tau, fold_desc, settings, base=BaseFit(alphas, center, y_rms))
 
 
 def _row_weights(qdd, qdd_err) -> np.ndarray:
@@ -322,8 +323,8 @@ def _best_sparse_only(rows: list[Candidate]) -> list[Candidate]:
     return [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
 
 
-def _table_settings(n_boot, seed, N, C, prob: JointProblem, fc, names, library, n_extra, alphas, center, y_rms):
-    """The table's settings (those starting with "_" are for the code, not the report)."""
+def _table_settings(n_boot, seed, N, C, prob: JointProblem, fc, names, library, n_extra):
+    """The table's settings, as the report shows them."""
     return {
         "mu": MU,
         "ic_tie": IC_TIE,
@@ -337,7 +338,4 @@ def _table_settings(n_boot, seed, N, C, prob: JointProblem, fc, names, library, 
         "names": names,
         "library": library if library in ("minimal", "short", "vertical") else bool(library),
         "conservative_extra": int(n_extra),
-        "_alpha": alphas,
-        "_center": center,
-        "_y_rms": y_rms,
     }

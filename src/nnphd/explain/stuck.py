@@ -73,7 +73,7 @@ def stuck_contradictions(table, stretches, *, angles, fc_fn=None) -> dict:
     settings = table.settings
     if settings.get("method") != "trajectory" or not stretches or len(settings.get("names", [])) != 1:
         return {}
-    center, library = settings.get("_center"), settings.get("library", True)
+    center, library = (table.base.center if table.base is not None else None), settings.get("library", True)
 
     def columns(q):  # (n, Kc) conservative columns at the positions q (1, n), at rest
         q = np.asarray(q, float).reshape(1, -1)
@@ -253,7 +253,7 @@ def stop_contradictions(
     ]
     if not rows:
         return {}
-    center, library = settings.get("_center"), settings.get("library", True)
+    center, library = (table.base.center if table.base is not None else None), settings.get("library", True)
     q, qd, t, traj = (np.asarray(a, float).reshape(len(t), -1) for a in (q, qd, t, traj))
     t, traj, q, qd = t[:, 0], traj[:, 0], q[:, 0], qd[:, 0]
     fc_fn = _compiled(fc_fn)
@@ -359,7 +359,7 @@ def bar_stuck(table, contradicted: dict):
             env = None if r.envelope is None else {**r.envelope, "eligible_but_agreement": False}
             r = replace(r, significant=False, stuck=contradicted[r.key], envelope=env)
         rows.append(r)
-    out = select_law(rows, table.n_eff, table.tau, table.folds, table.settings, judge=False)
+    out = select_law(rows, table.n_eff, table.tau, table.folds, table.settings, judge=False, base=table.base)
     blocked = blocked_by_disagreement(out)
     if blocked is not None:  # as in nnphd.explain.envelope: a candidate the envelope clearly prefers bars the law
         out.law, out.ties, out.blocked = None, [], blocked

@@ -146,9 +146,22 @@ class Candidate:
         return g
 
 
+@dataclass(frozen=True)
+class BaseFit:
+    """What the later stages of the law search start from, kept beside the table (not in its report): the pointwise
+    joint fit's conservative coefficients (one vector per candidate, the zero law first), the centring of the
+    library's columns, and the RMS of the fitted q̈ (the scale of the relative errors)."""
+
+    alphas: list
+    center: tuple | None
+    y_rms: float
+
+
 @dataclass
 class LawTable:
-    """The ranked candidates (winner first), the law (None when no candidate beats zero) and why."""
+    """The ranked candidates (winner first), the law (None when no candidate beats zero) and why. ``base``: the
+    pointwise fit the later stages start from; ``whole_record``: what a tie's fit over the whole record needs
+    (:func:`nnphd.explain.wholerecord.context`), on the table of the conservative library alone."""
 
     rows: list[Candidate]
     law: Candidate | None
@@ -160,6 +173,8 @@ class LawTable:
     ties: list[Candidate] = field(default_factory=list)  # families as good as the law (within IC_TIE, not nested)
     # no law because the best candidate's two fits (windows, envelope) disagree: that candidate (see envelope.py)
     blocked: Candidate | None = None
+    base: BaseFit | None = None
+    whole_record: dict | None = None
 
     @property
     def status(self) -> str:
@@ -186,7 +201,7 @@ class LawTable:
             "n_eff": self.n_eff,
             "tau": self.tau,
             "folds": self.folds,
-            "settings": {k: v for k, v in self.settings.items() if not k.startswith("_")},
+            "settings": dict(self.settings),
         }
 
 
@@ -364,7 +379,7 @@ def relative_to_zero(rows: list[Candidate], y_rms: float) -> None:
         r.fn_rel = float(np.sqrt(np.mean(r.fn**2))) / (y_rms or 1.0)
 
 
-def select_law(rows: list[Candidate], n_eff, tau, folds, settings, judge: bool = True) -> LawTable:
+def select_law(rows: list[Candidate], n_eff, tau, folds, settings, judge: bool = True, base=None) -> LawTable:
     if judge:
         _significance(rows)
     order = {id(r): i for i, r in enumerate(rows)}
@@ -413,7 +428,7 @@ def select_law(rows: list[Candidate], n_eff, tau, folds, settings, judge: bool =
                 f" {INELIGIBLE}"
             )
         law = win
-    return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings, ties)
+    return LawTable(rows, law, reason, float(n_eff), float(tau), folds, settings, ties, base=base)
 
 
 INELIGIBLE = (

@@ -297,7 +297,7 @@ def noise_correlation(results) -> float:
     return float(np.clip(np.median(ok), 0.0, 0.95))
 
 
-def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
+def _trajectory_rows(results, settings: dict, y_rms: float, q_pos, qd, t, n_res: int):
     """The table's rows from the ranking entries: IC with n_eff = n_res/τ residuals, τ = (1 + ρ)/(1 − ρ)·ĉ from the
     lag-one correlation ρ of the adequate fits (:func:`noise_correlation`) and the overdispersion ĉ; each row with
     its joint fit's conservative part. Returns (rows, n_eff, τ)."""
@@ -321,7 +321,7 @@ def _trajectory_rows(results, settings: dict, q_pos, qd, t, n_res: int):
         # the conservative part of the joint fit; its covariance widened by the residuals' correlation (τ)
         new.conservative, new.conservative_cov = np.asarray(th[:Kc], float), cov_c * tau
         rows.append(new)
-    relative_to_zero(rows, settings["_y_rms"])
+    relative_to_zero(rows, y_rms)
     return rows, n_eff, tau
 
 
@@ -484,10 +484,10 @@ def rank_trajectory(
     Kc = table.settings["conservative_columns"]
     zero = next(r for r in table.rows if r.key == "none")
     cands = [r for r in table.rows if r.key != "none"][:shortlist]  # the table holds one row per family
-    alpha0 = table.settings["_alpha"]
+    alpha0 = table.base.alphas
     fams = [r.family for r in cands]
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
-    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings["_center"], table.settings.get("library", True))
+    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.base.center, table.settings.get("library", True))
     fit = functools.partial(
         _fit_row, cands=cands, layout=(slots, P_dir, nl_defaults, alpha0, Kc), model=(args, rhs, nsub), s0=s0,
         in_sample=in_sample, n=n, W=W, groups=groups, n_res=n_res, n_boot=n_boot, seed=seed,
@@ -495,7 +495,7 @@ def rank_trajectory(
     results = fit_rows(fit, zero, cands, threads)
     if results is None or len(results) < 2:  # no zero law, or nothing beside it: the table stands
         return table
-    rows, n_eff, tau = _trajectory_rows(results, table.settings, q_pos, qd, t, n_res)
+    rows, n_eff, tau = _trajectory_rows(results, table.settings, table.base.y_rms, q_pos, qd, t, n_res)
     return select_law(
         rows,
         n_eff,
@@ -513,4 +513,5 @@ def rank_trajectory(
             "substeps": nsub,
             "pointwise_candidates": [r.to_dict() for r in table.rows],
         },
+        base=table.base,
     )

@@ -39,7 +39,7 @@ ALL_WINDOWS = 10**9  # min_windows for rank_trajectory: never enough windows, so
 
 
 def context(pointwise, data, traj, rows, sigma, period: float, angles, seed: int, refit=None) -> dict:
-    """What :func:`break_tie` needs of a library-base law table, kept in its ``settings["_whole_record"]``: the
+    """What :func:`break_tie` needs of a library-base law table, kept as its ``whole_record``: the
     pointwise table (its rows carry the conservative starts of the fits), the moving rows' data, the rows the
     trajectory-level fits use (thinned), the position noise, the period, the angles, the seed, and ``refit(library)``
     → the pointwise table with another conservative library ("short": a pendulum about any rest angle, springs to
@@ -122,7 +122,7 @@ def _family_ics(fits, keys: list[str], n_res: int):
 
 def break_tie(table, lib):
     """``table`` (a LawTable whose status is "tie"; any other is returned as it is) re-judged by the whole record,
-    fitted beside the conservative libraries (``lib``: the library base's table, with ``settings["_whole_record"]``
+    fitted beside the conservative libraries (``lib``: the library base's table, with its ``whole_record``
     from :func:`context`; without it the tie stands; :func:`_family_ics`). Families ≥ IC_TIE behind the best
     whole-record fit leave the tie; one left is claimed (the table's own row of it: its coefficients from the windows
     and the envelope). The tie stands where a member has no whole-record fit at an optimum that follows the record
@@ -132,7 +132,7 @@ def break_tie(table, lib):
 
     if table.status != "tie":
         return table
-    ctx = (lib.settings if lib is not None else {}).get("_whole_record")
+    ctx = lib.whole_record if lib is not None else None
     members = [table.law, *table.ties]
     keys = [m.key for m in members]
 
@@ -256,7 +256,7 @@ def passivity(table, lib, q, qd, t) -> dict | None:
         if s is not None and s < ACTIVE_SHARE_MAX:
             passive.append(r.key)
     info["passive_candidates"] = passive
-    ctx = (lib.settings if lib is not None else {}).get("_whole_record")
+    ctx = lib.whole_record if lib is not None else None
     if not passive:
         info["why"] = "no eligible passive candidate to compare with"
         return info

@@ -346,12 +346,13 @@ def clock_testable(t, segs) -> tuple[bool, str]:
 # trajectory-level evidence and the status of one seed
 
 
-def trajectory_evidence(trend: dict, shoot: dict) -> dict:
+def trajectory_evidence(trend: dict, shoot: dict, replicas: tuple = ((), ())) -> dict:
     """Combine the energy trend and the shooting fit into one call: ``significant`` when both are valid, agree in
     sign (energy falls ⇔ damping d̄ > 0) and both reach Z_BOTH, or either alone reaches Z_ONE while the other does
     not contradict it (same sign or invalid); ``bound``: with no significant evidence, the 95 % upper limit on the
     decay rate |r| + 2 se of the energy trend (file units) when it is valid. ``bootstrap_fraction``: the share of
-    window/block bootstrap replicas that stay significant (the two bootstraps paired replica by replica)."""
+    window/block bootstrap replicas that stay significant (the two bootstraps paired replica by replica;
+    ``replicas``: the z of the energy trend's and of the shooting fit's replicas)."""
     zt = trend.get("z", 0.0) if trend.get("valid") else None
     zs = shoot.get("z", 0.0) if shoot.get("valid") else None
     tiny = negligible_effect(trend, shoot)
@@ -381,8 +382,8 @@ def trajectory_evidence(trend: dict, shoot: dict) -> dict:
         return x is not None and abs(x) >= Z_ONE
 
     sig = rule(zt, zs)
-    bt = [] if tiny["energy"] else trend.get("_bootstrap_z", [])
-    bs = [] if tiny["shooting"] else shoot.get("_bootstrap_z", [])
+    bt = [] if tiny["energy"] else list(replicas[0])
+    bs = [] if tiny["shooting"] else list(replicas[1])
     nb = max(len(bt), len(bs))
     reps = [
         rule(bt[i] if i < len(bt) and zt is not None else zt, bs[i] if i < len(bs) and zs is not None else zs)

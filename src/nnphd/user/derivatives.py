@@ -356,11 +356,23 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
     return {"qd": qd, "qdd": qdd, "keep": keep, **stats}
 
 
+@dataclass(frozen=True)
+class DerivedData:
+    """A record's stacked data set with its derivatives (:func:`derive`): ``data`` (a Dataset), ``info`` (JSON-ready,
+    :func:`to_dataset`), ``row_errors`` = {"qd_err", "qdd_err"}: each (data set rows, n), the estimated error of
+    every row's q̇ / q̈ (NaN in given columns) — larger at the trajectory ends and next to gaps, for weighting or
+    trimming rows — and ``trim``: whether the ends were trimmed."""
+
+    data: object
+    info: dict
+    row_errors: dict
+    trim: bool
+
+
 def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
     """Stack all trajectories into a :class:`nnphd.engine.data.Dataset` (q as given, q̇/q̈ given or estimated per trajectory).
 
-    Returns ``(dataset, info)``.  ``info`` is JSON-ready except for ``info["_rows"]``, which callers should pop before
-    serialising:
+    Returns ``(dataset, info)`` (:func:`derive` keeps the per-row errors too).  ``info`` is JSON-ready:
 
     * ``coordinates``, ``angles``, ``n_traj``, ``n_rows`` (file rows), ``n_samples`` (data set rows), ``trimmed``
       (rows dropped), ``trim``, ``method`` ("savgol", "local", "spline", "given" or "mixed");
@@ -373,11 +385,14 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
       "irregular"), ``time_base`` ("recorded" or "nominal"), ``dt`` (the grid spacing, None unless uniform),
       ``dt_median``, ``dt_ratio`` (largest over median spacing; None for a single sample) and ``kept`` =
       [start, stop): the data set holds rows start…stop-1 of each trajectory, in trajectory
-      order, so its file rows are ``np.concatenate([tr.rows[a:b] for tr, (a, b) in ...])``;
-    * ``_rows`` (not JSON): ``{"qd_err": ndarray, "qdd_err": ndarray}``, each (data set rows, n), the estimated error
-      of every row's q̇ / q̈ (NaN in given columns) — larger at the trajectory ends and next to gaps, for weighting or
-      trimming rows.
+      order, so its file rows are ``np.concatenate([tr.rows[a:b] for tr, (a, b) in ...])``.
     """
+    d = derive(userdata, method=method, trim=trim)
+    return d.data, d.info
+
+
+def derive(userdata: UserData, *, method: str = "auto", trim: bool = False) -> DerivedData:
+    """:func:`to_dataset`'s data set and info with the per-row errors of its derivative estimates."""
     from nnphd.engine.data import Dataset
 
     parts = {"q": [], "qd": [], "qdd": [], "t": [], "qd_err_rows": [], "qdd_err_rows": []}
@@ -462,9 +477,8 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
         "method": methods[0] if len(methods) == 1 else "mixed",
         "per_coordinate": per_coord,
         "trajectories": per_traj,
-        "_rows": rows,
     }
-    return ds, info
+    return DerivedData(ds, info, rows, bool(trim))
 
 
 # ---- the strategy object --------------------------------------------------------------------------------------------
@@ -514,18 +528,17 @@ class Derivatives:
             return estimate_derivatives(t, q, self.method, trim=False)
         return est
 
-    def dataset(self, userdata: UserData):
-        """All trajectories of ``userdata`` stacked (:func:`to_dataset` with this method and trim; "auto": trimmed
-        when every trajectory keeps enough rows).  Returns ``(dataset, info, the trim used)``."""
+    def dataset(self, userdata: UserData) -> DerivedData:
+        """All trajectories of ``userdata`` stacked (:func:`derive` with this method and trim; "auto": trimmed when
+        every trajectory keeps enough rows; the trim used is the result's ``trim``)."""
         if self.trim != "auto":
-            return (*to_dataset(userdata, method=self.method, trim=self.trim), self.trim)
+            return derive(userdata, method=self.method, trim=self.trim)
         try:
-            data, info = to_dataset(userdata, method=self.method, trim=True)
+            d = derive(userdata, method=self.method, trim=True)
         except DataError:
-            return (*to_dataset(userdata, method=self.method, trim=False), False)
-        if not trim_keeps_enough([(b - a, tr["n_samples"]) for tr in info["trajectories"] for a, b in [tr["kept"]]]):
-            return (*to_dataset(userdata, method=self.method, trim=False), False)
-        return data, info, True
+            return derive(userdata, method=self.method, trim=False)
+        kept = [(b - a, tr["n_samples"]) for tr in d.info["trajectories"] for a, b in [tr["kept"]]]
+        return d if trim_keeps_enough(kept) else derive(userdata, method=self.method, trim=False)
 
 
 def trim_keeps_enough(kept: list[tuple[int, int]]) -> bool:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from contextlib import nullcontext
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -404,8 +405,8 @@ def with_workers(tm: dict, per_seed: list[dict]) -> dict:
 def prepared_data(ud, trim, method: str = "auto"):
     """(data set, info, trim used, per-row errors, trajectory id per row) of validated data, the derivatives by
     ``method``; a trim that leaves too few rows of a trajectory is refused."""
-    data, info, trim = _dataset(ud, trim, method)
-    row_err = info.pop("_rows", None)
+    d = _dataset(ud, trim, method)
+    data, info, trim, row_err = d.data, d.info, d.trim, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     for tr in info["trajectories"]:
         kept = tr["kept"][1] - tr["kept"][0]
@@ -518,7 +519,7 @@ def _dataset(ud, trim, method: str = "auto"):
     """to_dataset with the ends trimmed (``trim="auto"``: drop the half-window at each end of every trajectory,
     where the one-sided derivative estimates are ~20x worse, unless that would leave a trajectory with less than
     TRIM_KEEP_MIN of its rows: :meth:`nnphd.user.derivatives.Derivatives.dataset`), the derivatives by ``method``
-    (:data:`nnphd.user.derivatives.METHODS`). Returns (dataset, info, the trim actually used)."""
+    (:data:`nnphd.user.derivatives.METHODS`). Returns :class:`nnphd.user.derivatives.DerivedData`."""
     from nnphd.user.derivatives import Derivatives
 
     return Derivatives(method, trim if isinstance(trim, str) and trim == "auto" else bool(trim)).dataset(ud)
@@ -704,7 +705,7 @@ def fitted_field(table, row, coords, is_angle, q) -> dict | None:
 
     if row is None or row.conservative is None:
         return None
-    center = table.settings.get("_center")
+    center = table.base.center if table.base is not None else None
     alpha = np.asarray(row.conservative, float)
     qm = np.asarray(q, float).mean(axis=0, keepdims=True)
     lib = "vertical" if table.settings.get("library") == "vertical" else "minimal"
@@ -768,7 +769,7 @@ def find_law(
     cancel=None,
 ):
     """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
-    (``info`` its info, ``row_err`` its ``info["_rows"]``): pointwise joint fits to the estimated q̈ (weighted by
+    (``info`` its info, ``row_err`` its per-row errors, :class:`nnphd.user.derivatives.DerivedData`): pointwise joint fits to the estimated q̈ (weighted by
     the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
     shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
     (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
@@ -811,7 +812,7 @@ def find_law(
             return _pointwise_table(*given, coords, is_angle, info, row_err, None, laws, level, seed, field, families,
                                     library=library)[0]  # fmt: skip
 
-        table.settings["_whole_record"] = context(pointwise, data, traj, rows, sigma, period, is_angle, seed, refit)
+        table = replace(table, whole_record=context(pointwise, data, traj, rows, sigma, period, is_angle, seed, refit))
     return table
 
 

@@ -30,7 +30,7 @@ of :mod:`nnphd.user.derivatives` (the items referred to below are its).
    rows is ~0.09, 20× the interior error), and their estimated errors say so.
 
    **Per-row errors**: ``qd_err_rows``/``qdd_err_rows`` (N, n) are the estimated errors of every row; ``qd_err``/
-   ``qdd_err`` their RMS over the kept rows.  ``to_dataset`` returns them in ``info["_rows"]``.  ``trim=True`` drops
+   ``qdd_err`` their RMS over the kept rows.  ``derive`` returns them as ``row_errors``.  ``trim=True`` drops
    the first and last half-window rows (largest window over coordinates and derivatives) and then chooses windows for
    the interior rows (no end treatment); for the spline, the runs of end rows whose estimated error exceeds twice the
    median.

@@ -418,10 +418,12 @@ def _shooting_probe(ctx: dict, seed: int, cons: _Rounds, block) -> dict:
     return {"valid": False, "reason": "the conservative model diverged"}
 
 
-def _checks(ctx: dict, seed: int, d: _Split, cons: _Rounds, rep, free_err, clock_errs, trend, shoot) -> dict:
+def _checks(ctx: dict, seed: int, d: _Split, cons: _Rounds, rep, free_err, clock_errs, evidence) -> dict:
     """The checks of :mod:`nnphd.user.checks` on the seed's stages: the seed's report entries drift, uan_power, time,
     gap, capacity and trajectory_evidence. ``free_err``: (training, held-out) errors of the free model;
-    ``clock_errs``: :func:`_clock_test`'s."""
+    ``clock_errs``: :func:`_clock_test`'s; ``evidence``: (energy trend, shooting probe, their bootstrap replicas'
+    z) in the file's units."""
+    trend, shoot, replicas = evidence
     tp, segs = ctx["tp"], ctx["segs"]
     fnorm, fnorm_tr, fnorm_te = d.fnorm, d.fnorm_tr, d.fnorm_te
     e_state, e_timed, improved = clock_errs
@@ -452,7 +454,7 @@ def _checks(ctx: dict, seed: int, d: _Split, cons: _Rounds, rep, free_err, clock
         train_errors_rel=(np.asarray(cons.hist_tr) / fnorm_tr).tolist(),
         chosen_round=cons.chosen,
     )
-    traj = trajectory_evidence(trend, shoot)
+    traj = trajectory_evidence(trend, shoot, replicas)
     traj["effect"] = effect_text(traj, trend, shoot)
     uan_power = {k: uan_drift[k] for k in ("rho_median", "magnitude_median", "significant", "bootstrap_fraction")}
     return {
@@ -525,12 +527,13 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
     watch.done("energy_trend_s")
     shoot = _shooting_probe(ctx, seed, cons, block)
     watch.done("shooting_probe_s")
+    replicas = (trend.pop("bootstrap_z", []), shoot.pop("bootstrap_z", []))  # for the call, not for the report
     trend = trend_units(trend, sc)
     shoot = shoot_units(shoot, sc)
     trend["oscillating"] = shoot["oscillating"] = oscillating
 
     # checks
-    chk = _checks(ctx, seed, d, cons, rep, free_err, clock_errs, trend, shoot)
+    chk = _checks(ctx, seed, d, cons, rep, free_err, clock_errs, (trend, shoot, replicas))
     status, reason, boot_agree, learned_only = _seed_status(ctx, cons, chk)
     watch.done("checks_s")
     times = watch.times

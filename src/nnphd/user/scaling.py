@@ -135,19 +135,16 @@ def trend_units(tr: dict, sc: Scaling) -> dict:
             out[k] = out[k] / sc.s_t
     out["period"] = tr["period"] * sc.s_t
     out["block_t"] = [[sc.t0 + x * sc.s_t for x in b] for b in tr.get("block_t", [])]
-    out["_bootstrap_z"] = out.pop("bootstrap_z", [])
     return out
 
 
 def shoot_units(sh: dict, sc: Scaling) -> dict:
     out = dict(sh)
     if not sh.get("valid"):
-        out["_bootstrap_z"] = []
         return out
     for k in ("d", "se_d"):
         out[k] = [x / sc.s_t for x in sh[k]]
     for k in ("d_mean", "se_d_mean", "se_d_mean_model", "se_d_mean_jackknife"):
         out[k] = sh[k] / sc.s_t
     out["rms_residual"] = [x * s for x, s in zip(sh["rms_residual"], sc.s_q)]
-    out["_bootstrap_z"] = out.pop("bootstrap_z", [])
     return out

@@ -49,6 +49,7 @@ point is larger than the trajectory-RMS R predicts; reported/actual 0.43), chaot
 from __future__ import annotations
 
 import warnings
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,10 +59,23 @@ from nnphd.user.localpoly import MIN_SAMPLES, MIN_WINDOW, POLYORDER, poly_coordi
 from nnphd.user.recording import DataError, Trajectory, UserData
 from nnphd.user.sampling import UNIFORM_RTOL, classify_sampling, grid_step, noise_level
 
-__all__ = ["METHODS", "DerivativeEstimate", "Derivatives", "estimate_derivatives", "to_dataset"]
+__all__ = [
+    "ESTIMATORS",
+    "METHODS",
+    "AutoDerivatives",
+    "DerivativeEstimate",
+    "DerivativeEstimator",
+    "Derivatives",
+    "LocalPolynomial",
+    "SavitzkyGolay",
+    "SmoothingSpline",
+    "derivative_name",
+    "estimate_derivatives",
+    "estimator_for",
+    "to_dataset",
+]
 
 _N_BOOTSTRAP = 8
-METHODS = ("auto", "savgol", "local", "spline")  # what :func:`estimate_derivatives` takes
 # trim="auto" trims the ends (trim=True) unless that leaves a trajectory less than TRIM_KEEP_MIN of its rows or fewer
 # than TRIM_KEEP_ROWS rows
 TRIM_KEEP_MIN = 0.6
@@ -78,7 +92,8 @@ class DerivativeEstimate:
     ``order_qd``/``order_qdd`` the local-polynomial windows (samples) and orders of the interior rows (None for the
     spline; the end rows may use others); ``q_step`` the common step of the values (0 if none).
     ``qd_err_rows``/``qdd_err_rows`` (N, n) are the estimated errors of every row (their RMS over the kept rows is
-    ``qd_err``/``qdd_err``): larger at the ends and next to gaps.  ``method`` is "savgol", "local" or "spline";
+    ``qd_err``/``qdd_err``): larger at the ends and next to gaps.  ``method`` is "savgol", "local" or "spline" (or your
+    estimator's name);
     ``dt`` the grid spacing (None unless "savgol"), ``dt_median``/``dt_ratio`` the median spacing and the largest
     spacing over it; ``time_base`` "recorded" or "nominal" (the lattice times of the frames, see
     :mod:`nnphd.user.sampling`).
@@ -109,6 +124,52 @@ class DerivativeEstimate:
     @property
     def trimmed(self) -> int:
         return int((~self.keep).sum())
+
+    @classmethod
+    def from_values(cls, t, q, qd, qdd, *, method: str, keep=None, errors=None) -> DerivativeEstimate:
+        """The estimate of your own :class:`DerivativeEstimator`: q̇, q̈ of the shape of q at the times t, with the
+        rest measured as the built-in estimators measure it (the position noise σ, the value step, the sampling).
+        ``keep`` (N,): the rows to use (None: all); ``errors``: the estimated errors of every row's q̇ and q̈, shape
+        (2, N) or (2, N, n) (None: zero — the derivatives are taken as exact, and the law's rows are then weighted
+        by the q̈ scatter of each coordinate alone). ``method``: the estimator's name. No windows or orders (None);
+        ``dt`` None, ``time_base`` "recorded"."""
+        t, q2 = _checked_inputs(t, q)
+        n_rows, n = q2.shape
+        qd, qdd = (np.asarray(a, dtype=np.float64) for a in (qd, qdd))
+        if qd.size != n_rows * n or qdd.size != n_rows * n:
+            raise ValueError(f"{method}: q̇ and q̈ must have the shape of q {np.shape(q)}, got {qd.shape}, {qdd.shape}")
+        qd, qdd = qd.reshape(n_rows, n), qdd.reshape(n_rows, n)
+        keep = np.ones(n_rows, dtype=bool) if keep is None else np.asarray(keep, dtype=bool).reshape(n_rows)
+        if not keep.any():
+            raise DataError(f"{method}: no row is kept")
+        err = np.zeros((2, n_rows, n)) if errors is None else np.asarray(errors, np.float64).reshape(2, n_rows, -1)
+        err = np.broadcast_to(err, (2, n_rows, n))
+        smp = classify_sampling(t)
+        noise = np.array([noise_level(t, q2[:, j]) for j in range(n)])
+        std = q2.std(axis=0)
+        return cls(
+            qd=qd,
+            qdd=qdd,
+            keep=keep,
+            method=str(method),
+            dt=None,
+            noise=noise,
+            noise_rel=np.divide(noise, std, out=np.zeros(n), where=std > 0),
+            qd_err=np.sqrt(np.mean(err[0][keep] ** 2, axis=0)),
+            qdd_err=np.sqrt(np.mean(err[1][keep] ** 2, axis=0)),
+            qd_rms=np.sqrt(np.mean(qd[keep] ** 2, axis=0)),
+            qdd_rms=np.sqrt(np.mean(qdd[keep] ** 2, axis=0)),
+            window_qd=(None,) * n,
+            window_qdd=(None,) * n,
+            order_qd=(None,) * n,
+            order_qdd=(None,) * n,
+            qd_err_rows=np.array(err[0]),
+            qdd_err_rows=np.array(err[1]),
+            q_step=np.array([grid_step(q2[:, j]) for j in range(n)]),
+            dt_median=smp.dt_median,
+            dt_ratio=smp.ratio,
+            time_base="recorded",
+        )
 
 
 # ---- smoothing spline ---------------------------------------------------------------------------------------------
@@ -153,83 +214,233 @@ def _spline_trim(err_rows: np.ndarray) -> tuple[int, int]:
     return lead, trail
 
 
-# ---- estimate -----------------------------------------------------------------------------------------------------
-def estimate_derivatives(t, q, method: str = "auto", *, trim: bool = False) -> DerivativeEstimate:
+# ---- the estimators -----------------------------------------------------------------------------------------------
+class DerivativeEstimator(ABC):
+    """How q̇ and q̈ of ONE trajectory are estimated from its positions: what ``Derivatives(method=...)`` takes (as
+    pysindy's ``differentiation_method``).
+
+    The built-in ones are :class:`SavitzkyGolay`, :class:`LocalPolynomial`, :class:`SmoothingSpline` and
+    :class:`AutoDerivatives` (the strings "savgol", "local", "spline" and "auto" name them). Your own: subclass it,
+    give it a ``name`` (the report's ``settings.derivative_method``) and an :meth:`estimate`; its result may be built
+    with :meth:`DerivativeEstimate.from_values` from your q̇ and q̈ alone::
+
+        class Gradient(nnphd.DerivativeEstimator):
+            name = "gradient"
+
+            def estimate(self, t, q, trim=False):
+                qd = np.gradient(q, t, axis=0)
+                return nnphd.DerivativeEstimate.from_values(t, q, qd, np.gradient(qd, t, axis=0), method=self.name)
+
+        nnphd.NNPhD(derivatives=nnphd.Derivatives(Gradient())).fit(data)
+    """
+
+    name: str = "custom"
+
+    @abstractmethod
+    def estimate(self, t, q, trim: bool = False) -> DerivativeEstimate:
+        """q̇ and q̈ of ONE trajectory sampled at t (N,), q (N,) or (N, n) (a coordinate per column). ``trim``: the
+        end rows, where the estimates are least accurate, may be dropped (``keep`` False); an estimator without
+        such rows may ignore it."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"
+
+
+class _Coordinatewise(DerivativeEstimator):
+    """The built-in estimators: each coordinate differentiated separately, with per-row error estimates (the module
+    docstring, items 1–6). A subclass says in :meth:`_plan` who differentiates the trajectory, in which times and with
+    which noise levels; the one chosen differentiates each coordinate (:meth:`_coordinate`) and says which end rows
+    ``trim`` drops (:meth:`_trim_counts`). Stateless: two of one class are equal."""
+
+    _constant: tuple = ((None, None), (None, None))  # (windows, orders) of a constant coordinate
+
+    def __eq__(self, other) -> bool:
+        return type(other) is type(self)
+
+    def __hash__(self) -> int:
+        return hash(type(self))
+
+    def estimate(self, t, q, trim: bool = False) -> DerivativeEstimate:
+        t, q2 = _checked_inputs(t, q)
+        smp = classify_sampling(t)
+        noise = np.array([noise_level(t, q2[:, j]) for j in range(q2.shape[1])])
+        est, time_base, tg, noise = self._plan(t, q2, smp, noise)
+        return est._run(q2, smp, tg, noise, time_base, trim)
+
+    def _plan(self, t: np.ndarray, q2: np.ndarray, smp, noise: np.ndarray) -> tuple:
+        """(the estimator that differentiates, the time base, the times the derivatives are taken in, the noise
+        levels in those times); here: this one, in the recorded times."""
+        return self, "recorded", t, noise
+
+    def _grid_dt(self, smp) -> float | None:
+        """The grid spacing the estimates use (Savitzky–Golay's), None for any other."""
+        return None
+
+    def _coordinate(self, tg: np.ndarray, y: np.ndarray, sigma: float, trim: bool, smp) -> tuple:
+        """(q̇, q̈, (window q̇, window q̈), (order q̇, order q̈), per-row errors (2, N)) of one coordinate."""
+        raise NotImplementedError
+
+    def _trim_counts(self, windows: list[tuple], err_rows: np.ndarray) -> tuple[int, int]:
+        """Rows to drop at the start and at the end with ``trim=True``."""
+        raise NotImplementedError
+
+    def _run(self, q2, smp, tg, noise, time_base: str, trim: bool) -> DerivativeEstimate:
+        """Every coordinate of q2 (N, n) differentiated in the times tg."""
+        n_rows, n = q2.shape
+        qd = np.zeros((n_rows, n))
+        qdd = np.zeros((n_rows, n))
+        err_rows = np.zeros((2, n_rows, n))
+        q_step = np.array([grid_step(q2[:, j]) for j in range(n)])
+        windows: list[tuple] = []
+        orders: list[tuple] = [self._constant[1]] * n
+        for j in range(n):
+            if np.ptp(q2[:, j]) == 0:  # a constant coordinate: exact zeros
+                windows.append(self._constant[0])
+                continue
+            qd[:, j], qdd[:, j], win, orders[j], err_rows[:, :, j] = self._coordinate(tg, q2[:, j], noise[j], trim, smp)
+            windows.append(win)
+        keep = np.ones(n_rows, dtype=bool)
+        if trim:
+            lead, trail = self._trim_counts(windows, err_rows)
+            if n_rows - lead - trail < 1:
+                raise DataError(f"trimming {lead} + {trail} edge samples leaves none of {n_rows}; use trim=False")
+            keep[:lead] = False
+            keep[n_rows - trail :] = False
+        std = q2.std(axis=0)
+        return DerivativeEstimate(
+            qd=qd,
+            qdd=qdd,
+            keep=keep,
+            method=self.name,
+            dt=self._grid_dt(smp),
+            noise=noise,
+            noise_rel=np.divide(noise, std, out=np.zeros(n), where=std > 0),
+            qd_err=np.sqrt(np.mean(err_rows[0][keep] ** 2, axis=0)),
+            qdd_err=np.sqrt(np.mean(err_rows[1][keep] ** 2, axis=0)),
+            qd_rms=np.sqrt(np.mean(qd[keep] ** 2, axis=0)),
+            qdd_rms=np.sqrt(np.mean(qdd[keep] ** 2, axis=0)),
+            window_qd=tuple(w[0] for w in windows),
+            window_qdd=tuple(w[1] for w in windows),
+            order_qd=tuple(o[0] for o in orders),
+            order_qdd=tuple(o[1] for o in orders),
+            qd_err_rows=err_rows[0],
+            qdd_err_rows=err_rows[1],
+            q_step=q_step,
+            dt_median=smp.dt_median,
+            dt_ratio=smp.ratio,
+            time_base=time_base,
+        )
+
+
+class LocalPolynomial(_Coordinatewise):
+    """Local polynomial regression in the recorded times, any sampling (:mod:`nnphd.user.localpoly`: order and
+    window of least estimated error per derivative, the end rows their own); ``trim`` drops half the largest window
+    at each end. ``"local"``."""
+
+    name = "local"
+    _constant = ((MIN_WINDOW, MIN_WINDOW), (POLYORDER, POLYORDER))
+
+    def _coordinate(self, tg, y, sigma, trim, smp) -> tuple:
+        qd, qdd, win, order, e = poly_coordinate(tg, y, sigma, trim, self._grid_dt(smp))
+        return qd, qdd, win, order, e
+
+    def _trim_counts(self, windows, err_rows) -> tuple[int, int]:
+        lead = max(max(w) for w in windows) // 2
+        return lead, lead
+
+
+class SavitzkyGolay(LocalPolynomial):
+    """Local polynomials on a uniform grid (scipy's Savitzky–Golay filter), in the grid's times; a trajectory that is
+    not uniformly sampled is a :class:`~nnphd.user.recording.DataError`. ``"savgol"``."""
+
+    name = "savgol"
+
+    def _plan(self, t, q2, smp, noise) -> tuple:
+        if smp.dt is None:
+            raise DataError(
+                "Savitzky–Golay needs uniform sampling: t deviates from a uniform grid by more than "
+                f"{UNIFORM_RTOL:g}·dt (and more than the rounding of t); use method='local', 'spline' or "
+                "'auto'"
+            )
+        return self, "recorded", t[0] + smp.dt * np.arange(q2.shape[0]), noise
+
+    def _grid_dt(self, smp) -> float | None:
+        return smp.dt
+
+
+class SmoothingSpline(_Coordinatewise):
+    """A quintic smoothing spline (s = N·σ²) with bootstrap per-row errors (the module docstring, item 6); ``trim``
+    drops the end rows whose estimated error exceeds twice the median. ``"spline"``."""
+
+    name = "spline"
+
+    def _coordinate(self, tg, y, sigma, trim, smp) -> tuple:
+        qd, qdd, e = _spline_coordinate(tg, y, sigma)
+        return qd, qdd, (None, None), (None, None), e
+
+    def _trim_counts(self, windows, err_rows) -> tuple[int, int]:
+        _, n_rows, n = err_rows.shape
+        return _spline_trim(err_rows.transpose(0, 2, 1).reshape(2 * n, n_rows))
+
+
+class AutoDerivatives(_Coordinatewise):
+    """The estimator chosen by the sampling (the module docstring, item 2): :class:`SavitzkyGolay` on uniform grids
+    (in the nominal times where the recorded ones are rounded), :class:`LocalPolynomial` on near-uniform ones (in the
+    recorded or the nominal lattice times, whichever the positions are smoother on), :class:`SmoothingSpline` on
+    grossly irregular ones. ``"auto"``, the default."""
+
+    name = "auto"
+
+    def _plan(self, t, q2, smp, noise) -> tuple:
+        if smp.kind == "uniform":
+            est, _, tg, noise = SavitzkyGolay()._plan(t, q2, smp, noise)
+            return est, "nominal" if smp.rounded else "recorded", tg, noise
+        if smp.kind == "irregular":
+            return SmoothingSpline()._plan(t, q2, smp, noise)
+        use_nominal = False
+        if smp.nominal is not None:
+            if smp.rounded:
+                use_nominal = True
+            else:  # which clock are the positions smoother on: the recorded times or the nominal ones?
+                noise_nom = np.array([noise_level(smp.nominal, q2[:, j]) for j in range(q2.shape[1])])
+                moving = (noise > 0) & (noise_nom > 0)
+                use_nominal = bool(moving.any() and np.sum(np.log(noise_nom[moving] / noise[moving])) < 0)
+                if use_nominal:
+                    noise = noise_nom
+        if use_nominal:
+            return LocalPolynomial(), "nominal", smp.nominal, noise
+        return LocalPolynomial(), "recorded", t, noise
+
+
+ESTIMATORS = {"auto": AutoDerivatives, "savgol": SavitzkyGolay, "local": LocalPolynomial, "spline": SmoothingSpline}
+METHODS = tuple(ESTIMATORS)  # the names of the built-in estimators: what :func:`estimate_derivatives` takes
+
+
+def estimator_for(method: str | DerivativeEstimator) -> DerivativeEstimator:
+    """The estimator a method names (:data:`ESTIMATORS`), or the estimator given; ValueError otherwise."""
+    if isinstance(method, DerivativeEstimator):
+        return method
+    if isinstance(method, str) and method in ESTIMATORS:
+        return ESTIMATORS[method]()
+    raise ValueError(f"method must be 'auto', 'savgol', 'local', 'spline' or a DerivativeEstimator, got {method!r:.60}")
+
+
+def estimate_derivatives(t, q, method: str | DerivativeEstimator = "auto", *, trim: bool = False) -> DerivativeEstimate:
     """q̇ and q̈ of ONE trajectory sampled at t (N,), q (N,) or (N, n), each coordinate separately.
 
     method: ``"auto"`` (Savitzky–Golay on uniform grids, local polynomials on near-uniform ones, the spline on grossly
     irregular ones, and the time base; see the module docstring, item 2), ``"savgol"`` (uniform grids only),
-    ``"local"`` (local polynomials in the recorded times, any sampling) or ``"spline"``.  ``trim=True`` drops the
-    first and last half-window rows (largest window over coordinates and derivatives; for the spline, the end rows
-    whose estimated error exceeds twice the median) via ``keep``, and chooses windows for the interior rows.
+    ``"local"`` (local polynomials in the recorded times, any sampling) or ``"spline"`` — or a
+    :class:`DerivativeEstimator` (:data:`ESTIMATORS`). ``trim=True`` drops the first and last half-window rows
+    (largest window over coordinates and derivatives; for the spline, the end rows whose estimated error exceeds
+    twice the median) via ``keep``, and chooses windows for the interior rows.
     """
-    t, q2 = _checked_inputs(t, q, method)
-    n_rows, n = q2.shape
-    smp = classify_sampling(t)
-    if method == "savgol" and smp.dt is None:
-        raise DataError(
-            "Savitzky–Golay needs uniform sampling: t deviates from a uniform grid by more than "
-            f"{UNIFORM_RTOL:g}·dt (and more than the rounding of t); use method='local', 'spline' or "
-            "'auto'"
-        )
-    noise = np.array([noise_level(t, q2[:, j]) for j in range(n)])
-    method, time_base, tg, noise = _method_and_time_base(t, q2, smp, method, noise)
-
-    qd = np.zeros((n_rows, n))
-    qdd = np.zeros((n_rows, n))
-    err_rows = np.zeros((2, n_rows, n))
-    q_step = np.array([grid_step(q2[:, j]) for j in range(n)])
-    windows: list[tuple] = []
-    orders: list[tuple] = [(None, None) if method == "spline" else (POLYORDER, POLYORDER)] * n
-    for j in range(n):
-        if np.ptp(q2[:, j]) == 0:  # a constant coordinate: exact zeros
-            windows.append((None, None) if method == "spline" else (MIN_WINDOW, MIN_WINDOW))
-            continue
-        y = q2[:, j]
-        if method == "spline":
-            qd[:, j], qdd[:, j], e = _spline_coordinate(t, y, noise[j])
-            win = (None, None)
-        else:
-            qd[:, j], qdd[:, j], win, order, e = poly_coordinate(
-                tg, y, noise[j], trim, smp.dt if method == "savgol" else None
-            )
-            orders[j] = order
-        windows.append(win)
-        err_rows[:, :, j] = e
-    keep = np.ones(n_rows, dtype=bool)
-    if trim:
-        lead, trail = _trim_counts(method, windows, err_rows)
-        keep[:lead] = False
-        keep[n_rows - trail :] = False
-    std = q2.std(axis=0)
-    return DerivativeEstimate(
-        qd=qd,
-        qdd=qdd,
-        keep=keep,
-        method=method,
-        dt=smp.dt if method == "savgol" else None,
-        noise=noise,
-        noise_rel=np.divide(noise, std, out=np.zeros(n), where=std > 0),
-        qd_err=np.sqrt(np.mean(err_rows[0][keep] ** 2, axis=0)),
-        qdd_err=np.sqrt(np.mean(err_rows[1][keep] ** 2, axis=0)),
-        qd_rms=np.sqrt(np.mean(qd[keep] ** 2, axis=0)),
-        qdd_rms=np.sqrt(np.mean(qdd[keep] ** 2, axis=0)),
-        window_qd=tuple(w[0] for w in windows),
-        window_qdd=tuple(w[1] for w in windows),
-        order_qd=tuple(o[0] for o in orders),
-        order_qdd=tuple(o[1] for o in orders),
-        qd_err_rows=err_rows[0],
-        qdd_err_rows=err_rows[1],
-        q_step=q_step,
-        dt_median=smp.dt_median,
-        dt_ratio=smp.ratio,
-        time_base=time_base,
-    )
+    return estimator_for(method).estimate(t, q, trim=trim)
 
 
-def _checked_inputs(t, q, method: str) -> tuple[np.ndarray, np.ndarray]:
-    """t (N,) and q as (N, n) float64, refused unless of equal lengths, at least MIN_SAMPLES long, t strictly
-    increasing, and ``method`` one of those known."""
+def _checked_inputs(t, q) -> tuple[np.ndarray, np.ndarray]:
+    """t (N,) and q as (N, n) float64, refused unless of equal lengths, at least MIN_SAMPLES long and t strictly
+    increasing."""
     t = np.asarray(t, dtype=np.float64).reshape(-1)
     q = np.asarray(q, dtype=np.float64)
     q2 = q.reshape(q.shape[0], -1)
@@ -240,53 +451,37 @@ def _checked_inputs(t, q, method: str) -> tuple[np.ndarray, np.ndarray]:
         raise DataError(f"{n_rows} samples; at least {MIN_SAMPLES} are needed to estimate derivatives")
     if not np.all(np.diff(t) > 0):
         raise DataError("t must be strictly increasing")
-    if method not in METHODS:
-        raise ValueError(f"method must be 'auto', 'savgol', 'local' or 'spline', got {method!r}")
     return t, q2
 
 
-def _method_and_time_base(t: np.ndarray, q2: np.ndarray, smp, method: str, noise: np.ndarray) -> tuple:
-    """The method ("auto" resolved from the sampling ``smp``), the time base, the times the derivatives are taken in
-    and the noise levels (those in the nominal times where these are chosen): (method, time_base, tg, noise)."""
-    n_rows, n = q2.shape
-    time_base = "recorded"
-    tg = t  # the times the derivatives are taken in
-    if method == "auto":
-        method = {"uniform": "savgol", "near-uniform": "local", "irregular": "spline"}[smp.kind]
-        if smp.kind == "uniform" and smp.rounded:
-            time_base = "nominal"
-        elif method == "local" and smp.nominal is not None:
-            if smp.rounded:
-                use_nominal = True
-            else:  # which clock are the positions smoother on: the recorded times or the nominal ones?
-                noise_nom = np.array([noise_level(smp.nominal, q2[:, j]) for j in range(n)])
-                moving = (noise > 0) & (noise_nom > 0)
-                use_nominal = bool(moving.any() and np.sum(np.log(noise_nom[moving] / noise[moving])) < 0)
-                if use_nominal:
-                    noise = noise_nom
-            if use_nominal:
-                time_base, tg = "nominal", smp.nominal
-    if method == "savgol":
-        tg = t[0] + smp.dt * np.arange(n_rows)
-    return method, time_base, tg, noise
-
-
-def _trim_counts(method: str, windows: list[tuple], err_rows: np.ndarray) -> tuple[int, int]:
-    """Rows to drop at the start and at the end with ``trim=True``: half the largest window, or for the spline the
-    end rows of high estimated error (:func:`_spline_trim`); refused when no row would be left."""
-    _, n_rows, n = err_rows.shape
-    if method == "spline":
-        lead, trail = _spline_trim(err_rows.transpose(0, 2, 1).reshape(2 * n, n_rows))
-    else:
-        lead = trail = max(max(w) for w in windows) // 2
-    if n_rows - lead - trail < 1:
-        raise DataError(f"trimming {lead} + {trail} edge samples leaves none of {n_rows}; use trim=False")
-    return lead, trail
-
-
 # ---- data set -----------------------------------------------------------------------------------------------------
-def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: bool) -> dict:
-    """q̇, q̈ (N, n) of one trajectory (given columns verbatim, the rest estimated), the kept rows, per-row error
+def _estimated(estimator: DerivativeEstimator, t, q, trim: bool) -> DerivativeEstimate:
+    """``estimator.estimate(t, q, trim)``, refused (TypeError/ValueError, one line) unless a DerivativeEstimate of
+    q's shape."""
+    est = estimator.estimate(t, q, trim=trim)
+    name = getattr(estimator, "name", type(estimator).__name__)
+    if not isinstance(est, DerivativeEstimate):
+        raise TypeError(f"the derivative estimator {name!r} returned a {type(est).__name__}, not a DerivativeEstimate")
+    shape = (len(t), int(np.prod(np.shape(q)[1:], dtype=int)))
+    for what, a in (
+        ("qd", est.qd),
+        ("qdd", est.qdd),
+        ("qd_err_rows", est.qd_err_rows),
+        ("qdd_err_rows", est.qdd_err_rows),
+    ):
+        if np.shape(a) != shape:
+            raise ValueError(
+                f"the derivative estimator {name!r} returned {what} of shape {np.shape(a)}; expected {shape}"
+            )
+    if np.shape(est.keep) != (len(t),):
+        raise ValueError(
+            f"the derivative estimator {name!r} returned keep of shape {np.shape(est.keep)}; expected ({len(t)},)"
+        )
+    return est
+
+
+def _trajectory_derivatives(ud: UserData, tr: Trajectory, estimator: DerivativeEstimator, trim: bool) -> dict:
+    """q̇, q̈ (N, n) of one trajectory (given columns verbatim, the rest estimated by ``estimator``), the kept rows, per-row error
     estimates (N, n; NaN in given columns) and per-coordinate statistics (arrays (n,); errors/windows of given
     derivatives are NaN/None)."""
     n = ud.n
@@ -323,7 +518,7 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
         stats["noise_rel"] = np.divide(stats["noise"], std, out=np.zeros(n), where=std > 0)
         stats["q_step"] = np.array([grid_step(q[:, j]) for j in range(n)])
     else:
-        est = estimate_derivatives(tr.t, q, method, trim=trim)
+        est = _estimated(estimator, tr.t, q, trim)
         stats.update(
             noise=est.noise,
             noise_rel=est.noise_rel,
@@ -345,7 +540,7 @@ def _trajectory_derivatives(ud: UserData, tr: Trajectory, method: str, trim: boo
                 stats["qdd_err_rows"][:, j] = est.qdd_err_rows[:, j]
     cols = np.flatnonzero(given_qd & ~given_qdd)
     if cols.size:  # q̈ by differentiating the given q̇ once
-        est_v = estimate_derivatives(tr.t, tr.qd[:, cols], method, trim=trim)
+        est_v = _estimated(estimator, tr.t, tr.qd[:, cols], trim)
         stats.update(method=est_v.method, dt=est_v.dt, time_base=est_v.time_base)
         keep &= est_v.keep
         for i, j in enumerate(cols):
@@ -369,7 +564,7 @@ class DerivedData:
     trim: bool
 
 
-def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
+def to_dataset(userdata: UserData, *, method: str | DerivativeEstimator = "auto", trim: bool = False):
     """Stack all trajectories into a :class:`nnphd.engine.data.Dataset` (q as given, q̇/q̈ given or estimated per trajectory).
 
     Returns ``(dataset, info)`` (:func:`derive` keeps the per-row errors too).  ``info`` is JSON-ready:
@@ -391,15 +586,17 @@ def to_dataset(userdata: UserData, *, method: str = "auto", trim: bool = False):
     return d.data, d.info
 
 
-def derive(userdata: UserData, *, method: str = "auto", trim: bool = False) -> DerivedData:
-    """:func:`to_dataset`'s data set and info with the per-row errors of its derivative estimates."""
+def derive(userdata: UserData, *, method: str | DerivativeEstimator = "auto", trim: bool = False) -> DerivedData:
+    """:func:`to_dataset`'s data set and info with the per-row errors of its derivative estimates; ``method`` a name
+    of :data:`METHODS` or a :class:`DerivativeEstimator` (each trajectory's q̇, q̈ are its :meth:`estimate`)."""
     from nnphd.engine.data import Dataset
 
+    estimator = estimator_for(method)
     parts = {"q": [], "qd": [], "qdd": [], "t": [], "qd_err_rows": [], "qdd_err_rows": []}
     results, per_traj, weights = [], [], []
     for tr in userdata.trajectories:
         try:
-            r = _trajectory_derivatives(userdata, tr, method, trim)
+            r = _trajectory_derivatives(userdata, tr, estimator, trim)
         except DataError as e:
             raise DataError(f"{userdata.path}: trajectory {tr.id}: {e}") from None
         start = int(np.argmax(r["keep"]))
@@ -486,25 +683,29 @@ def derive(userdata: UserData, *, method: str = "auto", trim: bool = False) -> D
 class Derivatives:
     """How q̇ and q̈ are estimated from the positions: ``nnphd.NNPhD(derivatives=Derivatives(...))``.
 
-    ``method``: "auto" (the default: Savitzky–Golay on uniform grids, local polynomials on near-uniform ones, the
-    smoothing spline on grossly irregular ones; see the module docstring), "savgol" (uniform grids only), "local"
-    (local polynomials in the recorded times) or "spline" (:func:`estimate_derivatives`).  ``trim``: drop the first
-    and last half-window rows of each trajectory, where the one-sided estimates are ~20x worse — True, False, or
-    "auto" (the default: True unless that leaves a trajectory less than :data:`TRIM_KEEP_MIN` of its rows or fewer
-    than :data:`TRIM_KEEP_ROWS` rows).  ``thin``: a dense record (over :data:`nnphd.user.detect.THIN_ROWS` rows) is
-    thinned once its derivatives are estimated at the full rate (:func:`nnphd.user.detect.dense_thinned`; False:
-    every row is used).  ``Derivatives()`` is what ``nnphd detect`` does (``--trim``, ``--thin/--no-thin``).  A bad
-    field is a ValueError naming it and what is expected.
+    ``method``: a :class:`DerivativeEstimator` — your own, or a built-in one — or a built-in one's name: "auto" (the
+    default, :class:`AutoDerivatives`: Savitzky–Golay on uniform grids, local polynomials on near-uniform ones, the
+    smoothing spline on grossly irregular ones; see the module docstring), "savgol" (:class:`SavitzkyGolay`, uniform
+    grids only), "local" (:class:`LocalPolynomial`, in the recorded times) or "spline" (:class:`SmoothingSpline`).
+    ``trim``: drop the first and last half-window rows of each trajectory, where the one-sided estimates are ~20x
+    worse — True, False, or "auto" (the default: True unless that leaves a trajectory less than
+    :data:`TRIM_KEEP_MIN` of its rows or fewer than :data:`TRIM_KEEP_ROWS` rows).  ``thin``: a dense record (over
+    :data:`nnphd.user.detect.THIN_ROWS` rows) is thinned once its derivatives are estimated at the full rate
+    (:func:`nnphd.user.detect.dense_thinned`; False: every row is used).  ``Derivatives()`` is what ``nnphd detect``
+    does (``--trim``, ``--thin/--no-thin``).  A bad field is a ValueError naming it and what is expected.
     """
 
-    method: str = "auto"
+    method: str | DerivativeEstimator = "auto"
     trim: bool | str = "auto"
     thin: bool = True
 
     def __post_init__(self) -> None:
-        if not isinstance(self.method, str) or self.method not in METHODS:
+        if not isinstance(self.method, DerivativeEstimator) and not (
+            isinstance(self.method, str) and self.method in METHODS
+        ):
             raise ValueError(
-                f"Derivatives: method must be one of {', '.join(map(repr, METHODS))}, got {self.method!r:.60}"
+                f"Derivatives: method must be one of {', '.join(map(repr, METHODS))} or a DerivativeEstimator, "
+                f"got {self.method!r:.60}"
             )
         if isinstance(self.trim, np.bool_):
             object.__setattr__(self, "trim", bool(self.trim))
@@ -515,30 +716,51 @@ class Derivatives:
         if not isinstance(self.thin, bool):
             raise ValueError(f"Derivatives: thin must be True or False, got {self.thin!r:.60}")
 
+    @property
+    def estimator(self) -> DerivativeEstimator:
+        """The estimator ``method`` is or names (:func:`estimator_for`)."""
+        return estimator_for(self.method)
+
+    @property
+    def name(self) -> str:
+        """The method's name: the string given, or the estimator's ``name`` (the report's
+        ``settings.derivative_method``)."""
+        return derivative_name(self.method)
+
     def estimate(self, t, q) -> DerivativeEstimate:
-        """q̇ and q̈ of ONE trajectory (t (N,), q (N,) or (N, n)): :func:`estimate_derivatives` with this method and
-        trim ("auto": trimmed when :data:`TRIM_KEEP_MIN` and :data:`TRIM_KEEP_ROWS` allow; ``.keep`` says)."""
+        """q̇ and q̈ of ONE trajectory (t (N,), q (N,) or (N, n)): :attr:`estimator`'s estimate with this trim
+        ("auto": trimmed when :data:`TRIM_KEEP_MIN` and :data:`TRIM_KEEP_ROWS` allow; ``.keep`` says)."""
+        est = self.estimator
         if self.trim != "auto":
-            return estimate_derivatives(t, q, self.method, trim=self.trim)
+            return est.estimate(t, q, trim=self.trim)
         try:
-            est = estimate_derivatives(t, q, self.method, trim=True)
+            out = est.estimate(t, q, trim=True)
         except DataError:  # trimming would leave no row
-            return estimate_derivatives(t, q, self.method, trim=False)
-        if not trim_keeps_enough([(int(est.keep.sum()), est.keep.size)]):
-            return estimate_derivatives(t, q, self.method, trim=False)
-        return est
+            return est.estimate(t, q, trim=False)
+        if not trim_keeps_enough([(int(out.keep.sum()), out.keep.size)]):
+            return est.estimate(t, q, trim=False)
+        return out
 
     def dataset(self, userdata: UserData) -> DerivedData:
-        """All trajectories of ``userdata`` stacked (:func:`derive` with this method and trim; "auto": trimmed when
+        """All trajectories of ``userdata`` stacked (:func:`derive` with this estimator and trim; "auto": trimmed when
         every trajectory keeps enough rows; the trim used is the result's ``trim``)."""
+        est = self.estimator
         if self.trim != "auto":
-            return derive(userdata, method=self.method, trim=self.trim)
+            return derive(userdata, method=est, trim=self.trim)
         try:
-            d = derive(userdata, method=self.method, trim=True)
+            d = derive(userdata, method=est, trim=True)
         except DataError:
-            return derive(userdata, method=self.method, trim=False)
+            return derive(userdata, method=est, trim=False)
         kept = [(b - a, tr["n_samples"]) for tr in d.info["trajectories"] for a, b in [tr["kept"]]]
-        return d if trim_keeps_enough(kept) else derive(userdata, method=self.method, trim=False)
+        return d if trim_keeps_enough(kept) else derive(userdata, method=est, trim=False)
+
+
+def derivative_name(method: str | DerivativeEstimator | Derivatives) -> str:
+    """The name of a derivative method (a name, an estimator's ``name``, a :class:`Derivatives`' method's name): what
+    a report's ``settings.derivative_method`` says."""
+    if isinstance(method, Derivatives):
+        method = method.method
+    return method if isinstance(method, str) else str(getattr(method, "name", type(method).__name__))
 
 
 def trim_keeps_enough(kept: list[tuple[int, int]]) -> bool:

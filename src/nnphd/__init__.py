@@ -35,21 +35,38 @@ if TYPE_CHECKING:  # what __getattr__ loads on first use, visible to type checke
     from nnphd.io.errors import DataError
     from nnphd.paper.study_results import DataQualityResult, LambdaPResult, PredictionResult
     from nnphd.paper.sweep_result import SweepResult
-    from nnphd.user.strategies import Derivatives, LawLibrary
+    from nnphd.user.strategies import (
+        AutoDerivatives,
+        DerivativeEstimate,
+        DerivativeEstimator,
+        Derivatives,
+        Family,
+        LawLibrary,
+        LocalPolynomial,
+        SavitzkyGolay,
+        SmoothingSpline,
+    )
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "AutoDerivatives",
     "DataError",
     "DataQualityResult",
+    "DerivativeEstimate",
+    "DerivativeEstimator",
     "Derivatives",
     "DetectResult",
+    "Family",
     "LambdaPResult",
     "Law",
     "LawLibrary",
+    "LocalPolynomial",
     "MissingExtra",
     "NNPhD",
     "PredictionResult",
+    "SavitzkyGolay",
+    "SmoothingSpline",
     "Status",
     "SweepResult",
     "Trajectories",
@@ -61,7 +78,17 @@ __all__ = [
 ]
 _API = ("DetectResult", "Law", "NNPhD", "Status", "Trajectories", "Verdict", "load", "read_report")
 _STUDY_RESULTS = ("DataQualityResult", "LambdaPResult", "PredictionResult")  # the paper's studies' typed results
-_STRATEGIES = ("Derivatives", "LawLibrary")  # NNPhD's strategy objects (how q̇, q̈ are estimated; which laws)
+_STRATEGIES = (  # NNPhD's strategy objects (how q̇, q̈ are estimated; which laws) and what they hold
+    "AutoDerivatives",
+    "DerivativeEstimate",
+    "DerivativeEstimator",
+    "Derivatives",
+    "Family",
+    "LawLibrary",
+    "LocalPolynomial",
+    "SavitzkyGolay",
+    "SmoothingSpline",
+)
 
 
 def __getattr__(name: str):  # the API loads on first use, so `import nnphd` stays light and inert

@@ -22,7 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
-from nnphd.explain.families import families, odd_monomials, parse_law, perturber_family, sparse_family
+from nnphd.explain.families import Family, families, odd_monomials, parse_law, perturber_family, sparse_family
 from nnphd.explain.jointfit import (
     MU,
     N_BOOT,
@@ -152,7 +152,7 @@ def rank_laws(
     qdd_err=None,
     fc=None,
     user_laws: Sequence[str] = (),
-    include: Sequence[str] | None = None,
+    include: Sequence[str | Family] | None = None,
     n_boot: int = N_BOOT,
     seed: int = 0,
     max_rows: int = 20000,
@@ -164,8 +164,9 @@ def rank_laws(
 
     q, qd, qdd (N, n); t (N,); traj (N,) trajectory ids (rows of a trajectory contiguous; None: one trajectory);
     names: coordinate names (default q1…); angles: n booleans; qdd_err (N, n) per-row q̈ errors (weights); fc (N, n) a
-    conservative force to scale (e.g. the LNN's); user_laws: SymPy strings (:func:`nnphd.explain.families.parse_law`); include: family keys
-    to try (default all but the opt-in ``"perturber"``); library: add the conservative correction library ("minimal":
+    conservative force to scale (e.g. the LNN's); user_laws: SymPy strings (:func:`nnphd.explain.families.parse_law`); include: the
+    families to try — built-in keys and :class:`~nnphd.explain.families.Family` objects of your own, ranked as they are
+    (default: every built-in one but the opt-in ``"perturber"``); library: add the conservative correction library ("minimal":
     the uniform field only, :func:`nnphd.explain.conservative.conservative_basis`) to the
     scale of fc (False: fc's scale alone — for a system's own feature Lagrangian). Rows beyond ``max_rows`` are
     thinned evenly. conservative_cols (N, n, K): more conservative columns, e.g. the derivatives ∂f_c/∂c of a feature
@@ -248,17 +249,20 @@ def _conservative_design(q, qd, angles, fc, library, conservative_cols):
 
 
 def _candidates(prob: JointProblem, zero, q, t, w, segs, names, v_rms, include, perturber, user_laws):
-    """The candidate families (built-in ones in ``include``, the perturber, the sparse supports, the user's laws) and
-    the context of their fits (the drive's start frequencies from the zero law's residual)."""
+    """The candidate families (built-in ones in ``include``, the perturber, the sparse supports, the Family objects in
+    ``include``, the user's laws) and the context of their fits (the drive's start frequencies from the zero law's
+    residual)."""
     N, n = q.shape
     r0 = zero["r"].reshape(N, n) / w
     ctx = {"drive_omegas": drive_start_omegas(t, r0, segs), "q": q, "t": t, "residual": r0}
-    fams = [f for f in families(n, names, v_rms) if include is None or f.key in include]
-    if (perturber or (include is not None and "perturber" in include)) and n == 2:
+    keys = None if include is None else {k for k in include if isinstance(k, str)}
+    fams = [f for f in families(n, names, v_rms) if keys is None or f.key in keys]
+    if (perturber or (keys is not None and "perturber" in keys)) and n == 2:
         fams.append(perturber_family(names))
-    if include is None or "sparse" in include:
+    if keys is None or "sparse" in keys:
         for sup in _sparse_supports(prob, len(odd_monomials(n)), n):
             fams.append(sparse_family(n, names, sup))
+    fams += [f for f in include or () if isinstance(f, Family)]  # your own families, as they are
     fams += [parse_law(u, names) for u in user_laws]
     return fams, ctx
 

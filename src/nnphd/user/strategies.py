@@ -1,6 +1,8 @@
 """The strategy objects of :class:`nnphd.NNPhD`, as pysindy's ``SINDy(differentiation_method=…, feature_library=…)``:
-:class:`nnphd.user.derivatives.Derivatives` (how q̇ and q̈ are estimated) and :class:`LawLibrary` (which candidate
-laws are ranked, and how). Their defaults are what ``nnphd detect`` does; each names the ``nnphd detect`` option it
+:class:`nnphd.user.derivatives.Derivatives` (how q̇ and q̈ are estimated: by a
+:class:`~nnphd.user.derivatives.DerivativeEstimator`, a built-in one or your own) and :class:`LawLibrary` (which
+candidate laws are ranked, and how: built-in families by key, :class:`~nnphd.explain.families.Family` objects of
+your own, laws as formulas). Their defaults are what ``nnphd detect`` does; each names the ``nnphd detect`` option it
 stands for (docs/guide.md, "Strategy objects").
 """
 
@@ -9,10 +11,34 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from nnphd.explain.families import check_law_text, family_keys
-from nnphd.user.derivatives import Derivatives
+from nnphd.explain.families import Family, check_law_text, family_keys
+from nnphd.user.derivatives import (
+    AutoDerivatives,
+    DerivativeEstimate,
+    DerivativeEstimator,
+    Derivatives,
+    LocalPolynomial,
+    SavitzkyGolay,
+    SmoothingSpline,
+)
 
-__all__ = ["FAMILIES", "LAW_FITS", "Derivatives", "LawLibrary", "check_families", "family_filter", "with_old_keywords"]
+__all__ = [
+    "FAMILIES",
+    "LAW_FITS",
+    "AutoDerivatives",
+    "DerivativeEstimate",
+    "DerivativeEstimator",
+    "Derivatives",
+    "Family",
+    "LawLibrary",
+    "LocalPolynomial",
+    "SavitzkyGolay",
+    "SmoothingSpline",
+    "check_families",
+    "family_filter",
+    "family_names",
+    "with_old_keywords",
+]
 
 FAMILIES = family_keys()  # every candidate family's key, in ranking order
 LAW_FITS = ("auto", "pointwise", "trajectory")
@@ -31,33 +57,71 @@ def _keys(x, what: str) -> tuple[str, ...]:
     return out
 
 
-def check_families(keys: Sequence[str]) -> None:
-    """Every key one of :data:`FAMILIES`; ValueError naming the unknown ones and listing the known."""
-    unknown = [k for k in keys if k not in FAMILIES]
+def _families(x) -> tuple[str | Family, ...]:
+    """The families as a tuple (one str or Family: one item); TypeError unless each is a key or a Family."""
+    x = (x,) if isinstance(x, (str, Family)) else x
+    try:
+        out = tuple(x)
+    except TypeError:
+        raise TypeError(
+            f"LawLibrary: families must be a sequence of strings or Family objects, got {type(x).__name__}"
+        ) from None
+    bad = [v for v in out if not isinstance(v, (str, Family))]
+    if bad:
+        raise TypeError(f"LawLibrary: families must be strings (built-in keys) or Family objects, got {bad[0]!r:.60}")
+    return out
+
+
+RESERVED_KEYS = ("none", "perturber")  # the zero law's row and the opt-in perturber: not a key of your own family
+
+
+def check_families(families: Sequence[str | Family]) -> None:
+    """Every key one of :data:`FAMILIES`, and every Family object of your own under a key of its own (not a built-in
+    family's, not :data:`RESERVED_KEYS`, not twice); ValueError naming the unknown keys (listing the known) or the
+    clash."""
+    unknown = [k for k in families if isinstance(k, str) and k not in FAMILIES]
     if unknown:
         raise ValueError(
             f"unknown law famil{'y' if len(unknown) == 1 else 'ies'} {', '.join(repr(k[:60]) for k in unknown[:5])}; "
             f"expected some of {', '.join(FAMILIES)}"
         )
+    own = [f.key for f in families if isinstance(f, Family)]
+    clash = next((k for k in own if k in FAMILIES or k in RESERVED_KEYS or own.count(k) > 1), None)
+    if clash is not None:
+        raise ValueError(
+            f"your law family's key {clash!r:.60} is a built-in one's or given twice: give it a key of its own"
+        )
 
 
-def family_filter(keys: Sequence[str] | None) -> tuple[str, ...] | None:
+def family_filter(families: Sequence[str | Family] | None) -> tuple[str | Family, ...] | None:
     """The families to rank as :func:`nnphd.explain.laws.rank_laws`' ``include``: None (all, today's list) when
-    ``keys`` is None or names every family, else the keys (checked)."""
-    if keys is None:
+    ``families`` is None or names every built-in family and holds no Family of your own, else the families
+    (checked): keys and your Family objects."""
+    if families is None:
         return None
-    keys = tuple(keys)
-    check_families(keys)
-    return None if set(keys) >= set(FAMILIES) else keys
+    families = tuple(families)
+    check_families(families)
+    if all(isinstance(f, str) for f in families) and set(families) >= set(FAMILIES):
+        return None
+    return families
+
+
+def family_names(families: Sequence[str | Family]) -> list[str]:
+    """The families' keys (a key, or a Family object's ``key``): what a report's ``settings.families`` lists."""
+    return [f if isinstance(f, str) else f.key for f in families]
 
 
 @dataclass(frozen=True)
 class LawLibrary:
     """Which candidate laws of f_n are ranked, and how: ``nnphd.NNPhD(library=LawLibrary(...))``.
 
-    ``families``: the keys of the built-in families to rank (default: all of :data:`FAMILIES` — "linear" viscous,
-    "quadratic" drag, "coulomb" dry friction, their sums, "power", "rayleigh", "vanderpol", "rayleigh-vdp", "drive",
-    "sparse"; the "-diag"/"-full" variants apply to two or more coordinates); ``nnphd detect --families``.
+    ``families``: the families to rank — the keys of built-in ones (default: all of :data:`FAMILIES` — "linear"
+    viscous, "quadratic" drag, "coulomb" dry friction, their sums, "power", "rayleigh", "vanderpol", "rayleigh-vdp",
+    "drive", "sparse"; the "-diag"/"-full" variants apply to two or more coordinates; ``nnphd detect --families``)
+    and :class:`nnphd.explain.families.Family` objects of your own (a law linear in its coefficients given a few
+    nonlinear parameters, for the data's coordinates; e.g. ``LawLibrary(families=(*FAMILIES, my_family))``), each
+    under a key of its own. Your Family objects are code: a saved model (:meth:`nnphd.NNPhD.save`) keeps the keys of
+    the built-in families only.
     ``laws``: your own candidate laws, SymPy-like strings in the coordinates, ``<name>_dot`` and ``t`` (e.g.
     ``"c*x_dot*abs(x_dot)"``; read by the safe parser, never evaluated; checked here without the coordinate names and
     again on the data's in ``fit``); ``--law``. ``fit``: how the candidates are ranked, "auto" (pointwise joint fits,
@@ -65,12 +129,12 @@ class LawLibrary:
     The zero law ("no law") is always a row. A bad field is a ValueError naming it and what is expected.
     """
 
-    families: tuple[str, ...] = FAMILIES
+    families: tuple[str | Family, ...] = FAMILIES
     laws: tuple[str, ...] = ()
     fit: str = "auto"
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "families", _keys(self.families, "families"))
+        object.__setattr__(self, "families", _families(self.families))
         object.__setattr__(self, "laws", _keys(self.laws, "laws"))
         try:
             check_families(self.families)

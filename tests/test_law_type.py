@@ -34,7 +34,7 @@ FULL = Law(
 
 def test_round_trip_through_json_is_equal():
     d = FULL.to_dict()
-    assert set(d) == {f.name for f in dataclasses.fields(Law)}
+    assert set(d) == {f.name for f in dataclasses.fields(Law)} - {"fitted"}  # the fitted family is not JSON
     assert Law.from_dict(d) == FULL
     assert Law.from_dict(json.loads(json.dumps(d))) == FULL  # lists for tuples: the same Law
     bare = Law("none", "t", {}, {}, {}, {}, "pointwise")  # the defaulted fields may be left out

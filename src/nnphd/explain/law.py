@@ -15,10 +15,13 @@ always had are written by :meth:`Law.to_fit_dict` (results.json's ``parametric``
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field, fields
+import copy
+from dataclasses import dataclass, field, fields
 from typing import Any
 
-__all__ = ["STATUSES", "Law"]
+import numpy as np
+
+__all__ = ["STATUSES", "FittedFamily", "Law"]
 
 STATUSES = ("claimed", "tie", "candidate", "hint")  # what a Law is worth, from the law itself to a blind hint
 
@@ -32,6 +35,27 @@ def _error(where: str, what: str) -> ValueError:
 
 def _is_number(v: Any) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+@dataclass(frozen=True, eq=False)
+class FittedFamily:
+    """A :class:`~nnphd.explain.families.Family` with its fitted coefficients β (its ``coef_names``) and nonlinear
+    parameters θ (its ``nl_names``): the force g(q, q̇, t) it predicts (:meth:`predict`). What a :class:`Law`
+    predicts with, and what a model file keeps of a law (the family's ``spec``, β and θ)."""
+
+    family: Any  # a Family (nnphd.explain.families imports what imports this module: not imported here)
+    beta: np.ndarray
+    theta: np.ndarray
+
+    def predict(self, q, qd, t, xp=np):
+        """g at states q, qd (N, n) and times t (N,): (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an
+        integrator)."""
+        q, qd, t = (xp.asarray(a, dtype=float) for a in (q, qd, t))
+        theta = xp.asarray(self.theta)
+        g = xp.einsum("snk,k->sn", self.family.basis(xp, theta, q, qd, t), xp.asarray(self.beta))
+        if self.family.fixed is not None:
+            g = g + self.family.fixed(xp, theta, q, qd, t)
+        return g
 
 
 @dataclass(frozen=True)
@@ -63,6 +87,17 @@ class Law:
     n_terms: int | None = None
     readable: bool | None = None
     note: str = ""
+    fitted: FittedFamily | None = field(default=None, repr=False, compare=False)
+
+    def predict(self, q, qd, t=None, xp=np):
+        """The law's force at states q, qd (N, n) and times t (N,; None: zeros): (N, n); ``xp`` numpy, or jax.numpy
+        to trace it. A law of the ranked table (a fit, or a model loaded by :func:`nnphd.load`) holds its family with
+        the fitted coefficients (``fitted``); one read back from a report.json, a parametric fit or a blind formula
+        does not: ValueError."""
+        if self.fitted is None:
+            raise ValueError(f"the law {self.key!r:.60} holds no fitted family to predict with (read from a report?)")
+        t = xp.zeros(xp.shape(q)[0]) if t is None else t
+        return self.fitted.predict(q, qd, t, xp)
 
     def text(self) -> str:
         """The law in one line: ``"<component> = <expression>"``, joined by "; "."""
@@ -70,8 +105,9 @@ class Law:
 
     # ------------------------------------------------------------------------------------------ JSON boundary
     def to_dict(self) -> dict:
-        """Every field under its name (a deep copy); :meth:`from_dict` reads it back."""
-        return asdict(self)
+        """Every field under its name (a deep copy) but ``fitted`` (the family's code and arrays: a model file keeps
+        them, :meth:`nnphd.NNPhD.save`); :meth:`from_dict` reads it back."""
+        return {name: copy.deepcopy(getattr(self, name)) for name in _JSON_FIELDS}
 
     @classmethod
     def from_dict(cls, d: Any, where: str = "law") -> Law:
@@ -80,17 +116,16 @@ class Law:
         otherwise."""
         if not isinstance(d, dict):
             raise _error(where, f"expected an object, got {type(d).__name__}")
-        names = [f.name for f in fields(cls)]
-        extra = [k for k in d if k not in names]
+        extra = [k for k in d if k not in _JSON_FIELDS]
         if extra:
             raise _error(where, f"unknown field {str(extra[0])!r:.60}")
         vals = {}
-        for f in fields(cls):
-            if f.name not in d:
-                if f.name in _REQUIRED:
-                    raise _error(where, f"{f.name} is missing")
+        for name in _JSON_FIELDS:
+            if name not in d:
+                if name in _REQUIRED:
+                    raise _error(where, f"{name} is missing")
                 continue
-            vals[f.name] = _READ[f.name](d[f.name], f.name, where)
+            vals[name] = _READ[name](d[name], name, where)
         return cls(**vals)
 
     @classmethod
@@ -147,6 +182,7 @@ class Law:
 
 
 _REQUIRED = ("key", "title", "formula", "latex", "params", "stderr", "method")
+_JSON_FIELDS = tuple(f.name for f in fields(Law) if f.name != "fitted")  # what to_dict writes and from_dict reads
 
 
 def _text(v: Any, name: str, where: str) -> str:

@@ -32,7 +32,7 @@ import numpy as np
 import sympy as sp
 
 from nnphd.explain.families import DIGITS, Family
-from nnphd.explain.law import Law
+from nnphd.explain.law import FittedFamily, Law
 
 __all__ = ["IC_TIE", "Z_TERM", "Candidate", "LawTable"]
 
@@ -119,6 +119,7 @@ class Candidate:
             tuple(table),
             status=status,
             ties=tuple(ties),
+            fitted=self.fitted_family(),
         )
 
     def on_rows(self, q, qd, t) -> None:
@@ -134,16 +135,15 @@ class Candidate:
         if self.family.key == "drive":
             self.state_like = max(_state_r2(self.fn, q, qd), phase_locked(float(self.theta[0]), qd, t))
 
+    def fitted_family(self) -> FittedFamily | None:
+        """Its family with the fitted β and θ (None for the zero law)."""
+        return None if self.family is None else FittedFamily(self.family, np.array(self.beta), np.array(self.theta))
+
     def predict(self, q, qd, t, xp=np):
         """The law at new states (N, n); ``xp`` numpy, or jax.numpy to trace it (e.g. inside an integrator)."""
-        q, qd, t = (xp.asarray(a, dtype=float) for a in (q, qd, t))
         if self.family is None:
-            return xp.zeros_like(q)
-        theta = xp.asarray(self.theta)
-        g = xp.einsum("snk,k->sn", self.family.basis(xp, theta, q, qd, t), xp.asarray(self.beta))
-        if self.family.fixed is not None:
-            g = g + self.family.fixed(xp, theta, q, qd, t)
-        return g
+            return xp.zeros_like(xp.asarray(q, dtype=float))
+        return self.fitted_family().predict(q, qd, t, xp)
 
 
 @dataclass(frozen=True)
@@ -313,6 +313,14 @@ def dissipative_ok(fam: Family, beta) -> bool:
     negative term pumps energy in where the others take it out — a curve fitted to the record, not a mechanism
     (self-excitation has its own families, Rayleigh and van der Pol)."""
     return not fam.dissipative or bool(np.all(np.asarray(beta, float) >= 0))
+
+
+def fitted_law(fitted: FittedFamily, names, status: str = "claimed") -> Law:
+    """The :class:`Law` of a family with fitted coefficients and no table behind it (a model file holding a law its
+    report does not name): the formula in the coordinates' ``names`` and the parameters; standard errors unknown
+    (NaN); method "model file"."""
+    se = np.full(fitted.family.k, np.nan)
+    return law_row(fitted.family, fitted.beta, fitted.theta, se, names, float("nan"), "model file").to_law(status)
 
 
 def law_row(fam: Family, beta, theta, se, names, heldout_mse: float, method: str) -> Candidate:

@@ -50,7 +50,7 @@ def run_one(control, seed: int) -> dict:
         control.write_csv(path)
         ud = load_trajectories(path)
         t0 = time.perf_counter()
-        rep, _ = detect_data(ud, None, seed=seed, sr_time=0)
+        rep = detect_data(ud, None, seed=seed, sr_time=0)[0].report
         wall = time.perf_counter() - t0
     law = rep.get("law") or {}
     claimed = (law.get("law") or {}).get("law") if law.get("status") == "claimed" else None

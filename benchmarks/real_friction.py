@@ -74,7 +74,8 @@ def main() -> None:
         path = _path(ref["file"])
         ud = load_trajectories(path, (ref["coordinate"],) if ref["model"] == "pendulum" else ())
         t0 = time.perf_counter()
-        rep, model = detect_data(ud, None, seed=a.seed, sr_time=0)
+        result, model = detect_data(ud, None, seed=a.seed, sr_time=0)
+        rep = result.report
         wall = time.perf_counter() - t0
         law = rep["law"]
         rows = [law["law"], *law.get("ties", [])] if law.get("law") else []
@@ -83,7 +84,7 @@ def main() -> None:
             rows, kind = [law["candidate_law"]], "candidate (not claimed)"
         scored = []
         for r in rows:
-            err, has = _score(r, model["data"], model["coords"], ref)
+            err, has = _score(r, model.data, list(model.coords), ref)
             scored.append({"law": r["law"], "params": r["params"], "err": err, "necessary_in": has})
         p = ref["best_params"]
         refs_txt = (

@@ -7,7 +7,8 @@ Runs ``detect_file`` (seed 0, no genetic symbolic regression) on twelve records 
 constructed (tests/fixtures/recordings.py and friction.py, written as CSV) and real (../shared/data/real: the servo
 drop, two runs of the IBM double pendulum at 100 Hz over 8 s) — and stores, per record, the SHA-256 of its
 report.json with the fields that cannot repeat removed (``timings``, ``wall_time_s``: seconds; ``file``: the
-temporary path), its status and its claimed law. ``--against`` compares with a stored run and exits 1 on any
+temporary path; and the checks' ``wall_time_s``), its status and its claimed law. The digest keeps the keys in the
+order report.json writes them: a reordering is a difference. ``--against`` compares with a stored run and exits 1 on any
 difference, naming the first top-level keys that differ. ``--steps`` (default 400, below the CLI's 1000 so that
 the twelve take minutes) is recorded in the JSON; compare runs made with the same steps.
 """
@@ -77,10 +78,17 @@ def record(name: str, tmp: str) -> tuple[str, tuple[str, ...], dict]:
     return os.path.join(REAL, what), (), settings
 
 
-def digest(report: dict) -> str:
-    """SHA-256 of the report as report.json holds it (sorted keys), the volatile fields removed."""
+def stable(report: dict) -> dict:
+    """The report without the fields that cannot repeat (:data:`VOLATILE`, and the checks' ``wall_time_s``)."""
     kept = {k: v for k, v in report.items() if k not in VOLATILE}
-    return hashlib.sha256(json.dumps(kept, sort_keys=True, default=str).encode()).hexdigest()
+    if isinstance(kept.get("checks"), dict):
+        kept["checks"] = {k: v for k, v in kept["checks"].items() if k != "wall_time_s"}
+    return kept
+
+
+def digest(report: dict) -> str:
+    """SHA-256 of the stable report as report.json writes it (keys in their order, :func:`stable`)."""
+    return hashlib.sha256(json.dumps(stable(report), default=str).encode()).hexdigest()
 
 
 def main() -> None:
@@ -98,13 +106,14 @@ def main() -> None:
             path, angles, settings = record(name, tmp)
             t0 = time.perf_counter()
             rep = detect_file(path, None, angles=angles, seed=0, sr_time=0, steps=a.steps, **settings)
-            law = rep["law"].get("law") if isinstance(rep.get("law"), dict) else None
-            row = {"sha256": digest(rep), "status": rep["status"], "law": law, "report": {
-                k: v for k, v in rep.items() if k not in VOLATILE}}  # fmt: skip
+            law = ((rep.get("law") or {}).get("law") or {}).get("law")  # the claimed family's key
+            row = {"sha256": digest(rep), "status": rep["status"], "law": law, "report": stable(rep)}
             out["records"][name] = row
             same = ""
             if old is not None:
                 ref = old["records"].get(name)
+                if ref is not None:  # a stored run: its digest again (the same rule as this run's)
+                    ref = {**ref, "sha256": digest(ref["report"])}
                 if ref is None or ref["sha256"] != row["sha256"]:
                     bad += 1
                     keys = [k for k in row["report"] if ref is None or row["report"][k] != ref["report"].get(k)]

@@ -142,8 +142,9 @@ def test_rk4_stages_in_a_loop_integrate_as_the_four_written_out(nsub):
 def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(tmp_path, monkeypatch):
     """detect_data starts the law table on the conservative library on a thread of its own before the training
     (:func:`nnphd.user.detect.library_alongside`): the same table as :func:`find_law` one after another."""
+    from nnphd.explain.search import find_law
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import LIBRARY_ALONGSIDE, find_law, library_alongside
+    from nnphd.user.detect import LIBRARY_ALONGSIDE, library_alongside
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 
@@ -174,8 +175,8 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
 def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):
     from concurrent.futures import CancelledError
 
+    from nnphd.explain.search import find_law
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import find_law
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 

@@ -9,6 +9,7 @@ import json
 import numpy as np
 import pytest
 
+from nnphd.explain.work import against_velocity
 from nnphd.io.errors import DataError
 from nnphd.user.detect import check_field
 from nnphd.user.rules import (
@@ -16,7 +17,8 @@ from nnphd.user.rules import (
     FIELD_FIT_MSE,
     LAW_DETECT_CONFIDENCE,
     LAW_DETECT_DIC,
-    against_velocity,
+    declared_field_decides,
+    declared_field_effect,
     declared_field_verdict,
     reconcile,
 )
@@ -118,24 +120,26 @@ def test_a_decisive_law_that_does_not_oppose_the_velocity_is_no_drag_and_decides
         (1.0, "detected"),
     ):
         t = _table()
-        t["_field"] = {"against_velocity": along}
+        t["against_velocity"] = along
         s, conf, why = declared_field_verdict(t)
         assert s == status, (along, why)
         if status == "inconclusive":
             assert conf == 1.0 and "no drag" in why and f"only {100 * along:.0f}% of it opposes" in why
             assert "check that the field is uniform" in why
     t = _table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False)  # no decisive law: the share plays no part
-    t["_field"] = {"against_velocity": -1.0}
+    t["against_velocity"] = -1.0
     assert declared_field_verdict(t)[0] == "none"
 
 
 def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_not_detect():
     res, _ = _report()
     law = _table()
+    assert declared_field_decides(res, "uniform") and not declared_field_decides(res, "learned")
+    effect = declared_field_effect(law)
     status, new, conf, reasons = reconcile(res, law, "uniform")
     assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE) and law["law"]["law"] == "quadratic"
     assert reasons[0].startswith("beside the declared uniform field") and reasons[1] == res["reasons"][0]
-    assert law["_effect"] == (
+    assert effect == (
         "beside the declared uniform field, quadratic drag −c |q̇| q̇ lowers the error of the fit of the positions by "
         "48% (χ²/N 3.10 → 0.84, ΔIC = -190.0)"
     )
@@ -223,8 +227,8 @@ def test_a_vertical_field_is_one_column_along_the_last_coordinate():
 
 @pytest.mark.slow  # two trajectory-level law tables, ~25 s
 def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
+    from nnphd.explain.search import find_law, fitted_field
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import find_law, fitted_field
 
     for c in (0.0, 0.012):
         t, _, _, _, noisy = _throw(c=c)
@@ -250,8 +254,8 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
     free direction linear drag is Δχ² 10 behind quadratic in a whole-trajectory fit, with the field vertical 23 (seeds
     0, 1: −1.9 / 8.6 and 5.2 / 6.5). Declared vertical: quadratic drag is claimed within 5 % and the field has no x
     component (it is not fitted)."""
+    from nnphd.explain.search import find_law, fitted_field
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import find_law, fitted_field
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
 

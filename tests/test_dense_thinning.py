@@ -82,7 +82,7 @@ def test_the_rest_margin_counts_the_rows_that_remain():
     from types import SimpleNamespace
     from unittest import mock
 
-    from nnphd.user import detect
+    from nnphd.explain import search
 
     q = np.concatenate([np.cos(np.linspace(0, 20 * np.pi, 800)), np.zeros(200)])[:, None]
     data = SimpleNamespace(q=q, qd=np.zeros_like(q), qdd=np.zeros_like(q), t=np.arange(1000) * 0.01)
@@ -95,8 +95,8 @@ def test_the_rest_margin_counts_the_rows_that_remain():
     for thinned, margin in (({}, 15), ({"thinned": {"every": 4}}, 4)):
         info = {"per_coordinate": {"x": {"noise": 1e-4, "quantization_step": 0.0, "qdd": {"windows": [31]}}}}
         info |= thinned
-        with mock.patch("nnphd.user.rest.rest_mask", rest_mask):
-            detect.moving_rows(data, np.zeros(1000, int), ["x"], info, None, None, 0.4)
+        with mock.patch("nnphd.explain.rest.rest_mask", rest_mask):
+            search.moving_rows(data, np.zeros(1000, int), ["x"], info, None, None, 0.4)
         assert seen[-1] == margin
 
 

@@ -147,7 +147,7 @@ def test_detect_cli_prints_hostile_names_literally(tmp_path, capsys, monkeypatch
     def fake_detect_data(data, out=None, progress=None, **kw):
         seen["coords"] = data.coords
         progress(0, 1, f"training {data.coords[0]} [/progress]")
-        return _fake_report(data.coords), None
+        return types.SimpleNamespace(report=_fake_report(data.coords)), None  # the CLI prints the result's report
 
     monkeypatch.setattr(ud, "detect_data", fake_detect_data)
     path = _csv(tmp_path / "d.csv", 't,"[/x]",$\\frac{v$')

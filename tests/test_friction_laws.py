@@ -12,8 +12,8 @@ from scipy.integrate import solve_ivp
 from nnphd.explain.envelope import measured_envelope, predicted_envelope
 from nnphd.explain.families import families
 from nnphd.explain.laws import rank_laws
+from nnphd.explain.rest import rest_mask, without_rest
 from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, Candidate, phase_locked, select_law
-from nnphd.user.rest import rest_mask, without_rest
 
 
 def _pendulum(gamma, mu, c, T=30.0, dt=0.02, w2=9.0, eps=1e-3):

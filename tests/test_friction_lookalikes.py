@@ -1,5 +1,5 @@
 """Friction laws on constructed look-alikes of real friction records (tests/fixtures/friction.py): the law stage of
-``nnphd detect`` (:func:`nnphd.user.detect.find_law`, the conservative library as base — the LNN is the verdict's
+``nnphd detect`` (:func:`nnphd.explain.search.find_law`, the conservative library as base — the LNN is the verdict's
 business) gets the family (or reports a tie that holds it) and the coefficients, and never a confident wrong
 family. Slow tier: tens of seconds per case."""
 
@@ -10,7 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from nnphd.user.detect import best_formula, find_law, law_formula
+from nnphd.explain.search import find_law
+from nnphd.user.detect import best_formula, law_formula
 from tests.fixtures import friction as F
 
 

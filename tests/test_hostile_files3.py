@@ -21,7 +21,7 @@ import pytest
 import nnphd
 from nnphd.cli.common import MAX_SEED, MAX_STEPS
 from nnphd.io.cache import MAX_NPY_HEADER, npy_header, read_npz
-from nnphd.user.limits import MAX_ROWS
+from nnphd.io.limits import MAX_ROWS
 from nnphd.user.modelfile import MAX_MODEL_BYTES, MAX_N_SEEDS, MAX_SR_TIME, read_model_file
 from nnphd.user.recording import MAX_ITEMSIZE, MAX_NPY_PREFIX, DataError, load_trajectories
 from tests.fixtures.modelfiles import tiny_model
@@ -420,7 +420,7 @@ def test_nnphd_takes_the_ranges_a_model_file_must_keep(kw, name):
 
 def test_the_command_line_bounds_repeats_and_sr_time(tmp_path, capsys):
     from nnphd.cli import main
-    from nnphd.user.limits import MAX_N_SEEDS, MAX_SR_TIME
+    from nnphd.io.limits import MAX_N_SEEDS, MAX_SR_TIME
 
     data = tmp_path / "a.csv"
     data.write_text("t,x\n0,1\n")

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 import nnphd
 import nnphd.user.recording as rec
 from nnphd.cli import main
-from nnphd.user.limits import MAX_COLUMNS, MAX_COORDS, MAX_LINE, MAX_NAME
+from nnphd.io.limits import MAX_COLUMNS, MAX_COORDS, MAX_LINE, MAX_NAME
 from nnphd.user.recording import DataError, UserData, load_trajectories
 
 _SETTINGS = dict(deadline=None, derandomize=True, suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -150,7 +150,7 @@ def test_click_errors_quoting_arguments_are_escaped(capsys):
 
 
 _SCRIPT = """
-import sys, warnings
+import sys, types, warnings
 import nnphd.user.detect as ud
 from nnphd.io.cache import warn_ignored
 from nnphd.cli import main
@@ -169,7 +169,7 @@ def fake_detect_data(data, out=None, progress=None, **kw):
         "formula": None, "blind": False, "wall_time_s": 1.0,
         "law": {"law": {"title": f"linear {CSI}", "formula": formula, "params": {"k": 0.5}, "stderr": {"k": 0.1}}},
     }
-    return rep, None
+    return types.SimpleNamespace(report=rep), None  # the CLI prints the result's report
 
 ud.detect_data = fake_detect_data
 sys.exit(main(sys.argv[1:]))

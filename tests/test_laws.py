@@ -91,8 +91,8 @@ def test_user_law_linear_and_nonlinear_parameters():
 
 def _law_from_csv(path, angles=()):
     """A recording through the user-data path: positions only → derivatives → find_law (no LNN)."""
+    from nnphd.explain.search import find_law
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import find_law
     from nnphd.user.recording import load_trajectories
 
     ud = load_trajectories(path, angles)
@@ -216,25 +216,25 @@ def test_a_candidate_of_the_state_that_does_no_net_work_leaves_none_alone():
         (0.05, None, "inconclusive"),  # unknown: as before
     ]
     for share, pos, status in cases:
-        law = {"law": sparse, "_against_velocity": share, "by_position": pos}
+        law = {"law": sparse, "against_velocity": share, "by_position": pos}
         assert reconcile(res, law)[0] == status, (share, pos)
     # a drag that is no reproducible function of the state (a sparse fit on a Venus orbit: 0.20) contradicts nothing
-    law = {"law": sparse, "_against_velocity": 1.0, "by_position": 0.9, "by_state": STATE_MIN - 0.01}
+    law = {"law": sparse, "against_velocity": 1.0, "by_position": 0.9, "by_state": STATE_MIN - 0.01}
     assert reconcile(res, law)[0] == "none"
-    law = {"law": sparse, "_against_velocity": 1.0, "by_position": 0.9, "by_state": STATE_MIN}
+    law = {"law": sparse, "against_velocity": 1.0, "by_position": 0.9, "by_state": STATE_MIN}
     assert reconcile(res, law)[0] == "inconclusive"
     drive = {"law": "drive", "title": "drive A cos(ω t + φ)", "heldout_ratio": 0.68, "delta_ic": -17.2}
-    assert reconcile(res, {"law": drive, "_against_velocity": 0.0, "by_position": 1.0})[0] == "inconclusive"
+    assert reconcile(res, {"law": drive, "against_velocity": 0.0, "by_position": 1.0})[0] == "inconclusive"
     # no net work over the pool, no function of position, but working along each trajectory — pumping some and
     # braking others (a van der Pol law fitted to 8 trajectories of a conservative Morse oscillator): each
     # trajectory keeps its energy, so it contradicts nothing; in balance along each trajectory it does
     for per, status in ((LAW_WORK_MIN, "none"), (LAW_WORK_MIN - 0.01, "inconclusive"), (None, "inconclusive")):
-        law = {"law": sparse, "_against_velocity": -0.1, "by_position": -0.1, "work_per_trajectory": per}
+        law = {"law": sparse, "against_velocity": -0.1, "by_position": -0.1, "work_per_trajectory": per}
         assert reconcile(res, law)[0] == status, per
 
 
 def test_the_work_per_trajectory_sees_a_pump_and_a_brake_that_cancel_over_the_pool():
-    from nnphd.user.rules import against_velocity, work_per_trajectory
+    from nnphd.explain.work import against_velocity, work_per_trajectory
 
     t = np.linspace(0.0, 10.0, 200)
     v = np.c_[np.cos(t), np.sin(2 * t)]
@@ -257,18 +257,17 @@ def test_a_force_in_balance_found_by_every_base_is_detected_on_a_record_that_kee
            "quality": {"usable": True, "oscillating": True}, "checks": {"per_seed": [{"status": "none"}]}}  # fmt: skip
     w = {"law": "rayleigh", "title": "Rayleigh (a + c q̇²) q̇", "heldout_ratio": 0.146, "delta_ic": -2013.3}
     bases = [{"base": b, "status": "claimed", "law": w, "families": ["rayleigh"]} for b in ("library", "LNN")]
-    law = {"law": w, "status": "claimed", "settings": {"bases": bases}, "_against_velocity": 0.02, "by_position": 0.03}
+    law = {"law": w, "status": "claimed", "settings": {"bases": bases}, "against_velocity": 0.02, "by_position": 0.03}
     status, new, conf, reasons = reconcile(res, law)
     assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE)
     assert "does no net work" in reasons[0] and "no potential can stand in for it" in reasons[0]
     assert law["law"] is w
-    law["against_velocity"] = law.pop("_against_velocity")
     assert unclaim_unidentifiable(law) is None and law["law"] is w
     # in balance over the pool only (pumping some trajectories, braking others): no limit cycle, not detected
-    pooled = {**law, "against_velocity": None, "_against_velocity": 0.02, "work_per_trajectory": 0.8}
+    pooled = {**law, "work_per_trajectory": 0.8}
     assert reconcile(res, pooled)[0] == "none"
     # one base without the law: the conflict stands ("inconclusive")
-    weak = {**law, "_against_velocity": 0.02, "settings": {"bases": [bases[0], {**bases[1], "status": "none"}]}}
+    weak = {**law, "settings": {"bases": [bases[0], {**bases[1], "status": "none"}]}}
     assert reconcile(res, weak)[0] == "inconclusive"
     # a function of position that does no net work: not identifiable — no conflict, and never claimed
     pos = {**law, "by_position": 0.9}

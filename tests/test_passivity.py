@@ -98,7 +98,13 @@ def test_an_active_law_is_compared_with_the_passive_families_over_the_whole_reco
 
 
 def _law_dict(info, direction="loses energy"):
-    law = {"law": {"title": "van der Pol", "key": "vanderpol"}, "status": "claimed", "ties": [], "_passivity": info}
+    law = {
+        "law": {"title": "van der Pol", "key": "vanderpol"},
+        "status": "claimed",
+        "ties": [],
+        "passivity": info,
+        "reason": "r",
+    }
     res = {"evidence": {"combined": {"direction": direction, "significant": True}}}
     return res, law
 
@@ -110,7 +116,7 @@ def test_an_active_law_on_a_record_losing_energy_is_claimed_only_far_ahead_of_ev
     assert why.startswith("no law is claimed: the best candidate, van der Pol, adds energy on 62% of the visited")
     assert "only +4.0 in IC against the best passive family, linear" in why
     assert law["law"] is None and law["candidate_law"]["key"] == "vanderpol" and law["status"] == "none"
-    assert law["passivity"] == info and "_passivity" not in law
+    assert law["passivity"] == info and list(law)[-1] == "candidate_law"
     # far enough ahead: kept
     res, law = _law_dict({**info, "margin": 12.0})
     assert unclaim_active(res, law) is None and law["law"]["key"] == "vanderpol"
@@ -127,7 +133,7 @@ def test_a_pump_on_a_record_that_does_not_lose_energy_stays_claimed(direction):
 
 
 def test_a_force_of_the_state_is_a_force_of_position_on_one_orbit_but_not_on_a_1d_oscillation():
-    from nnphd.user.rules import position_explained
+    from nnphd.explain.work import position_explained
 
     t = np.arange(0.0, 60.0, 0.05)  # ~9.5 periods of 2π
     # a slightly eccentric orbit in the plane: each position comes with one velocity
@@ -144,7 +150,7 @@ def test_a_force_of_the_state_is_a_force_of_position_on_one_orbit_but_not_on_a_1
 
 
 def test_a_law_that_differs_at_the_same_state_on_another_pass_is_no_reproducible_force_of_the_state():
-    from nnphd.user.rules import position_explained
+    from nnphd.explain.work import position_explained
 
     t = np.arange(0.0, 60.0, 0.05)
     q = np.column_stack([1.1 * np.cos(t), np.sin(t)])

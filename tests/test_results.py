@@ -12,7 +12,6 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from nnphd import api
 from nnphd.api import DetectResult, Law, Status, Verdict, read_report
 from tests.fixtures.modelfiles import tiny_model
 
@@ -105,7 +104,9 @@ def test_a_report_file_is_read_back_and_checked(tmp_path):
 def test_a_report_larger_than_a_report_is_refused_unread(tmp_path, monkeypatch):
     path = tmp_path / "report.json"
     path.write_text(json.dumps(REPORT))
-    monkeypatch.setattr(api, "MAX_REPORT_BYTES", 100)
+    import nnphd.user.result as result
+
+    monkeypatch.setattr(result, "MAX_REPORT_BYTES", 100)
     with pytest.raises(ValueError, match=r"bytes, more than a report holds \(100 at most\)"):
         read_report(path)
 

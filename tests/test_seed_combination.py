@@ -123,7 +123,7 @@ def test_a_detection_by_the_clock_is_not_backed_by_record_level_evidence():
 
 def _law_dict(share):
     return {"law": {"title": "power-law drag −k (|q̇|²)^m q̇"}, "status": "claimed", "ties": [], "reason": "r",
-            "_against_velocity": share}  # fmt: skip
+            "against_velocity": share, "candidates": []}  # fmt: skip
 
 
 def _res(direction="loses energy", significant=True):
@@ -137,7 +137,7 @@ def test_a_law_that_pumps_energy_into_a_record_that_loses_it_is_not_claimed():
     why = unclaim_against_evidence(_res(), law)
     assert why and "adds energy (-100% of its force against the velocity) where the record loses energy" in why
     assert law["law"] is None and law["candidate_law"]["title"].startswith("power-law") and law["status"] == "none"
-    assert "_against_velocity" not in law
+    assert list(law)[-2:] == ["against_velocity", "candidate_law"] and law["against_velocity"] == -1.0
     # the mirror case: a drag claimed on a record that gains energy
     law = _law_dict(0.9)
     assert "takes energy" in unclaim_against_evidence(_res("gains energy"), law) and law["law"] is None

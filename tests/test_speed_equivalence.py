@@ -157,9 +157,9 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
     from types import SimpleNamespace
 
     from nnphd.explain.families import families
+    from nnphd.explain.search import moving_rows
     from nnphd.explain.stuck import stop_contradictions
     from nnphd.explain.table import LawTable, law_row, zero_row
-    from nnphd.user.detect import moving_rows
 
     (q1, t1), (q2, t2) = _swing(0.3), _swing(0.25)
     q, t = np.concatenate([q1, q2]), np.concatenate([t1, t2])

@@ -11,6 +11,7 @@ import pytest
 import nnphd
 from nnphd.user.derivatives import Derivatives, estimate_derivatives, to_dataset
 from nnphd.user.recording import from_arrays
+from nnphd.user.result import ConservativeModel
 from nnphd.user.strategies import FAMILIES, LawLibrary, family_filter
 
 T = np.arange(401) * 0.05  # 0…20 s
@@ -179,9 +180,9 @@ class _Stop(Exception):
 
 def _stand_ins(monkeypatch, seen: dict) -> None:
     """detect_data's training and law table stood in for: what reaches them is noted in ``seen``."""
+    import nnphd.explain.search as search
     import nnphd.user.assess as assess_mod
     import nnphd.user.derivatives as derivatives
-    import nnphd.user.detect as detect
 
     derive = derivatives.derive
 
@@ -194,7 +195,8 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
         seen.update(rows=len(data))
         n = (len(data), 1)
         nan = np.full(n, np.nan)  # a conservative force that is not finite: only the library base is ranked
-        return {"_conservative": {"fc": nan}, "quality": {"oscillating": True}, "f_n": nan, "f_c": nan}
+        cons = ConservativeModel(None, None, nan, None)
+        return assess_mod.Assessment({"quality": {"oscillating": True}}, nan, nan, cons)
 
     def find_law(*a, **k):
         seen.update(families=k["families"], laws=k["laws"], level=k["level"])
@@ -202,7 +204,7 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
 
     monkeypatch.setattr(derivatives, "derive", derived)
     monkeypatch.setattr(assess_mod, "assess", assess)
-    monkeypatch.setattr(detect, "find_law", find_law)
+    monkeypatch.setattr(search, "find_law", find_law)
 
 
 def test_fit_threads_the_objects_to_the_derivatives_and_the_law_table(monkeypatch):
@@ -229,7 +231,7 @@ def test_fit_threads_the_objects_to_the_derivatives_and_the_law_table(monkeypatc
 def test_restricted_families_are_the_only_candidates_ranked():
     """find_law (what the fit's law table calls) ranks only the families asked for, beside the zero law and your own
     laws; without a restriction every family that fits is a row."""
-    from nnphd.user.detect import find_law
+    from nnphd.explain.search import find_law
 
     rng = np.random.default_rng(0)
     ts = [np.arange(0.0, T_, 0.1) for T_ in (30.0, 25.0)]

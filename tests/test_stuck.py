@@ -97,7 +97,7 @@ def test_only_a_rest_that_ends_its_trajectory_is_evidence():
     0.02 rad: only the final rest is the body's own (the first was a hand)."""
     from types import SimpleNamespace
 
-    from nnphd.user.detect import moving_rows
+    from nnphd.explain.search import moving_rows
 
     dt, w2, mu, gam = 0.01, 40.0, 0.8, 0.3
     q, v, qs = 0.3, 0.0, [0.3] * 100
@@ -136,7 +136,7 @@ def _swing(gam, mu, *, q0=0.3, w2=A, dt=0.01, seconds=9.0, step=0.0):
 
 
 def _final_rest(data, traj, info, period):
-    from nnphd.user.detect import moving_rows
+    from nnphd.explain.search import moving_rows
 
     *_, rest = moving_rows(data, traj, ["th"], info, None, None, period, margin=False)
     assert rest is not None and rest["final"]

@@ -17,7 +17,7 @@ pytestmark = pytest.mark.slow  # run by `python3 dev.py test --slow` (and by CI)
 def _detect(rec, tmp_path, **kw):
     path = tmp_path / f"{rec.name}.csv"
     rec.write_csv(path)
-    return detect_data(load_trajectories(path, rec.angles), None, seed=0, sr_time=0, **kw)[0]
+    return detect_data(load_trajectories(path, rec.angles), None, seed=0, sr_time=0, **kw)[0].report
 
 
 def test_a_limit_cycle_gets_its_law(tmp_path):
@@ -48,7 +48,7 @@ def test_a_satellites_precise_conservative_orbit_is_not_detected(tmp_path):
     c = records(["satellite-j2-inertial"])[0]
     path = tmp_path / "sat.csv"
     c.write_csv(path)
-    rep = detect_data(load_trajectories(path), None, seed=0, sr_time=0)[0]
+    rep = detect_data(load_trajectories(path), None, seed=0, sr_time=0)[0].report
     assert rep["status"] != "detected", rep["reasons"][:2]
     assert rep["law"].get("law") is None
     per = rep["checks"]["per_seed"]

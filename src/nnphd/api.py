@@ -17,17 +17,16 @@ from __future__ import annotations
 
 import json
 import os
-import sys
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
-from enum import StrEnum
+from dataclasses import asdict, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from nnphd.explain.law import Law
+from nnphd.explain.law import FittedFamily, Law
 from nnphd.io.progress import Progress
+from nnphd.user.result import ConservativeModel, DetectResult, FittedModel, Status, Verdict, read_report
 
 if TYPE_CHECKING:  # the strategy objects (nnphd.Derivatives, nnphd.LawLibrary) load with the first NNPhD
     from nnphd.user.strategies import Derivatives, LawLibrary
@@ -111,148 +110,10 @@ class Trajectories:
         )
 
 
-class Status(StrEnum):
-    """The verdict's status. A str: ``Status.DETECTED == "detected"``, and it is written to JSON as the plain word."""
-
-    DETECTED = "detected"  # a non-conservative force (or an explicit time dependence) is there
-    NONE = "none"  # the motion is conservative within what the record can tell
-    INCONCLUSIVE = "inconclusive"  # the record cannot decide; the reasons say why
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """Is there new physics? ``status`` (:class:`Status`); ``new_physics`` the best call (True with
-    "inconclusive" when the evidence leans that way); ``confidence`` the repeatability of the call (docs/RESULTS.md,
-    "Can you trust the verdict?"); ``reasons`` why; ``statistic`` the energy-trend z."""
-
-    status: Status
-    new_physics: bool
-    confidence: float
-    reasons: tuple[str, ...]
-    statistic: float | None
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-
-MAX_REPORT_BYTES = 256 * 2**20  # a report.json larger than this is refused unread
-
-
-def _report_error(where: str, what: str) -> ValueError:
-    return ValueError(f"{where}: {what}")
-
-
-def _verdict_of(report: dict, where: str = "report") -> Verdict:
-    """The report's verdict, checked: a report read from a file is untrusted."""
-    try:
-        status = Status(report.get("status"))
-    except ValueError:
-        raise _report_error(
-            where, f"status must be one of {', '.join(repr(s.value) for s in Status)}, got {report.get('status')!r:.60}"
-        ) from None
-    conf = report.get("confidence")
-    if isinstance(conf, bool) or not isinstance(conf, (int, float)) or not (0.0 <= conf <= 1.0 or conf != conf):
-        raise _report_error(where, f"confidence must be a number in [0, 1], got {conf!r:.60}")  # (NaN: not known)
-    reasons = report.get("reasons", [])
-    if not isinstance(reasons, list) or not all(isinstance(r, str) for r in reasons):
-        raise _report_error(where, "reasons must be a list of strings")
-    stat = (report.get("statistic") or {}).get("value") if isinstance(report.get("statistic"), dict) else None
-    if stat is not None and (isinstance(stat, bool) or not isinstance(stat, (int, float))):
-        raise _report_error(where, f"statistic.value must be a number or null, got {stat!r:.60}")
-    return Verdict(status, bool(report.get("new_physics")), float(conf), tuple(reasons), stat)
-
-
-@dataclass(frozen=True)
-class DetectResult:
-    """What ``nnphd detect`` / :meth:`NNPhD.fit` found, typed: the :class:`Verdict`, the effect size in words, the
-    evidence, the claimed :class:`Law` (None unless "detected" with a law), how the law table ended (``law_status``
-    "claimed" / "tie" / "none", ``law_reason``), the per-stage ``timings``, data ``warnings``, the conservative
-    ``field`` and the ``settings``. ``report`` is the JSON as written (report.json); :meth:`to_dict` returns it
-    and :meth:`from_dict` / :func:`read_report` check it back."""
-
-    verdict: Verdict
-    effect: str | None
-    evidence: dict
-    law: Law | None
-    law_status: str
-    law_reason: str
-    timings: dict
-    warnings: tuple[str, ...]
-    field: dict
-    settings: dict
-    report: dict = field(repr=False, compare=False)
-
-    @property
-    def status(self) -> Status:
-        return self.verdict.status
-
-    @classmethod
-    def from_dict(cls, report: dict, where: str = "report") -> DetectResult:
-        """From a report dict (report.json's content); ValueError with one line when it is not one."""
-        if not isinstance(report, dict):
-            raise _report_error(where, f"expected a JSON object, got {type(report).__name__}")
-        verdict, law = _verdict_of(report, where), Law.from_report(report, where)
-        effect = report.get("effect")
-        warnings = report.get("warnings", [])
-        if effect is not None and not isinstance(effect, str):
-            raise _report_error(where, "effect must be a string or null")
-        if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
-            raise _report_error(where, "warnings must be a list of strings")
-        parts = {k: {} if report.get(k) is None else report[k] for k in ("evidence", "timings", "field", "settings")}
-        for k, v in parts.items():
-            if not isinstance(v, dict):
-                raise _report_error(where, f"{k} must be an object")
-        table = report.get("law") or {}
-        return cls(
-            verdict,
-            effect,
-            parts["evidence"],
-            law,
-            str(table.get("status", "none")),
-            str(table.get("reason", "")),
-            parts["timings"],
-            tuple(warnings),
-            parts["field"],
-            parts["settings"],
-            report,
-        )
-
-    def to_dict(self) -> dict:
-        """The report as written (a deep copy: changing it changes nothing here)."""
-        return json.loads(json.dumps(self.report))
-
-
-def read_report(path) -> DetectResult:
-    """A report.json written by ``nnphd detect`` (or :meth:`NNPhD.report`), read and checked: bounded in size, parsed
-    as JSON only (never executed), its verdict and law checked for type. ValueError with one line naming the path
-    and what is wrong. Only a regular file is read, checked on a non-blocking descriptor before any read
-    (:func:`nnphd.io.cache.open_regular`): a FIFO, a device or a link to one is refused at once, not waited on."""
-    from nnphd.io.cache import open_regular
-
-    path = Path(path)
-    try:
-        f = open_regular(path, sys.maxsize)  # (the size is checked below, to say it as a report's limit)
-    except ValueError as e:  # no such file, not a regular file, not readable
-        raise _report_error(str(path), f"not a readable report.json ({e})") from None
-    with f:
-        size = os.fstat(f.fileno()).st_size
-        if size > MAX_REPORT_BYTES:
-            raise _report_error(str(path), f"{size} bytes, more than a report holds ({MAX_REPORT_BYTES} at most)")
-        try:
-            data = f.read(MAX_REPORT_BYTES + 1)
-            if len(data) > MAX_REPORT_BYTES:  # it grew while read
-                raise _report_error(str(path), f"more than a report holds ({MAX_REPORT_BYTES} bytes at most)")
-            report = json.loads(data.decode("utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
-            why = f"{type(e).__name__}: {str(e)[:120]}"
-            raise _report_error(str(path), f"not a readable report.json ({why})") from None
-    return DetectResult.from_dict(report, str(path))
-
-
 def _check_run_settings(seed: int, steps: int, n_seeds: int, sr_time: float) -> None:
-    """The ranges of the command line's options (:mod:`nnphd.user.limits`), which a saved model's settings must keep
+    """The ranges of the command line's options (:mod:`nnphd.io.limits`), which a saved model's settings must keep
     too: ValueError naming the first one outside."""
-    from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
+    from nnphd.io.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
 
     for name, value, lo, hi in (
         ("seed", seed, 0, MAX_SEED),
@@ -312,7 +173,7 @@ class NNPhD:
         self.laws, self.law_fit, self.trim = self.library.laws, self.library.fit, self.derivatives.trim
         self.sr_time, self.assess_kw = float(sr_time), dict(assess_kw)
         self.field = field
-        self._model: dict | None = None
+        self._model: FittedModel | None = None
         self._fc_jit = None
 
     # ------------------------------------------------------------------------------------------------ fitting
@@ -324,7 +185,7 @@ class NNPhD:
         if not isinstance(data, Trajectories):
             raise TypeError(f"fit expects nnphd.Trajectories, got {type(data).__name__}")
         with _x64():
-            report, model = detect_data(
+            result, model = detect_data(
                 data._ud,
                 None,
                 seed=self.seed,
@@ -333,7 +194,7 @@ class NNPhD:
                 n_seeds=self.n_seeds,
                 progress=progress,
                 trim=self.derivatives.trim,
-                derivative_method=self.derivatives.method,
+                derivative_method=self.derivatives,
                 thin=self.derivatives.thin,
                 laws=self.library.laws,
                 law_fit=self.library.fit,
@@ -341,28 +202,38 @@ class NNPhD:
                 field=self.field,
                 **self.assess_kw,
             )
-        self.report_ = report
+        self.report_ = result.report
         self._model = model
-        self._set_results(report, model["law"])
+        self._set_results(result, None if model.law is None else model.law.fitted_family())
         return self
 
-    def _set_results(self, report: dict, law_fit, where: str = "report") -> None:
-        self.result_ = DetectResult.from_dict(report, where)
+    def _set_results(self, result: DetectResult, fitted: FittedFamily | None) -> None:
+        """The results of a fit or a loaded file; ``fitted``: the claimed law's family with its fitted coefficients,
+        which the Law (``law_``, ``result_.law`` and the model's ``law``, one object) then predicts with."""
+        if fitted is not None:
+            if result.law is not None:
+                law = replace(result.law, fitted=fitted)
+            else:  # a model file whose report names no law but holds one: that law, its formula made here
+                from nnphd.explain.table import fitted_law
+
+                law = fitted_law(fitted, self._model.coords)
+            result = replace(result, law=law)
+        self.result_ = result
+        self._model = replace(self._model, law=result.law)  # the model holds the Law, nothing else of the law
         self.verdict_, self.law_ = self.result_.verdict, self.result_.law
         self.status_, self.confidence_, self.new_physics_ = (
             self.verdict_.status,
             self.verdict_.confidence,
             self.verdict_.new_physics,
         )
-        self._law = law_fit
         self._fc_jit = None  # compiled f_c of the model now held (a refit replaces it)
         m = self._model
-        self.names_, self.angles_ = tuple(m["coords"]), tuple(c for c, a in zip(m["coords"], m["angles"]) if a)
+        self.names_, self.angles_ = tuple(m.coords), tuple(c for c, a in zip(m.coords, m.angles) if a)
 
     def _check_fitted(self):
         if self._model is None:
             raise RuntimeError("this NNPhD is not fitted yet: call .fit(data) or nnphd.load(path) first")
-        if self._model["conservative"] is None:
+        if self._model.conservative is None:
             raise RuntimeError(
                 "no model was trained: the data cannot decide (" + "; ".join(self.verdict_.reasons) + ")"
             )
@@ -380,15 +251,15 @@ class NNPhD:
         """f_c(q, q̇) of the model held, as a JAX function (not compiled: :func:`_check_forward` runs it once)."""
         from nnphd.user.assess import conservative_fn
 
-        fld = self._model.get("field")
+        fld = self._model.field
         if fld is not None:  # a declared uniform field: its fitted acceleration
             import jax.numpy as jnp
 
-            from nnphd.user.detect import field_force
+            from nnphd.explain.search import field_force
 
-            ang = self._model["angles"]
+            ang = self._model.angles
             return lambda q, qd: field_force(fld, q, ang, xp=jnp)
-        return conservative_fn(self._model["conservative"])
+        return conservative_fn(self._model.conservative)
 
     def _states(self, q, qd, t):
         n = len(self.names_)
@@ -408,7 +279,8 @@ class NNPhD:
     def _forces(self, fc_fn, q, qd, t) -> tuple[np.ndarray, np.ndarray]:
         with _x64():
             fc = np.asarray(fc_fn(q, qd), float)
-        fn = np.zeros_like(q) if self._law is None else np.asarray(self._law.predict(q, qd, t), float)
+        law = self.law_
+        fn = np.zeros_like(q) if law is None or law.fitted is None else np.asarray(law.predict(q, qd, t), float)
         return fc, fn
 
     def simulate(self, q0, qd0, t, substeps: int = 4) -> tuple[np.ndarray, np.ndarray]:
@@ -427,7 +299,7 @@ class NNPhD:
         if np.ptp(dt) > 1e-9 * np.max(np.abs(t)) + 1e-12:
             raise ValueError("t must be evenly spaced")
         n = len(self.names_)
-        law, fc = self._law, self._fc_fn()
+        law, fc = self.law_ if self.law_ is not None and self.law_.fitted is not None else None, self._fc_fn()
 
         def f(q, qd, tt):
             a = fc(q[None], qd[None])[0]
@@ -449,9 +321,9 @@ class NNPhD:
 
         self._check_fitted()
         m = self._model
-        if "data" not in m:
+        if m.data is None:
             raise RuntimeError("a loaded model keeps no data: report() needs the model from fit()")
-        write_report(out, self.report_, m["data"], m["traj"], m["coords"], m["fc"], m["fn"])
+        write_report(out, self.report_, m.data, m.traj, list(m.coords), m.fc, m.fn)
         return Path(out)
 
     def figures(self) -> dict:
@@ -461,25 +333,26 @@ class NNPhD:
 
         self._check_fitted()
         m = self._model
-        if "data" not in m:
+        if m.data is None:
             raise RuntimeError("a loaded model keeps no data: figures() needs the model from fit()")
         r = self.report_
-        figs = {"data": rp.fig_data(m["data"], m["traj"], m["coords"])}
+        coords = list(m.coords)
+        figs = {"data": rp.fig_data(m.data, m.traj, coords)}
         e = rp.fig_energy(r["evidence"]["energy_trend"])
         if e is not None:
             figs["energy_trend"] = e
         if r["table"]:
             figs["loss_vs_lambda"] = rp.fig_loss(r["table"])
             figs["forces"] = rp.fig_forces(
-                m["data"],
-                m["traj"],
-                m["coords"],
-                m["fc"],
-                m["fn"],
+                m.data,
+                m.traj,
+                coords,
+                m.fc,
+                m.fn,
                 r.get("lambda_forces"),
                 rp.declared_field(r) is not None,
             )
-        env = rp.fig_envelope((r.get("law") or {}).get("envelope"), m["coords"][0])
+        env = rp.fig_envelope((r.get("law") or {}).get("envelope"), coords[0])
         if env is not None:
             figs["envelope"] = env
         return figs
@@ -490,26 +363,29 @@ class NNPhD:
         no pickle; written atomically."""
         import jax
 
+        from nnphd.user.derivatives import METHODS
         from nnphd.user.strategies import family_filter
 
         self._check_fitted()
         path = Path(path)
+        method, keys = self.derivatives.name, [k for k in self.library.families if isinstance(k, str)]
         if path.suffix != ".npz":
             raise ValueError(f"{path}: the model file must end in .npz")
-        cons = self._model["conservative"]
-        leaves = jax.tree_util.tree_leaves(cons["lnn"])
-        sc = cons["scaling"]
+        cons = self._model.conservative
+        leaves = jax.tree_util.tree_leaves(cons.lnn)
+        sc = cons.scaling
         law = None
-        if self._law is not None:
-            if self._law.family.spec is None:
-                raise ValueError(f"the law family {self._law.key!r} cannot be saved (no spec)")
-            law = {"spec": self._law.family.spec, "beta": self._law.beta.tolist(), "theta": self._law.theta.tolist()}
+        fitted = None if self.law_ is None else self.law_.fitted
+        if fitted is not None:
+            if fitted.family.spec is None:
+                raise ValueError(f"the law family {self.law_.key!r} cannot be saved (no spec)")
+            law = {"spec": fitted.family.spec, "beta": fitted.beta.tolist(), "theta": fitted.theta.tolist()}
         meta = {
             "format": "nnphd-model",
             "version": 1,
             "names": list(self.names_),
             "angles": [c in self.angles_ for c in self.names_],
-            "cfg": asdict(cons["cfg"]),
+            "cfg": asdict(cons.cfg),
             "scaling": {
                 "mu_q": np.asarray(sc.mu_q).tolist(),
                 "s_q": np.asarray(sc.s_q).tolist(),
@@ -529,13 +405,14 @@ class NNPhD:
                 "trim": self.trim,
                 "field": self.field,
                 # the strategy objects' other fields, where not the default (older files have neither)
-                **({"derivative_method": self.derivatives.method} if self.derivatives.method != "auto" else {}),
+                # (your own estimator and Family objects are code: the built-in method's name and families' keys)
+                **({"derivative_method": method} if method in METHODS and method != "auto" else {}),
                 **({"thin": False} if not self.derivatives.thin else {}),
-                **({"families": list(self.library.families)} if family_filter(self.library.families) else {}),
+                **({"families": keys} if family_filter(keys) else {}),
             },
         }
-        if self._model.get("field") is not None:
-            meta["field"] = self._model["field"]
+        if self._model.field is not None:
+            meta["field"] = self._model.field
         from nnphd.io.results import json_default
 
         arrays = {f"lnn_{i}": np.asarray(x) for i, x in enumerate(leaves)}
@@ -565,7 +442,6 @@ def load(path) -> NNPhD:
     line naming the path and what is wrong."""
     import jax
 
-    from nnphd.explain.table import Candidate
     from nnphd.user.modelfile import read_model_file
     from nnphd.user.scaling import Scaling
     from nnphd.user.strategies import FAMILIES, Derivatives, LawLibrary
@@ -591,35 +467,12 @@ def load(path) -> NNPhD:
         )
     except ValueError as e:
         raise ValueError(f"{path}: not a valid nnphd model file: settings: {e}") from None
-    law = None
-    if mf.family is not None:
-        fam, beta, theta = mf.family, mf.beta, mf.theta
-        law = Candidate(
-            fam.key,
-            fam.title,
-            fam.k,
-            {},
-            {},
-            {},
-            {},
-            float("nan"),
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            fam.terms,
-            family=fam,
-            theta=theta,
-            beta=beta,
-        )
-    model._model = {
-        "conservative": {"lnn": lnn, "cfg": cfg, "scaling": sc},
-        "coords": meta["names"],
-        "angles": meta["angles"],
-        "field": meta.get("field"),
-    }
+    fitted = None if mf.family is None else FittedFamily(mf.family, mf.beta, mf.theta)
+    names, angles = tuple(meta["names"]), tuple(bool(a) for a in meta["angles"])
+    model._model = FittedModel(ConservativeModel(lnn, cfg, None, sc), None, None, None, names, angles, None, None,
+                               meta.get("field"))  # fmt: skip
     model.report_ = meta["report"]
-    model._set_results(meta["report"], law, f"{path}: report")
+    model._set_results(DetectResult.from_dict(meta["report"], f"{path}: report"), fitted)
     _check_forward(model, path)
     return model
 
@@ -636,7 +489,7 @@ def _check_forward(model: NNPhD, path) -> None:
     process, where compiling each loaded model's function would cost ~0.5 s on every load.)"""
     from nnphd.io.cache import one_line
 
-    sc = model._model["conservative"]["scaling"]
+    sc = model._model.conservative.scaling
     a, b = np.asarray(PROBE_STATES).T
     with np.errstate(all="ignore"):
         q = np.asarray(sc.mu_q, float) + a[:, None] * np.asarray(sc.s_q, float)

@@ -13,7 +13,7 @@ import typer
 from rich.console import Console
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS  # noqa: F401  (the options' ranges)
+from nnphd.io.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS  # noqa: F401  (the options' ranges)
 
 app = typer.Typer(
     add_completion=False,

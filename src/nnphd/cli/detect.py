@@ -25,7 +25,7 @@ from nnphd.cli.common import (
 )
 from nnphd.io.escape import one_line
 from nnphd.io.escape import rich as _r
-from nnphd.user.limits import MAX_ROWS, MIN_ROWS
+from nnphd.io.limits import MAX_ROWS, MIN_ROWS
 
 
 @app.command()
@@ -214,10 +214,10 @@ def _detect_one(ud, out, workers, scheduler, t_read, settings) -> dict:
     from nnphd.user.detect import detect_data
 
     with progress_bar("detect: starting") as status:
-        rep, _ = detect_data(
+        result, _ = detect_data(
             ud, out=out, progress=status, workers=workers, scheduler=scheduler, read_s=t_read, **settings
         )
-    return rep
+    return result.report
 
 
 def _print_report(rep: dict) -> None:

@@ -51,6 +51,7 @@ import os
 import threading
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import jax.numpy as jnp
 import numpy as np
@@ -60,6 +61,7 @@ from nnphd.engine.evidence import dominant_period
 from nnphd.engine.models import (
     ModelConfig,
 )
+from nnphd.io.limits import MIN_ROWS
 from nnphd.io.progress import Progress
 from nnphd.parallel import Unit, UnitsFailed, run_units, runs_here
 from nnphd.user.checks import (
@@ -79,7 +81,7 @@ from nnphd.user.checks import (
     data_quality,
     motion_time_scale,
 )
-from nnphd.user.limits import MIN_ROWS
+from nnphd.user.result import ConservativeModel
 from nnphd.user.rounds import (
     lnn_accel_fn,
     one_seed,
@@ -92,7 +94,38 @@ from nnphd.user.scaling import (
     time_features,
 )
 
-__all__ = ["assess", "conservative_fn"]
+__all__ = ["Assessment", "assess", "conservative_fn"]
+
+
+@dataclass(frozen=True, eq=False)
+class Assessment:
+    """What :func:`assess` found: ``report``, the JSON-ready verdict with its evidence (the keys of :func:`assess`'s
+    docstring, which report.json carries), the learned forces ``f_c`` and ``f_n`` on every row (file units), the
+    first seed's ``conservative`` model (None when no model was trained: the data cannot decide) and each seed's
+    wall and compile seconds ``timings_per_seed``."""
+
+    report: dict
+    f_c: np.ndarray
+    f_n: np.ndarray
+    conservative: ConservativeModel | None
+    timings_per_seed: tuple = ()
+
+    @property
+    def status(self) -> str:
+        return self.report["status"]
+
+    @property
+    def new_physics(self) -> bool:
+        return self.report["new_physics"]
+
+    @property
+    def confidence(self) -> float:
+        return self.report["confidence"]
+
+    @property
+    def reasons(self) -> list[str]:
+        return self.report["reasons"]
+
 
 DEFAULT_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
 
@@ -145,7 +178,7 @@ def assess(
     derivative_error: Sequence[float] | None = None,
     workers: int | None = 1,
     scheduler: str | None = None,
-) -> dict:
+) -> Assessment:
     """Is there new physics in trajectory data (q, q̇, t, q̈), with checks against under-fitting?
 
     ``data``: a :class:`~nnphd.engine.data.Dataset` (its fc/fn, if any, are ignored); ``traj``: a trajectory id per row
@@ -160,7 +193,7 @@ def assess(
     another here; None: side by side on one thread per core of this process, sharing their compiled programs; N: N
     local Dask worker processes; or an existing Dask scheduler) — the same numbers either way.
 
-    Returns a dict:
+    Returns an :class:`Assessment`, whose ``report`` holds:
 
     * ``status``: "detected" | "none" | "inconclusive"; ``new_physics``: the best call (bool);
     * ``statistic``: {"name", "value"}: the z of the energy trend along the record (median over seeds);
@@ -174,8 +207,8 @@ def assess(
     * ``checks``: every check's numbers per seed, ``per_seed`` with everything, the scaling and the thresholds;
     * ``table``: per λ, L_e and L_b on held-out data (original units; ``_rel``: over ‖f‖) and on the training data,
       median over seeds;
-    * ``f_c``, ``f_n``: the learned forces on every row of ``data`` (original units) at λ = ``lambda_forces``
-      (the grid value below 1 nearest 0.2), first seed.
+    * ``lambda_forces``: the λ of the forces ``f_c``, ``f_n`` on every row of ``data`` (original units; the
+      Assessment's) — the grid value below 1 nearest 0.2, first seed.
     """
     _validate(data, traj, steps, lambdas, n_seeds)
     t_start = time.perf_counter()
@@ -192,7 +225,8 @@ def assess(
     quality = data_quality(period_samples, noise_rel, derivative_error, time_scale=scale_kind)
     clock = clock_testable(tp, segs)
     if not quality["usable"]:  # nothing to learn from: say so at once instead of training on noise
-        return _unusable(quality, sc, data, is_angle, clock, time.perf_counter() - t_start)
+        zeros = np.zeros_like(data.q)
+        return Assessment(_unusable(quality, sc, is_angle, clock, time.perf_counter() - t_start), zeros, zeros, None)
     cfg_kw = {"periodic": tuple(int(i) for i in np.flatnonzero(is_angle))} if is_angle.any() else {}
     ctx = {
         "q": q,
@@ -244,15 +278,15 @@ def assess(
     for u, s in zip(units, seeds):  # measured where the seed ran (a worker process too): wall and JAX compilation
         s["timings"] = {"wall_s": outs[u.key].wall_time_s, "compile_s": outs[u.key].compile_time_s,
                         "where": outs[u.key].where, **s.get("timings", {})}  # fmt: skip
-    res = _combine(seeds, sc, data, time.perf_counter() - t_start)
+    res, (fc, fn) = _combine(seeds, sc, data, time.perf_counter() - t_start)
     res["quality"] = quality
     res["angles"] = [bool(a) for a in is_angle]
     res["clock"] = {"testable": ctx["clock"][0], "why": ctx["clock"][1]}
-    res["timings_per_seed"] = [{"seed": s["seed"], **s["timings"]} for s in seeds]
-    return res
+    timings = tuple({"seed": s["seed"], **s["timings"]} for s in seeds)
+    return Assessment(res, fc, fn, seeds[0]["conservative"], timings)
 
 
-def _unusable(quality: dict, sc: Scaling, data: Dataset, is_angle, clock, wall: float) -> dict:
+def _unusable(quality: dict, sc: Scaling, is_angle, clock, wall: float) -> dict:
     """The result for data that cannot decide (no training is done): inconclusive, with the reason."""
     empty = {"valid": False, "reason": "not computed: " + quality["reason"]}
     keys = {
@@ -267,7 +301,6 @@ def _unusable(quality: dict, sc: Scaling, data: Dataset, is_angle, clock, wall: 
     }
     checks = {name: {k: [] for k in ks} for name, ks in keys.items()}
     checks.update(naive={"new_physics": [], "ratio": []}, per_seed=[], scaling=sc.to_dict(), wall_time_s=wall)
-    zeros = np.zeros_like(data.q)
     return {
         "status": "inconclusive",
         "new_physics": False,
@@ -284,15 +317,15 @@ def _unusable(quality: dict, sc: Scaling, data: Dataset, is_angle, clock, wall: 
         "checks": checks,
         "table": [],
         "lambda_forces": None,
-        "f_c": zeros,
-        "f_n": zeros,
         "quality": quality,
         "angles": [bool(a) for a in is_angle],
         "clock": {"testable": clock[0], "why": clock[1]},
     }
 
 
-def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict:
+def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> tuple[dict, tuple]:
+    """The seeds' verdicts and checks combined: (the report part of the :class:`Assessment`, (f_c, f_n) of the first
+    seed)."""
     status, new, conf, reasons = combine_seeds(seeds)
     lams = [r["lam"] for r in seeds[0]["table"]]
     table = []
@@ -349,7 +382,7 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
             {
                 k: (public(v) if isinstance(v, dict) else v)
                 for k, v in s.items()
-                if k not in ("forces", "table", "_conservative", "timings")  # (timings: not numbers of the data)
+                if k not in ("forces", "table", "conservative", "timings")  # (timings: not numbers of the data)
             }
             for s in seeds
         ],
@@ -393,17 +426,14 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> dict
         "checks": checks,
         "table": table,
         "lambda_forces": lam_rep,
-        "f_c": fc,
-        "f_n": fn,
-        "_conservative": {**first["_conservative"], "scaling": sc},
-    }
+    }, (fc, fn)
 
 
-def conservative_fn(cons: dict):
+def conservative_fn(cons: ConservativeModel):
     """The LNN's conservative acceleration f_c(q, q̇) in the file's units as a JAX function (batched), from
-    ``assess(...)["_conservative"]`` — for fits that integrate the model (the laws' trajectory-level ranking)."""
-    accel = lnn_accel_fn(cons["cfg"])
-    lnn, sc = cons["lnn"], cons["scaling"]
+    :attr:`Assessment.conservative` — for fits that integrate the model (the laws' trajectory-level ranking)."""
+    accel = lnn_accel_fn(cons.cfg)
+    lnn, sc = cons.lnn, cons.scaling
     mu, s_q, s_t = jnp.asarray(sc.mu_q), jnp.asarray(sc.s_q), float(sc.s_t)
 
     def fc(q, qd):

@@ -11,29 +11,27 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from contextlib import nullcontext
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from nnphd._config import release_compiled_if_crowded
+from nnphd.explain.search import DECLARED_FIELDS, LawRun, decide_law, field_force, find_law
 from nnphd.io.errors import DataError
-from nnphd.io.progress import Progress, Stages
+from nnphd.io.limits import MIN_ROWS
+from nnphd.io.progress import Progress
 from nnphd.io.timing import StageTimer
 from nnphd.parallel import runs_in_this_process
-from nnphd.user.limits import MIN_ROWS
 from nnphd.user.report import write_report
+from nnphd.user.result import DetectResult, FittedModel
 from nnphd.user.rules import (
-    LIBRARY_BASE,
     RECONCILED_BASIS,
-    against_velocity,
-    position_explained,
+    declared_field_decides,
+    declared_field_effect,
     reconcile,
     unclaim_active,
     unclaim_against_evidence,
     unclaim_unidentifiable,
-    work_per_trajectory,
 )
 
 
@@ -59,7 +57,7 @@ def detect_file(
         progress(0, 1, "reading the file")
     t0 = time.perf_counter()
     ud = load_trajectories(path, angles, max_rows=max_rows)
-    return detect_data(ud, out, progress=progress, read_s=time.perf_counter() - t0, **settings)[0]
+    return detect_data(ud, out, progress=progress, read_s=time.perf_counter() - t0, **settings)[0].report
 
 
 def _check_law_fit(law_fit: str) -> None:
@@ -79,11 +77,6 @@ FIELDS = {
     "vertical": "declared uniform and along the last coordinate (gravity, with that coordinate pointing up, e.g. a "
     "level camera's y): its size fitted, no field along the others",
 }
-# the declared fields: no force of position beyond a constant one. Knowing gravity's direction is one parameter fewer,
-# and along a 1.2-s arc that parameter matters: a sideways constant force lets linear drag stand in for quadratic
-# (on the 2-D throw look-alike, seed 0, a whole-trajectory fit of linear drag is Δχ² 1.9 *better* than quadratic
-# with the field's direction free and 8.6 worse with it vertical; seeds 1, 2: −5.2 / 6.5, −10.3 / 23.0)
-DECLARED_FIELDS = ("uniform", "vertical")
 
 
 def check_field(field: str, law_fit: str = "auto") -> None:
@@ -116,9 +109,10 @@ def check_declared_field(field: str, data, traj, ud, info) -> None:
         )
 
 
-def _check_settings(ud, laws: Sequence[str], law_fit: str, field: str, families=None, method: str = "auto") -> None:
-    """Refuse bad settings before any work: the law level, the field, the law families and the derivative method,
-    and every ``laws`` entry (a --law) parsed on the file's coordinates."""
+def _check_settings(ud, laws: Sequence[str], law_fit: str, field: str, families=None, method="auto") -> None:
+    """Refuse bad settings before any work: the law level, the field, the law families (keys and Family objects)
+    and the derivative method (a name, a DerivativeEstimator or a Derivatives), and every ``laws`` entry (a --law)
+    parsed on the file's coordinates."""
     from nnphd.explain.families import parse_law
     from nnphd.user.derivatives import Derivatives
     from nnphd.user.strategies import check_families
@@ -126,7 +120,8 @@ def _check_settings(ud, laws: Sequence[str], law_fit: str, field: str, families=
     _check_law_fit(law_fit)
     check_field(field, law_fit)
     check_families(families or ())
-    Derivatives(method)
+    if not isinstance(method, Derivatives):
+        Derivatives(method)
     for x in laws:  # fail on a bad --law before any work
         parse_law(x, ud.coords)
 
@@ -150,7 +145,7 @@ class _Say:
         self(f"training: {message}")
 
 
-def _assessed(data, traj, ud, info, training, seed, steps, n_seeds, workers, scheduler, assess_kw: dict) -> dict:
+def _assessed(data, traj, ud, info, training, seed, steps, n_seeds, workers, scheduler, assess_kw: dict):
     """:func:`nnphd.user.assess.assess` on the data set, with the file's angles and the position noise and q̈ errors
     of its derivative estimates; ``training``: the progress of the training rounds."""
     from nnphd.user.assess import assess
@@ -172,15 +167,15 @@ def _assessed(data, traj, ud, info, training, seed, steps, n_seeds, workers, sch
     )
 
 
-def _declared_forces(law: dict, data, ud, fc, fn):
-    """The declared uniform field as the law table fitted it, popped from ``law``: (its entry, the field fitted —
-    with the law when there is one, else alone — or None, f_c, f_n); f_c and f_n as given without a declared field."""
-    declared = law.pop("_field", None) or {}
+def _declared_forces(law: dict, declared: dict, data, ud, fc, fn):
+    """The declared uniform field as the law table fitted it (``declared``: {"alone", "with_law"[,
+    "against_velocity"]}, empty without a declared field): (the field fitted — with the law when one is claimed,
+    else alone — or None, f_c, f_n); f_c and f_n as given without a declared field."""
     fitted = declared.get("with_law" if law.get("law") else "alone")
     if fitted is not None:  # the declared field is the conservative force; f_n the remainder of q̈ beside it
         fc = field_force(fitted, data.q, ud.is_angle)
         fn = np.asarray(data.qdd, float) - fc
-    return declared, fitted, fc, fn
+    return fitted, fc, fn
 
 
 def _field_entry(field: str, fitted: dict | None, declared: dict) -> dict:
@@ -193,21 +188,21 @@ def _field_entry(field: str, fitted: dict | None, declared: dict) -> dict:
     )
 
 
-def _report(
-    ud, res: dict, info: dict, coords: list, law: dict, verdict, field: dict, blind: dict, settings: dict
-) -> dict:
-    """The report of :func:`detect_data` (without its timings): ``verdict`` = (status, new_physics, confidence,
-    reasons) of :func:`nnphd.user.rules.reconcile`; ``field``: :func:`_field_entry`'s; ``settings``: the run's own,
-    to which assess's are added."""
+def _report(ud, res: dict, info: dict, law: dict, verdict, field: dict, blind: dict, settings: dict) -> dict:
+    """The report of :func:`detect_data` (without its timings): ``res``: the assessment's report; ``verdict`` =
+    (status, new_physics, confidence, reasons, effect) of :func:`nnphd.user.rules.reconcile` and the effect beside a
+    declared field (None: the assessment's); ``field``: :func:`_field_entry`'s; ``settings``: the run's own, to
+    which assess's are added."""
     from nnphd.user.recording import suggest_angles
 
-    status, new_physics, confidence, reasons = verdict
+    status, new_physics, confidence, reasons, effect = verdict
+    coords = list(ud.coords)
     return {
         "file": str(ud.path),
         "new_physics": new_physics,
         "status": status,
         "statistic": res["statistic"],
-        "effect": law.pop("_effect", None) or res["effect"],
+        "effect": effect or res["effect"],
         "evidence": res["evidence"],
         "confidence": confidence,
         "confidence_basis": res["confidence_basis"] if status == res["status"] else RECONCILED_BASIS,
@@ -248,22 +243,23 @@ def detect_data(
     workers: int | None = 1,
     scheduler: str | None = None,
     read_s: float | None = None,
-    derivative_method: str = "auto",
+    derivative_method="auto",
     families: Sequence[str] | None = None,
     thin: bool = True,
     **assess_kw,
-) -> tuple[dict, dict]:
-    """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (report, model) with
-    model = the fitted pieces (``conservative``: the LNN and its scaling, ``law``: the claimed Candidate or None, the
-    data set, trajectory ids, f_c and f_n on the rows) — what :class:`nnphd.NNPhD` keeps. ``field``: the conservative
+) -> tuple[DetectResult, FittedModel]:
+    """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (the result — its
+    ``report`` is report.json —, the fitted pieces that :class:`nnphd.NNPhD` keeps). ``field``: the conservative
     force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
     :func:`declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`).
-    ``derivative_method``: how q̇, q̈ are estimated (:data:`nnphd.user.derivatives.METHODS`); ``families``: the
-    candidate law families ranked (None: all, :data:`nnphd.user.strategies.FAMILIES`) — the report's settings name
-    them only when they are not the defaults; ``thin``: a dense record of more than THIN_ROWS rows is thinned after
+    ``derivative_method``: how q̇, q̈ are estimated (a name of :data:`nnphd.user.derivatives.METHODS`, a
+    DerivativeEstimator, or a :class:`nnphd.user.derivatives.Derivatives` with its own trim); ``families``: the
+    candidate law families ranked (keys and Family objects; None: all, :data:`nnphd.user.strategies.FAMILIES`) — the
+    report's settings name them only when they are not the defaults; ``thin``: a dense record of more than THIN_ROWS rows is thinned after
     its derivatives are estimated (:func:`dense_thinned`; False: every row is used)."""
-    from nnphd.user.strategies import family_filter
+    from nnphd.user.derivatives import derivative_name
+    from nnphd.user.strategies import family_filter, family_names
 
     say = _Say(progress)
     _check_settings(ud, laws, law_fit, field, families, derivative_method)
@@ -283,20 +279,22 @@ def detect_data(
         try:
             say("λ-sweep and trust checks")
             with timer.stage("training and trust checks"):
-                res = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler,
-                                assess_kw)  # fmt: skip
-            fn, fc = np.asarray(res["f_n"]), np.asarray(res["f_c"])
+                assessed = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler,
+                                     assess_kw)  # fmt: skip
+            res, fn, fc = assessed.report, np.asarray(assessed.f_n), np.asarray(assessed.f_c)
             figures = _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer)
-            law, law_row = _law_table(res, data, traj, coords, ud, info, row_err, laws, law_fit, seed,
-                                      lambda d, t, m: say(m), field, timer, families, library)  # fmt: skip
+            run = LawRun(traj, tuple(coords), tuple(bool(a) for a in ud.is_angle), info, row_err, laws, law_fit, seed,
+                         field, families, timer, lambda d, t, m: say(m))  # fmt: skip
+            law, law_row, declared = _law_decision(assessed, data, run, library)
         finally:  # not needed (no law is fitted), or an error or an interrupt here: it stops at its next stage
             if library is not None:
                 library[1].set()
+        effect = declared_field_effect(law) if declared_field_decides(res, field) else None
         status, new_physics, confidence, reasons = reconcile(res, law, field)
         unclaim_against_evidence(res, law)
         unclaim_active(res, law)
         unclaim_unidentifiable(law)
-        declared, fitted, fc, fn = _declared_forces(law, data, ud, fc, fn)
+        fitted, fc, fn = _declared_forces(law, declared, data, ud, fc, fn)
         blind = {}
         if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
             with timer.stage("blind formula"):
@@ -309,38 +307,29 @@ def detect_data(
             "sr_time_per_component_s": sr_time,
             "trim": trim,
             "field": field,
-            **({"derivative_method": derivative_method} if derivative_method != "auto" else {}),
-            **({"families": list(families)} if families is not None else {}),
+            **({"derivative_method": name} if (name := derivative_name(derivative_method)) != "auto" else {}),
+            **({"families": family_names(families)} if families is not None else {}),
             **({"thin": False} if not thin else {}),
             **assess_kw,
         }
-        verdict = (status, new_physics, confidence, reasons)
-        report = _report(ud, res, info, coords, law, verdict, _field_entry(field, fitted, declared), blind, settings)
+        verdict = (status, new_physics, confidence, reasons, effect)
+        report = _report(ud, res, info, law, verdict, _field_entry(field, fitted, declared), blind, settings)
 
         def stamp() -> None:  # the times so far: every stage but the writing of report.json/html itself
-            report["timings"] = with_workers(timer.to_dict(), res.get("timings_per_seed", []))
+            report["timings"] = with_workers(timer.to_dict(), list(assessed.timings_per_seed))
             report["wall_time_s"] = report["timings"]["total_s"]
 
         if out is not None:
             write_report(out, report, data, traj, coords, fc, fn, timer=timer, before_writing=stamp, made=figures)
         else:
             stamp()
-    model = {
-        "conservative": res.get("_conservative"),
-        "law": law_row if law.get("law") else None,
-        "data": data,
-        "traj": traj,
-        "coords": coords,
-        "angles": [bool(a) for a in ud.is_angle],
-        "fc": fc,
-        "fn": fn,
-        "field": fitted,
-    }
-    return report, model
+    angles = tuple(bool(a) for a in ud.is_angle)
+    law_row = law_row if law.get("law") else None
+    model = FittedModel(assessed.conservative, law_row, data, traj, tuple(coords), angles, fc, fn, fitted)
+    return DetectResult.from_dict(report), model
 
 
 LIBRARY_ALONGSIDE = "law table: library base (alongside training)"
-LIBRARY_WAIT = "law table: library base, waited for"
 
 
 def library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer):
@@ -402,9 +391,10 @@ def with_workers(tm: dict, per_seed: list[dict]) -> dict:
     return tm | {"stages": stages, "compile_s": tm["compile_s"] + elsewhere, "note": note, "per_seed": per_seed}
 
 
-def prepared_data(ud, trim, method: str = "auto"):
+def prepared_data(ud, trim, method="auto"):
     """(data set, info, trim used, per-row errors, trajectory id per row) of validated data, the derivatives by
-    ``method``; a trim that leaves too few rows of a trajectory is refused."""
+    ``method`` (a Derivatives, a name or a DerivativeEstimator: :func:`_dataset`); a trim that leaves too few rows
+    of a trajectory is refused."""
     d = _dataset(ud, trim, method)
     data, info, trim, row_err = d.data, d.info, d.trim, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
@@ -515,13 +505,17 @@ def dense_thinned(data, info: dict, row_err, traj, ud):
     return data.subset(keep), errs, np.asarray(traj)[keep]
 
 
-def _dataset(ud, trim, method: str = "auto"):
+def _dataset(ud, trim, method="auto"):
     """to_dataset with the ends trimmed (``trim="auto"``: drop the half-window at each end of every trajectory,
     where the one-sided derivative estimates are ~20x worse, unless that would leave a trajectory with less than
-    TRIM_KEEP_MIN of its rows: :meth:`nnphd.user.derivatives.Derivatives.dataset`), the derivatives by ``method``
-    (:data:`nnphd.user.derivatives.METHODS`). Returns :class:`nnphd.user.derivatives.DerivedData`."""
+    TRIM_KEEP_MIN of its rows: :meth:`nnphd.user.derivatives.Derivatives.dataset`), the derivatives by ``method``:
+    a :class:`nnphd.user.derivatives.Derivatives` (its own ``dataset``, trim and estimator: ``trim`` is not used), or
+    a name of :data:`nnphd.user.derivatives.METHODS` or a DerivativeEstimator (with ``trim``). Returns
+    :class:`nnphd.user.derivatives.DerivedData`."""
     from nnphd.user.derivatives import Derivatives
 
+    if isinstance(method, Derivatives):
+        return method.dataset(ud)
     return Derivatives(method, trim if isinstance(trim, str) and trim == "auto" else bool(trim)).dataset(ud)
 
 
@@ -558,104 +552,22 @@ def law_formula(law: dict) -> dict | None:
     }
 
 
-def _law_table(
-    res,
-    data,
-    traj,
-    coords,
-    ud,
-    info,
-    row_err,
-    laws,
-    level,
-    seed,
-    progress,
-    field="learned",
-    timer=None,
-    families=None,
-    library=None,
-) -> tuple[dict, object]:
-    """The ranked candidate laws with the LNN's f_c as the conservative base — and, for one coordinate, with the
-    conservative library alone (no network, so no seed), the two combined by
-    :func:`nnphd.explain.table.combine_bases`: a family is claimed only when both bases point to it. The law of a
-    real record rested on each seed's LNN before: a seismometer's viscous damping (7 % from the reference) became a
-    van der Pol law 63 % off with seed 2. For one coordinate the library is a flexible conservative model (potential
-    gradients to degree 4 — in sin θ, cos θ for an angle — and a q̇² term); with more coordinates its degree-3
-    potential and constant mass matrix miss what a double pendulum needs, and the LNN alone is the base — except for
-    motion that does not oscillate (a throw, a fall), where the library is the uniform field alone, seed-free in any
-    dimension (the LNN absorbs a throw's drag: along one arc any force of the state is a force of position). A law is
-    claimed only when the verdict is "detected" (:func:`reconcile`). A declared uniform field is the only base.
-    ``families``: the candidate families ranked (:func:`find_law`). Returns (the table as a dict, the winning Candidate
-    or None)."""
+def _law_decision(assessed, data, run: LawRun, library):
+    """The law search (:func:`nnphd.explain.search.decide_law`) beside the trained model's f_c — unless no model was
+    trained (the data cannot decide: no law is fitted) or its f_c is not finite: (the law table as a dict, the
+    winning Candidate or None, the declared field as fitted)."""
     from nnphd.user.assess import conservative_fn
 
-    cons = res.get("_conservative")
+    cons, quality = assessed.conservative, assessed.report["quality"]
     if cons is None:
-        return {
-            "law": None,
-            "reason": "no law fitted: " + (res["quality"].get("reason") or "the data cannot decide"),
-            "candidates": [],
-        }, None
-    fc = np.asarray(cons["fc"])
-    ok = bool(np.all(np.isfinite(fc))) and field == "learned"
-    table = find_law(
-        data,
-        traj,
-        coords,
-        [bool(a) for a in ud.is_angle],
-        info,
-        row_err,
-        fc=fc if ok else None,
-        fc_fn=conservative_fn(cons) if ok else None,
-        laws=laws,
-        level=level,
-        seed=seed,
-        progress=progress,
-        field=field,
-        timer=timer,
-        families=families,
-    )
-    arcs = not res["quality"].get("oscillating", True)  # a throw, a fall: the library is the uniform field alone
-    if ok and (len(coords) == 1 or arcs) and level != "pointwise":
-        from nnphd.explain.table import combine_bases
-
-        if library is not None:  # started beside the training (:func:`library_alongside`)
-            with timer.stage(LIBRARY_WAIT) if timer is not None else nullcontext():
-                lib = library[0].result()
-        else:
-            lib = find_law(data, traj, coords, [bool(a) for a in ud.is_angle], info, row_err, laws=laws, level=level,
-                           seed=seed, progress=progress, timer=timer, families=families)  # fmt: skip
-        if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
-            table = combine_bases([(LIBRARY_BASE, lib), (f"seed {seed}'s LNN", table)])
-    else:
-        lib = table  # the library itself is the base (a declared field, no finite f_c) — or there is none
-    if table.status == "tie" and level != "pointwise":  # can the whole record tell them apart?
-        from nnphd.explain.wholerecord import break_tie
-
-        with timer.stage(WHOLE_RECORD) if timer is not None else nullcontext():
-            table = break_tie(table, lib)
-    out = table.to_dict()
-    with timer.stage(ENVELOPE_PICTURE) if timer is not None else nullcontext():
-        out["envelope"] = _envelope(table, data, traj, coords, info, bool(ud.is_angle[0]))
-    if field in DECLARED_FIELDS:
-        out["noise"] = arc_noise(data, traj, coords, info)
-        zero = next((r for r in table.rows if r.key == "none"), None)
-        out["_field"] = {k: fitted_field(table, r, coords, ud.is_angle, data.q) for k, r in
-                         (("alone", zero), ("with_law", table.law))}  # fmt: skip
-    if table.law is not None:  # the law's share against the velocity: a drag's is 1, a thrust's −1
-        f_law = table.law.predict(data.q, data.qd, data.t)
-        out["_against_velocity"] = against_velocity(f_law, data.qd)
-        out["work_per_trajectory"] = work_per_trajectory(f_law, data.qd, traj)
-        period = table.settings.get("period", np.nan)
-        out["by_position"] = position_explained(f_law, data.q, data.t, traj, period)
-        out["by_state"] = position_explained(f_law, np.hstack([data.q, data.qd]), data.t, traj, period)
-        from nnphd.explain.wholerecord import passivity
-
-        with timer.stage(PASSIVITY) if timer is not None else nullcontext():
-            out["_passivity"] = passivity(table, lib, data.q, data.qd, data.t)
-        if field in DECLARED_FIELDS:  # a drag opposes the velocity (:data:`DRAG_ALONG_MIN`)
-            out["_field"]["against_velocity"] = out["_against_velocity"]
-    return out, table.law
+        why = "no law fitted: " + (quality.get("reason") or "the data cannot decide")
+        return {"law": None, "reason": why, "candidates": []}, None, {}
+    fc = np.asarray(cons.fc)
+    base = (fc, conservative_fn(cons)) if bool(np.all(np.isfinite(fc))) and run.field == "learned" else None
+    noise = arc_noise(data, run.traj, list(run.coords), run.info) if run.field in DECLARED_FIELDS else None
+    arcs = not quality.get("oscillating", True)  # a throw, a fall: the library is the uniform field alone
+    found = decide_law(data, run, base, arcs, library, noise)
+    return found.entry, found.law, found.declared
 
 
 def arc_noise(data, traj, coords, info) -> dict:
@@ -683,343 +595,3 @@ def arc_noise(data, traj, coords, info) -> dict:
         "used": "smooth curve" if use else "differences",
         "chi2_scale": float(min(ratio) ** 2) if use else 1.0,
     }
-
-
-def field_force(fitted: dict, q, is_angle, xp=np):
-    """The fitted declared field's acceleration at positions ``q`` (N, n) (:func:`fitted_field`)."""
-    from nnphd.explain.conservative import conservative_basis
-
-    center = fitted["center"]
-    center = None if center is None else tuple(xp.asarray(x) for x in center)
-    lib = fitted.get("library", "minimal")
-    B = conservative_basis(xp, q, xp.zeros_like(q), [bool(a) for a in is_angle], None, center, lib)
-    return xp.einsum("nik,k->ni", B, xp.asarray(fitted["coefficients"]))
-
-
-def fitted_field(table, row, coords, is_angle, q) -> dict | None:
-    """The declared uniform field as the joint trajectory-level fit of ``row`` (a Candidate: the zero law or the law)
-    found it: its conservative coefficients over the library's columns (:func:`nnphd.explain.conservative.
-    conservative_basis`, library "minimal"), their centring, and the field g with its standard error per coordinate
-    at the record's mean position (constant for coordinates that are not angles). None without a fit."""
-    from nnphd.explain.conservative import conservative_basis
-
-    if row is None or row.conservative is None:
-        return None
-    center = table.base.center if table.base is not None else None
-    alpha = np.asarray(row.conservative, float)
-    qm = np.asarray(q, float).mean(axis=0, keepdims=True)
-    lib = "vertical" if table.settings.get("library") == "vertical" else "minimal"
-    B = conservative_basis(np, qm, np.zeros_like(qm), [bool(a) for a in is_angle], None, center, lib)[0]
-    if B.shape[1] != len(alpha):
-        return None
-    cov = np.asarray(row.conservative_cov, float) if row.conservative_cov is not None else np.zeros((len(alpha),) * 2)
-    g, se = B @ alpha, np.sqrt(np.maximum(np.einsum("nk,kl,nl->n", B, cov, B), 0.0))
-    return {
-        "law": row.key,
-        "g": {c: float(x) for c, x in zip(coords, g)},
-        "stderr": {c: float(x) for c, x in zip(coords, se)},
-        "coefficients": alpha.tolist(),
-        "library": lib,
-        "center": [np.asarray(x, float).tolist() for x in center] if center is not None else None,
-    }
-
-
-ENVELOPE_PICTURE = "law table: the envelope picture"
-WHOLE_RECORD = "law table: a tie fitted over the whole record"
-PASSIVITY = "law table: is the law passive"
-
-
-def _envelope(table, data, traj, coords, info, angle: bool = False) -> dict | None:
-    """One coordinate: the measured amplitude envelope and those of the law, its ties and the next best eligible
-    candidates (:mod:`nnphd.explain.envelope`); None otherwise."""
-    from nnphd.explain.envelope import envelope_report
-
-    if len(coords) != 1:
-        return None
-    lead = [r for r in table.rows if r.family is not None and r.significant]
-    return envelope_report(
-        lead,
-        data.q[:, 0],
-        data.qd[:, 0],
-        data.t,
-        traj,
-        info["per_coordinate"][coords[0]]["noise"],
-        table.settings.get("period", float("nan")),
-        angle=angle,
-    )
-
-
-def find_law(
-    data,
-    traj,
-    coords,
-    is_angle,
-    info,
-    row_err=None,
-    *,
-    fc=None,
-    fc_fn=None,
-    laws=(),
-    level="auto",
-    seed=0,
-    progress: Progress | None = None,
-    field: str = "learned",
-    timer: StageTimer | None = None,
-    families: Sequence[str] | None = None,
-    cancel=None,
-):
-    """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
-    (``info`` its info, ``row_err`` its per-row errors, :class:`nnphd.user.derivatives.DerivedData`): pointwise joint fits to the estimated q̈ (weighted by
-    the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
-    shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
-    (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
-    ``field`` is "uniform" (declared: nothing oscillates). ``timer``: the stages are timed on it (law table:
-    pointwise fits, trajectory-level fits, rests, stops and envelope). ``families``: the keys of the candidate
-    families to rank (:func:`nnphd.explain.laws.rank_laws`' ``include``; None: all); your ``laws`` are always ranked.
-    ``cancel`` (a threading.Event): once set, the next stage is not begun (CancelledError). Returns a LawTable."""
-    from concurrent.futures import CancelledError
-
-    timed = timer.stage if timer is not None else (lambda _name: nullcontext())
-    say = Stages(progress, 2)
-
-    def go_on() -> None:
-        if cancel is not None and cancel.is_set():
-            raise CancelledError("the law table was no longer wanted")
-
-    say("candidate laws (pointwise joint fits)")
-    given = (data, traj)
-    with timed("law table: pointwise fits"):
-        table, data, traj, rest, whole, period = _pointwise_table(
-            data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families
-        )
-    pointwise = table
-    if level != "pointwise":
-        go_on()
-        say("candidate laws (trajectory level: multiple shooting on the positions)")
-        with timed("law table: trajectory-level fits"):
-            table = _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed)
-    go_on()
-    with timed("law table: rests, stops and envelope"):
-        table = _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level,
-                                   seed)  # fmt: skip
-    if fc is None and level != "pointwise" and len(coords) == 1 and np.isfinite(period):
-        from nnphd.explain.wholerecord import context
-
-        sigma = [info["per_coordinate"][c]["noise"] for c in coords]
-        rows = _thinned(data.t, traj, period)  # what a tie's whole-record fits need (nnphd.explain.wholerecord)
-
-        def refit(library):  # the pointwise table beside another conservative library
-            return _pointwise_table(*given, coords, is_angle, info, row_err, None, laws, level, seed, field, families,
-                                    library=library)[0]  # fmt: skip
-
-        table = replace(table, whole_record=context(pointwise, data, traj, rows, sigma, period, is_angle, seed, refit))
-    return table
-
-
-def _pointwise_table(
-    data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families=None, library=None
-):
-    """find_law's pointwise stage: (the table, the moving rows' data and trajectory ids, the rest found, the whole
-    data and ids, the period). ``library``: the conservative library (None: :func:`_library`'s choice)."""
-    from nnphd.engine.evidence import dominant_period
-    from nnphd.explain.jointfit import trajectory_segments
-    from nnphd.explain.laws import rank_laws
-
-    err = None if row_err is None else row_err["qdd_err"]
-    period = dominant_period(
-        np.concatenate([data.q, data.qd], axis=1),
-        data.t,
-        trajectory_segments(traj),
-        position_noise=[info["per_coordinate"][c]["noise"] for c in coords],
-    )
-    if field in DECLARED_FIELDS:  # no force of position: nothing oscillates, the library is the declared field
-        period = float("inf")
-        library = "vertical" if field == "vertical" and library is None else library
-    # the positions are fitted up to the moment the body sticks; the pointwise rows also lose the q̈ estimator's
-    # half window before it (their q̈ is smeared across the jump of the force)
-    moving, traj_m, _, _, rest = moving_rows(data, traj, coords, info, None, None, period, margin=False)
-    data_p, traj_p, err, fc, _ = moving_rows(data, traj, coords, info, err, fc, period)
-    whole = (data, traj)  # rests included: a final rest is evidence (nnphd.explain.stuck)
-    data, traj = moving, traj_m
-    table = rank_laws(
-        data_p.q,
-        data_p.qd,
-        data_p.qdd,
-        data_p.t,
-        traj_p,
-        names=coords,
-        angles=is_angle,
-        qdd_err=err,
-        fc=fc,
-        user_laws=laws,
-        include=families,
-        seed=seed,
-        library=_library(data.t, traj, period, level) if library is None else library,
-    )
-    return table, data, traj, rest, whole, period
-
-
-def _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed):
-    """find_law's trajectory-level stage: the table re-ranked by multiple shooting on the positions."""
-    from nnphd.explain.jointfit import trajectory_segments
-    from nnphd.explain.trajectory import rank_trajectory
-
-    sigma = [info["per_coordinate"][c]["noise"] for c in coords]
-    rows = _thinned(data.t, traj, period)
-    return rank_trajectory(
-        table,
-        data.q[rows],
-        data.qd[rows],
-        data.t[rows],
-        traj[rows],
-        sigma=sigma,
-        # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
-        period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in trajectory_segments(traj))),
-        angles=is_angle,
-        fc_fn=fc_fn if fc is not None else None,
-        seed=seed,
-        **(SHORT_RECORDS if len(coords) == 1 or not np.isfinite(period) else {}),
-    )
-
-
-def _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level, seed):
-    """find_law's last stage: what a rest, a stop and the amplitude envelope say about the candidates (one
-    coordinate), and the rest left out said in the table's reason."""
-    fc_fn = fc_fn if fc is not None else None
-    stuck = {}
-    if level != "pointwise" and rest is not None and len(coords) == 1 and np.isfinite(period):
-        from nnphd.explain.stuck import stop_contradictions, stuck_contradictions
-        from nnphd.user.rest import REST_WINDOW_PERIODS
-
-        stuck = stuck_contradictions(table, rest["final"], angles=is_angle, fc_fn=fc_fn)
-        stop = stop_contradictions(
-            table,
-            rest["final"],
-            whole[0].q,
-            whole[0].qd,
-            whole[0].t,
-            whole[1],
-            period,
-            angles=is_angle,
-            fc_fn=fc_fn,
-            seed=seed,
-            window_periods=REST_WINDOW_PERIODS,
-        )
-        stuck = {**stop, **stuck}
-    if level != "pointwise" and len(coords) == 1:
-        from nnphd.explain.envelope import envelope_evidence
-
-        table = envelope_evidence(
-            table,
-            data.q[:, 0],
-            data.qd[:, 0],
-            data.t,
-            traj,
-            info["per_coordinate"][coords[0]]["noise"],
-            angle=bool(is_angle[0]),
-        )
-    if stuck:
-        from nnphd.explain.stuck import bar_stuck
-
-        table = bar_stuck(table, stuck)
-    table.settings["period"] = float(period)
-    if rest is not None:
-        table.settings["at_rest"] = rest
-        table.reason += (
-            f"; {rest['rows']} row(s) at rest ({rest['text']}) were left out of the law fits: a stuck phase "
-            "(q̇ = q̈ = 0 off the equilibrium, as dry friction holds a body) would bias them"
-        )
-    return table
-
-
-# one coordinate, or no oscillation: windows of ¾ period while there are MIN_WINDOWS of them, else each trajectory
-# whole, ranked by its in-sample fit (a servo drop of two periods, a throw). Windows of 1.5–3 periods were tried:
-# on the look-alikes with the conservative library as base they told the laws apart far better (string pendulum
-# ΔIC −419 → −2563, a jittered clock's viscous law right), but with the LNN's f_c as base on the law table's noisy
-# pendulum a dry + quadratic law beat the true viscous one by ΔIC 66 (1.5 periods: a tie) — a conservative misfit
-# accumulates over long windows and friction terms soak it up — so the windows stay at ¾ period.
-SHORT_RECORDS = {"window_periods": (0.75,), "allow_in_sample": True}
-
-
-def _library(t, traj, period: float, level: str):
-    """The conservative library of the law fits: "minimal" (the uniform field) when nothing oscillates, "short"
-    (a pendulum about any rest angle, springs to degree 3) when the record is too short for held-out shooting
-    windows and is ranked in-sample, else the full one (:func:`nnphd.explain.conservative.conservative_basis`)."""
-    from nnphd.engine.shooting import shooting_windows
-    from nnphd.explain.jointfit import trajectory_segments
-    from nnphd.explain.trajectory import MIN_WINDOWS
-
-    if not np.isfinite(period):
-        return "minimal"
-    if level == "pointwise":
-        return True
-    wins = shooting_windows(trajectory_segments(traj), t, period, periods=min(SHORT_RECORDS["window_periods"]))
-    return "short" if len(wins) < MIN_WINDOWS else True
-
-
-SHOOT_SAMPLES_PER_PERIOD = 200  # the trajectory-level fits keep every k-th row: 200–400 rows per period remain
-
-
-def _thinned(t, traj, period: float) -> np.ndarray:
-    """The rows the trajectory-level fits use: every k-th row of each trajectory, k such that ≥ SHOOT_SAMPLES_PER_PERIOD
-    rows per period remain — a 1 kHz encoder (1260 rows per period) took 15 minutes to rank at full rate, and the
-    positions between the kept rows add little that the noise does not hide."""
-    from nnphd.explain.jointfit import trajectory_segments
-
-    segs = trajectory_segments(traj)
-    dts = np.concatenate([np.diff(t[s]) for s in segs if len(s) > 1] or [np.ones(1)])
-    dt = float(np.median(dts)) if dts.size else 1.0
-    k = int(period / (SHOOT_SAMPLES_PER_PERIOD * dt)) if np.isfinite(period) and dt > 0 else 1
-    if k <= 1:
-        return np.arange(len(t))
-    return np.concatenate([s[::k] for s in segs])
-
-
-def moving_rows(data, traj, coords, info, err, fc, period, margin: bool = True):
-    """The data set without its stretches at rest (:mod:`nnphd.user.rest`) for the law fits: (data, traj, err, fc,
-    rest) with rest = {"rows", "stretches" [[t0, t1], …], "text"}, or the inputs and None when nothing rests (or
-    too little would be left to fit)."""
-    from nnphd.user.rest import REST_TOL_SIGMA, rest_mask, without_rest
-
-    pc = info["per_coordinate"]
-    margin = max((max(pc[c]["qdd"].get("windows") or [0]) for c in coords), default=0) // 2 if margin else 0
-    every = info.get("thinned", {}).get("every", 1)  # the q̈ windows count the rows before a dense record's thinning
-    margin = -(-margin // every)
-    rest = rest_mask(
-        data.q,
-        data.t,
-        traj,
-        [pc[c]["noise"] for c in coords],
-        [pc[c].get("quantization_step", 0.0) for c in coords],
-        period,
-        margin,
-    )
-    if not rest.any():
-        return data, traj, err, fc, None
-    d, tr, keep, extra = without_rest(data, traj, rest, {"err": err, "fc": fc})
-    if keep.sum() < max(MIN_ROWS, 0.2 * len(keep)):
-        return data, traj, err, fc, None
-    idx = np.flatnonzero(rest)
-    traj = np.asarray(traj)
-    runs = np.split(idx, np.flatnonzero((np.diff(idx) != 1) | (np.diff(traj[idx]) != 0)) + 1)
-    stretches = [[float(data.t[r[0]]), float(data.t[r[-1]])] for r in runs]
-    text = ", ".join(f"t = {a:.4g}–{b:.4g}" for a, b in stretches[:4]) + (" …" if len(stretches) > 4 else "")
-    spread = np.ptp(data.q, axis=0)
-    tol = [max(REST_TOL_SIGMA * pc[c]["noise"] + 0.5 * pc[c].get("quantization_step", 0.0), 1e-12 * spread[j])
-           for j, c in enumerate(coords)]  # fmt: skip
-    last = {int(k): int(np.flatnonzero(traj == k)[-1]) for k in np.unique(traj)}
-    # the rests that end their trajectory: where the body came to rest by itself (a rest before the release, or
-    # one the body leaves again, was held or pushed from outside)
-    where = [
-        {
-            "q": np.mean(data.q[r], axis=0).tolist(),
-            "seconds": float(data.t[r[-1]] - data.t[r[0]]),
-            "tolerance": tol,
-            "t0": float(data.t[r[0]]),
-            "traj": int(traj[r[0]]),
-        }
-        for r in runs
-        if r[-1] == last[int(traj[r[-1]])]
-    ]
-    info = {"rows": int((~keep).sum()), "stretches": stretches, "text": text, "final": where}
-    return d, tr, extra["err"], extra["fc"], info

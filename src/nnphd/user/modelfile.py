@@ -8,7 +8,7 @@ leaves (count, shapes and dtypes equal to what :func:`nnphd.engine.models.init_l
 every weight finite), the saved law (built by :func:`nnphd.explain.families.family_from_spec`, which parses a user
 law's text without executing it; its coefficients of the right sizes and finite) and the fields of the report that
 the model reads. The settings a refit would use get the command line's ranges (``steps`` at most
-:data:`nnphd.user.limits.MAX_STEPS`: 2³¹ steps would allocate ~16 GB of minibatch keys; the seed as ``--seed``;
+:data:`nnphd.io.limits.MAX_STEPS`: 2³¹ steps would allocate ~16 GB of minibatch keys; the seed as ``--seed``;
 ``n_seeds`` and ``sr_time`` at most :data:`MAX_N_SEEDS` and :data:`MAX_SR_TIME`), and the coordinate names hold no
 control or bidi characters (those :func:`nnphd.io.escape.terminal` escapes: a name is printed and drawn; ESC or U+202E would send
 terminal commands or reorder what is shown). Anything wrong raises one ValueError line: ``<path>: not a valid nnphd
@@ -29,13 +29,13 @@ import numpy as np
 from nnphd.explain.families import SIGN_FORMS
 from nnphd.io.cache import check_array, one_line, read_npz
 from nnphd.io.escape import TERMINAL_ESCAPED
+from nnphd.io.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
 from nnphd.user.derivatives import METHODS as DERIVATIVE_METHODS
-from nnphd.user.limits import MAX_N_SEEDS, MAX_SEED, MAX_SR_TIME, MAX_STEPS
 
 __all__ = ["MAX_MODEL_BYTES", "MAX_N_SEEDS", "MAX_SR_TIME", "ModelFile", "read_model_file"]
 
 MAX_MODEL_BYTES = 256 << 20  # a model of 4 layers of 2000 units is 100 MB
-MAX_COORDS = 32  # as nnphd.user.limits.MAX_COORDS: no model is trained on more coordinates
+MAX_COORDS = 32  # as nnphd.io.limits.MAX_COORDS: no model is trained on more coordinates
 MAX_SPARSE_COORDS = 6  # the sparse law's monomials are enumerated over 4^(2n) exponents (n = 6: ~5 s)
 MAX_TEXT = 10_000  # characters of a user law
 

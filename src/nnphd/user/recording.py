@@ -30,7 +30,7 @@ ids are parsed exactly and must lie within ±2⁵³.  A file with one field per 
 reported as separated by that character (only commas are read).  CSV files are streamed into arrays
 ``CSV_CHUNK`` rows at a time.
 
-Hostile or careless files are refused within bounded memory and time (limits in :mod:`nnphd.user.limits`): only
+Hostile or careless files are refused within bounded memory and time (limits in :mod:`nnphd.io.limits`): only
 regular files are opened (a link to ``/dev/zero``, a FIFO or a socket is refused from ``os.stat`` before it is
 opened); a CSV line or record (quoted fields may span lines) longer than ``MAX_LINE`` = 2²⁰ characters is refused
 without reading the rest; the header (the NPZ member names) may name at most ``MAX_COLUMNS`` = 98 columns and
@@ -62,7 +62,7 @@ import numpy as np
 
 from nnphd.io.cache import MAX_NPY_HEADER, npy_header
 from nnphd.io.errors import DataError
-from nnphd.user.limits import (
+from nnphd.io.limits import (
     MAX_ABS,
     MAX_CELLS,
     MAX_COLUMNS,

@@ -41,6 +41,7 @@ from nnphd.user.checks import (
     time_design,
     trajectory_evidence,
 )
+from nnphd.user.result import ConservativeModel
 from nnphd.user.scaling import (
     holdout,
     oscillations,
@@ -559,5 +560,5 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
         "forces": (rep[0], rep[1], rep[2]),
         "holdout": [int(len(s)) for s in d.te_segs],
         "force_norm": d.fnorm,
-        "_conservative": {"lnn": cons.lnn, "cfg": cfg, "fc": back(cons.fc)},
+        "conservative": ConservativeModel(cons.lnn, cfg, back(cons.fc), sc),
     }

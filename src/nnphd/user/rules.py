@@ -48,9 +48,8 @@ import math
 import numpy as np
 
 from nnphd.engine.verdict import MIN_RELATIVE_SIZE
+from nnphd.explain.search import LIBRARY_BASE
 from nnphd.user.checks import Z_BOTH, Z_CONTRA
-
-LIBRARY_BASE = "the conservative library"  # the law table's seed-free conservative base
 
 LAW_CONFLICT_DIC = -10.0  # a candidate law this much better than none (held out) contradicts a verdict of "none"
 # ... and only when it lowers the held-out error by at least this much: a sparse polynomial that lowered a gyroscopic
@@ -197,7 +196,7 @@ def _corroborated(kept: list[dict]) -> list[tuple[dict, str]] | None:
 
 
 # a candidate law that depends on the state alone contradicts "none" only when it does net work along the record:
-# |share of its force against the velocity| (:func:`against_velocity`) at least this (a drag: 1, a pump: −1, a force
+# |share of its force against the velocity| (:func:`nnphd.explain.work.against_velocity`) at least this (a drag: 1, a pump: −1, a force
 # across the motion: 0). On one orbit the states lie on a closed curve, where a force odd in q̇ can stand in for a
 # correction of the learned potential: measured on DE405 orbits (Mercury, Venus, Jupiter, one trajectory each),
 # a sparse polynomial odd in q̇ lowered the LNN's held-out error by 76–95 % (ΔIC −68 … −3246) on records the
@@ -219,11 +218,11 @@ def does_work(
 ) -> bool:
     """Is this candidate law's force shown to be non-conservative by the record? A law of explicit time (a drive, a
     perturber) always; a law of the state when its force is a reproducible function of the state over the record's
-    passes (:func:`position_explained` of the states ≥ STATE_MIN, or unknown) and does net work on the record
+    passes (:func:`nnphd.explain.work.position_explained` of the states ≥ STATE_MIN, or unknown) and does net work on the record
     (|share against the velocity| ≥ LAW_WORK_MIN) or is not a function of position along it
-    (:func:`position_explained` < POSITION_MAX: a Rayleigh pump on its limit cycle does no net work, yet no
+    (:func:`nnphd.explain.work.position_explained` < POSITION_MAX: a Rayleigh pump on its limit cycle does no net work, yet no
     potential can stand in for it) — in balance along each trajectory as on a limit cycle, not only over the pool
-    (``per_trajectory``, :func:`work_per_trajectory` < LAW_WORK_MIN, or unknown): a law that pumps some trajectories
+    (``per_trajectory``, :func:`nnphd.explain.work.work_per_trajectory` < LAW_WORK_MIN, or unknown): a law that pumps some trajectories
     and brakes others as much, on a record whose trajectories keep their energy, is contradicted by each of them
     (the case behind it: a van der Pol law, 0.06 % of the force, fitted to 8 trajectories of a conservative Morse
     oscillator, −10 % of its force against the velocity over the pool and no function of position, made a "none"
@@ -265,9 +264,8 @@ def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, 
     - a declared uniform field: the fit of the positions beside it decides (:func:`declared_field_verdict`).
     """
     status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
-    if field in ("uniform", "vertical") and (res.get("quality") or {}).get("usable", True):
+    if declared_field_decides(res, field):
         status, conf, why = declared_field_verdict(law)
-        law["_effect"] = declared_field_effect(law)
         withhold(law, status, None if status == "detected" else why)
         return status, status != "none", conf, [why, *reasons]
     cand = law.get("law") or law.get("candidate_law")
@@ -309,7 +307,7 @@ def contradicts_none(cand: dict | None, law: dict) -> bool:
         and 1 - cand["heldout_ratio"] >= LAW_EFFECT_MIN
         and does_work(
             cand,
-            law.get("_against_velocity"),
+            law.get("against_velocity"),
             law.get("by_position"),
             law.get("by_state"),
             law.get("work_per_trajectory"),
@@ -518,7 +516,7 @@ def balanced_force_evidence(res: dict, law: dict) -> str | None:
     Measured: a Rayleigh oscillator on its limit cycle — no energy trend (z = −0.7), its law lowering
     the held-out error by 85 % (ΔIC −2013) — was "inconclusive" (conflicting evidence)."""
     w = law.get("law")
-    share, pos = law.get("_against_velocity"), law.get("by_position")
+    share, pos = law.get("against_velocity"), law.get("by_position")
     if not w or law.get("status") != "claimed" or share is None or pos is None:
         return None
     if abs(share) >= LAW_WORK_MIN or pos >= POSITION_MAX:
@@ -543,74 +541,17 @@ def balanced_force_evidence(res: dict, law: dict) -> str | None:
 FIELD_FIT_MSE = 2.0
 
 # beside a declared uniform field, a drag opposes the velocity: the share of the law's force along −v̂
-# (:func:`against_velocity`) is 1 for any drag of the speed. A field that varies over the record, fitted as uniform,
+# (:func:`nnphd.explain.work.against_velocity`) is 1 for any drag of the speed. A field that varies over the record, fitted as uniform,
 # leaves a remainder that is no drag: on arcs of a 1/r² field (R = 5, 20, 100 m, g = 9.81 at the release, the throw's
 # 1.2 s at 60 fps, 2 mm noise, seeds 0–2) the winning law's share is −0.85 … 0.39, and 1.000 on every throw with
 # quadratic drag (results/declared_field_guard.json).
 DRAG_ALONG_MIN = 0.8
 
 
-def work_per_trajectory(f, qd, traj) -> float | None:
-    """The median over trajectories of |:func:`against_velocity`| of each: how much net work the force does along a
-    typical trajectory, whatever its sign there. None with one trajectory (the pooled share says it all) or where no
-    trajectory moves."""
-    traj = np.asarray(traj)
-    if len(np.unique(traj)) < 2:
-        return None
-    shares = [against_velocity(np.asarray(f)[traj == k], np.asarray(qd)[traj == k]) for k in np.unique(traj)]
-    shares = [abs(s) for s in shares if s is not None]
-    return float(np.median(shares)) if shares else None
-
-
-def against_velocity(f, qd) -> float | None:
-    """Σ(−f·v̂) / Σ|f| over the rows: 1 for a force that opposes the velocity (a drag), −1 for a thrust, about 0 for
-    one across it. ``f``, ``qd`` (N, n) in the record's coordinates; rows at rest (or a law that is zero) do not
-    count. None when nothing moves or the force is zero."""
-    f, qd = np.asarray(f, float), np.asarray(qd, float)
-    speed = np.linalg.norm(qd, axis=1)
-    ok = np.isfinite(speed) & (speed > 0) & np.all(np.isfinite(f), axis=1)
-    size = float(np.sum(np.linalg.norm(f[ok], axis=1)))
-    if not np.any(ok) or size <= 0:
-        return None
-    return float(-np.sum(np.einsum("ni,ni->n", f[ok], qd[ok]) / speed[ok]) / size)
-
-
-POSITION_K = 8  # neighbours in position (:func:`position_explained`)
-
-
-def position_explained(f, q, t, traj=None, period: float = float("nan")) -> float | None:
-    """How much of the force ``f`` (N, n) on the rows is a function of ``q`` (N, m) along this record: 1 − rms(f − f̂)/
-    rms(f), f̂ at each row the mean of f over its POSITION_K nearest rows in q (each column scaled by its spread)
-    among those at least a quarter period away in time on its trajectory (other passes; any row of another
-    trajectory). With q the positions: on one orbit that revisits its path (a planet, a satellite) each position
-    comes with one velocity, so every force of the state is a force of position there (≈ 1), which a learned
-    potential can absorb; on a 1-D oscillation each position comes with ±q̇, so a force odd in q̇ (a drag, a Rayleigh
-    pump) is not (≈ 0). With q the states (q, q̇): whether the force is a reproducible function of the state at all —
-    a law that differs at the same state on another pass (an ill-conditioned fit) is not (measured: a sparse
-    polynomial fitted to a Venus orbit's model error, 0.20). None when too few neighbours qualify."""
-    from scipy.spatial import cKDTree
-
-    f, q, t = np.asarray(f, float), np.asarray(q, float), np.asarray(t, float)
-    f, q = f.reshape(len(f), -1), q.reshape(len(q), -1)
-    traj = np.zeros(len(t), int) if traj is None else np.asarray(traj)
-    gap = 0.25 * period if np.isfinite(period) and period > 0 else 0.25 * float(np.ptp(t))
-    idx = np.flatnonzero(np.all(np.isfinite(f), axis=1) & np.all(np.isfinite(q), axis=1))
-    size = float(np.sqrt(np.mean(np.sum(f[idx] ** 2, axis=1)))) if len(idx) else 0.0
-    if len(idx) < 2 * POSITION_K or size <= 0:
-        return None
-    scale = np.std(q[idx], axis=0)
-    x = q[idx] / np.where(scale > 0, scale, 1.0)
-    _, nb = cKDTree(x).query(x, k=min(len(idx), 8 * POSITION_K))
-    rows, cand = idx[:, None], idx[nb]
-    ok = (traj[cand] != traj[rows]) | (np.abs(t[cand] - t[rows]) >= gap)
-    ok &= np.cumsum(ok, axis=1) <= POSITION_K  # the POSITION_K nearest that qualify
-    n = ok.sum(axis=1)
-    use = n > 0
-    if use.sum() < len(idx) // 2:
-        return None
-    fhat = np.einsum("rk,rkd->rd", ok[use], f[cand[use]]) / n[use, None]
-    err = float(np.mean(np.sum((f[idx[use]] - fhat) ** 2, axis=1)))
-    return float(1.0 - np.sqrt(err) / size)
+def declared_field_decides(res: dict, field: str) -> bool:
+    """Whether the fit of the positions beside a declared uniform field decides the verdict (:func:`reconcile`): a
+    field declared and data that can decide."""
+    return field in ("uniform", "vertical") and bool((res.get("quality") or {}).get("usable", True))
 
 
 def declared_field_effect(law: dict) -> str | None:
@@ -664,7 +605,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
         else ""
     )
     base = f"the uniform field alone leaves χ²/N = {z_mse:.2f} (1: it fits to the noise{against})"
-    along = (law.get("_field") or {}).get("against_velocity")
+    along = law.get("against_velocity")
     caveat = (
         "; this rests on the declared uniform field: along an arc that does not return a field that varies over it "
         "could also explain the record"
@@ -750,10 +691,10 @@ LAW_AGAINST_EVIDENCE = 0.5
 
 def unclaim_against_evidence(res: dict, law: dict) -> str | None:
     """Withdraw the claimed law when its force works against the verdict's record-level evidence: the share of its
-    force against the velocity (:func:`against_velocity`) ≤ −LAW_AGAINST_EVIDENCE while the record loses energy
+    force against the velocity (:func:`nnphd.explain.work.against_velocity`) ≤ −LAW_AGAINST_EVIDENCE while the record loses energy
     (≥ LAW_AGAINST_EVIDENCE while it gains it). The law becomes ``candidate_law`` with the reason; returns it (None
-    when the law stands). Pops ``law["_against_velocity"]``."""
-    share = law.pop("_against_velocity", None)
+    when the law stands). ``law["against_velocity"]`` is moved after the table's own entries (None when absent)."""
+    share = law.pop("against_velocity", None)
     law["against_velocity"] = share
     comb = (res.get("evidence") or {}).get("combined") or {}
     sign = {"loses energy": 1.0, "gains energy": -1.0}.get(comb.get("direction"))
@@ -782,8 +723,8 @@ def unclaim_active(res: dict, law: dict) -> str | None:
     the numbers."""
     from nnphd.explain.wholerecord import PASSIVE_MARGIN_IC
 
-    info = law.pop("_passivity", None)
-    if info is not None:
+    info = law.pop("passivity", None)
+    if info is not None:  # after the share against the velocity in the report, as the two checks run
         law["passivity"] = info
     comb = (res.get("evidence") or {}).get("combined") or {}
     if not law.get("law") or not info or not info.get("active") or comb.get("direction") != "loses energy":
@@ -813,7 +754,7 @@ def unclaim_unidentifiable(law: dict) -> str | None:
     position along it (:func:`does_work` false): a learned potential can stand in for it, so the record does not
     show it is non-conservative (measured: a LAGEOS-like satellite under J2, one day, was claimed a sparse polynomial
     of 108 terms at 10⁻⁵ of the force, 0.8 of it a function of position). Call after :func:`unclaim_against_evidence`
-    (which pops the share against the velocity: pass it here through ``law["against_velocity"]``)."""
+    (the share against the velocity is ``law["against_velocity"]``)."""
     w = law.get("law")
     if not w or does_work(w, law.get("against_velocity"), law.get("by_position")):
         return None

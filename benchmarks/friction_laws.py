@@ -51,7 +51,7 @@ nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 from nnphd.user.detect import detect_file
 
 # what the user of such a recording knows and declares: a throw is filmed in a uniform field (gravity), under which a
-# learned potential cannot hide a drag (nnphd.user.detect.FIELDS) — with a level camera, y up, the field is vertical
+# learned potential cannot hide a drag (nnphd.user.settings.FIELDS) — with a level camera, y up, the field is vertical
 # (one parameter fewer: along a 1.2-s arc a sideways field lets linear drag stand in for quadratic); ``--undeclared``
 # runs every case at the defaults, ``--declare throw-2d=uniform`` declares another field
 DECLARED = {"throw-2d": {"field": "vertical"}}

@@ -11,7 +11,6 @@ import pytest
 
 from nnphd.explain.work import against_velocity
 from nnphd.io.errors import DataError
-from nnphd.user.detect import check_field
 from nnphd.user.rules import (
     DRAG_ALONG_MIN,
     FIELD_FIT_MSE,
@@ -22,6 +21,7 @@ from nnphd.user.rules import (
     declared_field_verdict,
     reconcile,
 )
+from nnphd.user.settings import check_field
 from tests.test_nonoscillating import G, _csv, _throw
 
 
@@ -184,7 +184,7 @@ def _userdata(tmp_path, t, q, names):
 def test_a_throw_does_not_oscillate_and_a_declared_field_refuses_one_that_does(tmp_path):
     from nnphd.user.assess import motion_period
     from nnphd.user.derivatives import Derivatives
-    from nnphd.user.detect import check_declared_field
+    from nnphd.user.settings import check_declared_field
 
     t, _, _, _, noisy = _throw()
     ud = _userdata(tmp_path, t, noisy, ("x", "y"))

@@ -1,4 +1,4 @@
-"""A dense record is thinned after its derivatives are estimated at the full rate (nnphd.user.detect.dense_thinned):
+"""A dense record is thinned after its derivatives are estimated at the full rate (nnphd.user.derivatives.dense_thinned):
 which records, by how much, that the derivatives kept are the full-rate ones, and what is left alone."""
 
 from __future__ import annotations
@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from nnphd.user.detect import THIN_MIN_PER_PERIOD, THIN_ROWS, dense_thinned, prepared_data
+from nnphd.user.derivatives import THIN_MIN_PER_PERIOD, THIN_ROWS, dense_thinned
+from nnphd.user.detect import prepared_data
 from nnphd.user.recording import from_arrays
 
 

@@ -87,7 +87,7 @@ def test_data_without_usable_dynamics_is_inconclusive(name, tmp_path):
 
 
 def test_noisy_derivatives_are_warned_about():
-    from nnphd.user.detect import derivative_warnings
+    from nnphd.user.assembly import derivative_warnings
 
     info = {
         "per_coordinate": {

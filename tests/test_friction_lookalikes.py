@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from nnphd.explain.search import find_law
-from nnphd.user.detect import best_formula, law_formula
+from nnphd.user.assembly import best_formula, law_formula
 from tests.fixtures import friction as F
 
 

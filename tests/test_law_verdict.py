@@ -1,4 +1,4 @@
-"""The verdict after the law table (:func:`nnphd.user.detect.reconcile`): an inconclusive verdict the seed-free law
+"""The verdict after the law table (:func:`nnphd.user.rules.reconcile`): an inconclusive verdict the seed-free law
 table decides, and a drive claimed on trajectories whose clock can be told — the rules on hand-made reports."""
 
 from __future__ import annotations

@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import types
 
 import numpy as np
 import pytest
@@ -163,7 +164,8 @@ def test_any_detect_arguments_run_or_give_exit_2(opts, out, tmp_path_factory, ca
         return {"status": "none", "new_physics": False, "confidence": 1.0, "reasons": ["stub"], "formula": None}
 
     stub_rep = {"blind": {}, "law": {}, "wall_time_s": 0.0}
-    monkeypatch.setattr(detect_mod, "detect_data", lambda ud, **kw: ({**stub(ud, **kw), **stub_rep}, {}))
+    result = lambda ud, **kw: types.SimpleNamespace(report={**stub(ud, **kw), **stub_rep})  # noqa: E731 — the CLI prints its report
+    monkeypatch.setattr(detect_mod, "detect_data", lambda ud, **kw: (result(ud, **kw), None))
     d = tmp_path_factory.mktemp("cli")
     t = np.linspace(0, 10, 50)
     (d / "data.csv").write_text("t,x\n" + "\n".join(f"{a!r},{math.cos(a)!r}" for a in t) + "\n")

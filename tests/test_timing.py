@@ -57,7 +57,7 @@ def test_time_measured_elsewhere_is_a_stage_of_its_own():
 
 
 def test_compilation_on_worker_processes_is_added_to_the_training_stage():
-    from nnphd.user.detect import with_workers
+    from nnphd.user.assembly import with_workers
 
     tm = {"total_s": 10.0, "compile_s": 1.0, "other_s": 0.0, "note": "wall seconds",
           "stages": [{"stage": "derivatives", "s": 1.0, "compile_s": 0.0},

@@ -162,7 +162,7 @@ class NNPhD:
         field: str = "learned",
         **assess_kw: Any,
     ):
-        from nnphd.user.detect import check_field
+        from nnphd.user.settings import check_field
         from nnphd.user.strategies import with_old_keywords
 
         self.derivatives, self.library = with_old_keywords(derivatives, library, trim=trim, laws=laws, law_fit=law_fit)

@@ -135,7 +135,7 @@ def _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, wid
         if lambdas is not None:
             extra["lambdas"] = parse_lambdas(lambdas)
         trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
-        from nnphd.user.detect import check_field
+        from nnphd.user.settings import check_field
 
         check_field(field.value, law_fit.value)
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()

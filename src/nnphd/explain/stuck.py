@@ -19,7 +19,7 @@ that stays finite as q̇ → 0 (no sign(q̇)) is contradicted by a stuck stretch
 
 Only a rest that ends its trajectory counts (a body held before its release, or one that moves again, was held or
 pushed from outside), only near a stable equilibrium of the fit (∂f_c/∂q < 0: a uniform field or a hilltop says
-nothing), and only for oscillating records (``nnphd.user.detect.find_law``). A contradicted candidate is not
+nothing), and only for oscillating records (``nnphd.explain.search.find_law``). A contradicted candidate is not
 eligible; the stuck stretch and the force each candidate leaves unbalanced are in its row (``stuck``). Candidates with a dry term are not judged by their μ against the force at rest: static friction
 may exceed the sliding friction the fit measures. One coordinate only (the rest positions are points on a line).
 
@@ -230,7 +230,7 @@ def stop_contradictions(
     measured; a law that cannot stop a swing predicts a swing where the record is still.
 
     ``stretches``: dicts with "t0" (start), "traj" (its trajectory id), "seconds", "tolerance" (n,) (from
-    ``nnphd.user.detect.moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
+    ``nnphd.explain.search.moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
     ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible. The
     rests' integrations run side by side on ``threads`` threads (None: one per core,
     :func:`nnphd.explain.trajectory.default_threads`), with the same numbers whatever the number."""

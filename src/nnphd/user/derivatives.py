@@ -690,8 +690,8 @@ class Derivatives:
     ``trim``: drop the first and last half-window rows of each trajectory, where the one-sided estimates are ~20x
     worse — True, False, or "auto" (the default: True unless that leaves a trajectory less than
     :data:`TRIM_KEEP_MIN` of its rows or fewer than :data:`TRIM_KEEP_ROWS` rows).  ``thin``: a dense record (over
-    :data:`nnphd.user.detect.THIN_ROWS` rows) is thinned once its derivatives are estimated at the full rate
-    (:func:`nnphd.user.detect.dense_thinned`; False: every row is used).  ``Derivatives()`` is what ``nnphd detect``
+    :data:`nnphd.user.derivatives.THIN_ROWS` rows) is thinned once its derivatives are estimated at the full rate
+    (:func:`nnphd.user.derivatives.dense_thinned`; False: every row is used).  ``Derivatives()`` is what ``nnphd detect``
     does (``--trim``, ``--thin/--no-thin``).  A bad field is a ValueError naming it and what is expected.
     """
 
@@ -767,3 +767,57 @@ def trim_keeps_enough(kept: list[tuple[int, int]]) -> bool:
     """Whether trimming leaves every trajectory enough rows: ``kept`` = (rows kept, rows) per trajectory; at least
     :data:`TRIM_KEEP_MIN` of its rows and :data:`TRIM_KEEP_ROWS` rows each."""
     return min(k / n for k, n in kept) >= TRIM_KEEP_MIN and min(k for k, _ in kept) >= TRIM_KEEP_ROWS
+
+
+# A dense record is thinned once its derivatives are estimated at the full rate: a record of more than THIN_ROWS rows
+# (after trimming) keeps every k-th row of each trajectory, k the smallest that brings it to ≤ THIN_ROWS rows, but
+# never fewer than THIN_MIN_PER_PERIOD rows per period and never more than half the shortest derivative window (so
+# every dropped row's q̇ and q̈ come from a smoothing window that a kept row's window mostly shares: neighbouring
+# estimates are strongly correlated, and the dropped rows add little). The real double pendulum at its full 400 Hz
+# (18 038 rows, Savitzky–Golay windows of 21–31 rows, 333 rows per period) took 221 s, 133 of them in the
+# trajectory-level fits; thinned to every 4th row it takes about what its 100-Hz record takes, with better
+# derivatives. Records with given q̇ or q̈ (no window) and records that do not oscillate are not thinned.
+THIN_ROWS = 5000
+
+
+THIN_MIN_PER_PERIOD = 80
+
+
+def dense_thinned(data, info: dict, row_err, traj, ud):
+    """(data, row errors, trajectory ids) of a dense record thinned as the comment above says, or as given; the
+    thinning, when there is one, is recorded in ``info["thinned"]`` (every, rows_before, rows, period_rows,
+    text)."""
+    from nnphd.explain.jointfit import trajectory_segments
+    from nnphd.user.assess import motion_period
+
+    n = len(data)
+    if n <= THIN_ROWS:
+        return data, row_err, traj
+    pc = info["per_coordinate"]
+    wins = [pc[c][k].get("windows") for c in ud.coords for k in ("qd", "qdd")]
+    if not all(wins):
+        return data, row_err, traj
+    period = motion_period(data, traj, [bool(a) for a in ud.is_angle], [pc[c]["noise"] for c in ud.coords])
+    segs = trajectory_segments(traj)
+    dts = np.concatenate([np.diff(data.t[s]) for s in segs if len(s) > 1] or [np.ones(1)])
+    dt = float(np.median(dts))
+    if not (np.isfinite(period) and dt > 0):
+        return data, row_err, traj
+    per_period = period / dt
+    k = min(-(-n // THIN_ROWS), int(per_period // THIN_MIN_PER_PERIOD), min(min(w) for w in wins) // 2)
+    if k <= 1:
+        return data, row_err, traj
+    keep = np.concatenate([s[::k] for s in segs])
+    info["thinned"] = {
+        "every": k,
+        "rows_before": n,
+        "rows": len(keep),
+        "period_rows": per_period,
+        "text": (
+            f"a dense record: one row in {k} of its {n} is used ({len(keep)} rows, {per_period / k:.0f} per "
+            f"period), its derivatives estimated at the full rate first (windows of {min(min(w) for w in wins)} "
+            f"rows or more)"
+        ),
+    }
+    errs = None if row_err is None else {name: np.asarray(v)[keep] for name, v in row_err.items()}
+    return data.subset(keep), errs, np.asarray(traj)[keep]

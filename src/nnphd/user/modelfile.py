@@ -285,7 +285,7 @@ SETTINGS = {  # NNPhD's arguments
     "thin": boolean,  # (nnphd.Derivatives' thin: written only when False)
 }
 
-FIELD = {  # a declared uniform field as fitted (nnphd.user.detect.fitted_field)
+FIELD = {  # a declared uniform field as fitted (nnphd.explain.search.fitted_field)
     "law": string(max_len=100),
     "g": dict_of(number()),
     "stderr": dict_of(number(nonneg=True)),

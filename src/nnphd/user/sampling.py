@@ -186,3 +186,30 @@ def smooth_curve_noise(t, y) -> float:
         if d > 1 and sig[-1] >= 0.9 * sig[-2]:
             return sig[-2]
     return min(sig)
+
+
+def arc_noise(data, traj, coords, info) -> dict:
+    """The position noise that the χ²/N of a declared field's fits is judged against (:func:`nnphd.user.rules.
+    declared_field_verdict`): the difference estimate of the derivative stage (:func:`nnphd.user.sampling.
+    noise_level`), unless a low-degree curve through each arc (:func:`nnphd.user.sampling.smooth_curve_noise`,
+    pooled over the trajectories) leaves more for every coordinate — noise correlated from frame to frame, which
+    differences cancel (a tracker's): then the curve's, the smallest ratio over the coordinates. ``chi2_scale``
+    divides a χ²/N computed with the difference estimate."""
+    from nnphd.explain.jointfit import trajectory_segments
+    from nnphd.user.sampling import smooth_curve_noise
+
+    segs = trajectory_segments(np.zeros(len(data.t), int) if traj is None else traj)
+    diff = [float(info["per_coordinate"][c]["noise"]) for c in coords]
+    curve = []
+    for j in range(len(coords)):
+        v = [(smooth_curve_noise(data.t[s], data.q[s, j]), len(s)) for s in segs]
+        v = [(x, n) for x, n in v if np.isfinite(x)]
+        curve.append(float(np.sqrt(sum(x * x * n for x, n in v) / sum(n for _, n in v))) if v else float("nan"))
+    ratio = [c / d if d > 0 and np.isfinite(c) else float("nan") for c, d in zip(curve, diff)]
+    use = bool(ratio and np.all(np.isfinite(ratio)) and min(ratio) > 1.0)
+    return {
+        "difference": dict(zip(coords, diff)),
+        "smooth_curve": dict(zip(coords, curve)),
+        "used": "smooth curve" if use else "differences",
+        "chi2_scale": float(min(ratio) ** 2) if use else 1.0,
+    }

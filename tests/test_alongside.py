@@ -142,7 +142,9 @@ def test_rk4_stages_in_a_loop_integrate_as_the_four_written_out(nsub):
 def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(tmp_path, monkeypatch):
     """detect_data starts the law table on the conservative library on a thread of its own before the training
     (:func:`nnphd.user.detect.library_alongside`): the same table as :func:`find_law` one after another."""
-    from nnphd.explain.search import find_law
+    from dataclasses import replace
+
+    from nnphd.explain.search import LawRun, find_law
     from nnphd.user.derivatives import Derivatives
     from nnphd.user.detect import LIBRARY_ALONGSIDE, library_alongside
     from nnphd.user.recording import load_trajectories
@@ -156,7 +158,8 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
     angles = [bool(a) for a in ud.is_angle]
     with StageTimer() as timer:
-        job = library_alongside(data, traj, ud, info, rows, (), "auto", 0, "learned", None, timer)
+        run = LawRun(traj, tuple(ud.coords), tuple(angles), info, rows, timer=timer)
+        job = library_alongside(data, run)
         assert job is not None
         beside = job[0].result(timeout=600)
     plain = find_law(data, traj, list(ud.coords), angles, info, rows, level="auto", seed=0)
@@ -166,10 +169,11 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
     )
     assert {s["stage"]: s.get("alongside") for s in timer.to_dict()["stages"]} == {LIBRARY_ALONGSIDE: True}
     # not wanted beside: another field, a pointwise law, several coordinates, a worker of a batch (one core)
-    assert library_alongside(data, traj, ud, info, rows, (), "pointwise", 0, "learned", None, timer) is None
-    assert library_alongside(data, traj, ud, info, rows, (), "auto", 0, "uniform", None, timer) is None
+    assert library_alongside(data, replace(run, level="pointwise")) is None
+    assert library_alongside(data, replace(run, field="uniform")) is None
+    assert library_alongside(data, replace(run, coords=("x", "y"), is_angle=(False, False))) is None
     monkeypatch.setenv("NNPHD_WORKER", "1")
-    assert library_alongside(data, traj, ud, info, rows, (), "auto", 0, "learned", None, timer) is None
+    assert library_alongside(data, run) is None
 
 
 def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):

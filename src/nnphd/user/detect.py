@@ -10,7 +10,6 @@ figures in ``--out``. Every file is written atomically, and only after the whole
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +33,7 @@ from nnphd.user.rules import (
     unclaim_unidentifiable,
 )
 from nnphd.user.sampling import arc_noise
-from nnphd.user.settings import check_declared_field, check_field, check_law_fit, check_settings
+from nnphd.user.settings import DetectSettings, check_declared_field, check_field, check_law_fit, check_settings
 
 
 def detect_file(
@@ -81,86 +80,69 @@ class _Say:
         self(f"training: {message}")
 
 
-def _assessed(data, traj, ud, info, training, seed, steps, n_seeds, workers, scheduler, assess_kw: dict):
+def _assessed(data, run: LawRun, s: DetectSettings, training):
     """:func:`nnphd.user.assess.assess` on the data set, with the file's angles and the position noise and q̈ errors
     of its derivative estimates; ``training``: the progress of the training rounds."""
     from nnphd.user.assess import assess
 
-    pc = info["per_coordinate"]
+    pc = run.info["per_coordinate"]
     return assess(
         data,
-        traj,
-        seed=seed,
-        steps=steps,
-        n_seeds=n_seeds,
+        run.traj,
+        seed=s.seed,
+        steps=s.steps,
+        n_seeds=s.n_seeds,
         progress=training,
-        angles=[bool(a) for a in ud.is_angle],
-        position_noise=[pc[c]["noise"] for c in ud.coords],
-        derivative_error=[pc[c]["qdd"]["relative_error"] for c in ud.coords],
-        workers=workers,
-        scheduler=scheduler,
-        **assess_kw,
+        angles=list(run.is_angle),
+        position_noise=[pc[c]["noise"] for c in run.coords],
+        derivative_error=[pc[c]["qdd"]["relative_error"] for c in run.coords],
+        workers=s.workers,
+        scheduler=s.scheduler,
+        **s.assess,
     )
 
 
 def detect_data(
-    ud,
-    out: str | Path | None = None,
-    *,
-    seed: int = 0,
-    steps: int = 1000,
-    sr_time: float = 10.0,
-    n_seeds: int = 2,
-    progress: Progress | None = None,
-    trim: bool | str = "auto",
-    laws: Sequence[str] = (),
-    law_fit: str = "auto",
-    field: str = "learned",
-    workers: int | None = 1,
-    scheduler: str | None = None,
-    read_s: float | None = None,
-    derivative_method="auto",
-    families: Sequence[str] | None = None,
-    thin: bool = True,
-    **assess_kw,
+    ud, out: str | Path | None = None, *, progress: Progress | None = None, read_s: float | None = None, **settings
 ) -> tuple[DetectResult, FittedModel]:
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (the result — its
     ``report`` is report.json —, the fitted pieces that :class:`nnphd.NNPhD` keeps). ``field``: the conservative
     force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
     :func:`declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`).
+    ``settings``: the keywords of :class:`nnphd.user.settings.DetectSettings` (seed, steps, sr_time, n_seeds, trim,
+    laws, law_fit, field, workers, scheduler, derivative_method, families, thin) and assess's own.
     ``derivative_method``: how q̇, q̈ are estimated (a name of :data:`nnphd.user.derivatives.METHODS`, a
     DerivativeEstimator, or a :class:`nnphd.user.derivatives.Derivatives` with its own trim); ``families``: the
     candidate law families ranked (keys and Family objects; None: all, :data:`nnphd.user.strategies.FAMILIES`) — the
     report's settings name them only when they are not the defaults; ``thin``: a dense record of more than THIN_ROWS rows is thinned after
     its derivatives are estimated (:func:`dense_thinned`; False: every row is used)."""
-    from nnphd.user.derivatives import derivative_name
-    from nnphd.user.strategies import family_filter, family_names
+    from nnphd.user.strategies import family_filter
 
+    s = DetectSettings.of(**settings)
     say = _Say(progress)
-    check_settings(ud, laws, law_fit, field, families, derivative_method)
-    families = family_filter(families)
+    check_settings(ud, s.laws, s.law_fit, s.field, s.families, s.derivative_method)
+    families, field = family_filter(s.families), s.field
     release_compiled_if_crowded()  # a process fitting record after record must not run out of memory mappings
     timer = StageTimer()
     if read_s is not None:
         timer.add("reading the file", read_s)
     with timer:
         with timer.stage("derivatives"):
-            data, info, trim, row_err, traj = prepared_data(ud, trim, derivative_method)
+            data, info, trim, row_err, traj = prepared_data(ud, s.trim, s.derivative_method)
             check_declared_field(field, data, traj, ud, info)
-            if thin:
+            if s.thin:
                 data, row_err, traj = dense_thinned(data, info, row_err, traj, ud)
         coords = list(ud.coords)
-        library = library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer)
+        run = LawRun(traj, tuple(coords), tuple(bool(a) for a in ud.is_angle), info, row_err, s.laws, s.law_fit, s.seed,
+                     field, families, timer, lambda d, t, m: say(m))  # fmt: skip
+        library = library_alongside(data, run)
         try:
             say("λ-sweep and trust checks")
             with timer.stage("training and trust checks"):
-                assessed = _assessed(data, traj, ud, info, say.training, seed, steps, n_seeds, workers, scheduler,
-                                     assess_kw)  # fmt: skip
+                assessed = _assessed(data, run, s, say.training)
             res, fn, fc = assessed.report, np.asarray(assessed.f_n), np.asarray(assessed.f_c)
-            figures = _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer)
-            run = LawRun(traj, tuple(coords), tuple(bool(a) for a in ud.is_angle), info, row_err, laws, law_fit, seed,
-                         field, families, timer, lambda d, t, m: say(m))  # fmt: skip
+            figures = _figures_alongside(out, res, data, run, (fc, fn))
             law, law_row, declared = _law_decision(assessed, data, run, library)
         finally:  # not needed (no law is fitted), or an error or an interrupt here: it stops at its next stage
             if library is not None:
@@ -174,22 +156,10 @@ def detect_data(
         blind = {}
         if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
             with timer.stage("blind formula"):
-                blind = _blind(data, coords, fn, sr_time, seed, say, reasons)
-        settings = {
-            "seed": seed,
-            "steps": steps,
-            "n_seeds": n_seeds,
-            "law_fit": law_fit,
-            "sr_time_per_component_s": sr_time,
-            "trim": trim,
-            "field": field,
-            **({"derivative_method": name} if (name := derivative_name(derivative_method)) != "auto" else {}),
-            **({"families": family_names(families)} if families is not None else {}),
-            **({"thin": False} if not thin else {}),
-            **assess_kw,
-        }
+                blind = _blind(data, coords, fn, s.sr_time, s.seed, say, reasons)
         verdict = (status, new_physics, confidence, reasons, effect)
-        report = report_of(ud, res, info, law, verdict, field_entry(field, fitted, declared), blind, settings)
+        entry = s.report_entry(trim, families)
+        report = report_of(ud, res, info, law, verdict, field_entry(field, fitted, declared), blind, entry)
 
         def stamp() -> None:  # the times so far: every stage but the writing of report.json/html itself
             report["timings"] = with_workers(timer.to_dict(), list(assessed.timings_per_seed))
@@ -208,7 +178,7 @@ def detect_data(
 LIBRARY_ALONGSIDE = "law table: library base (alongside training)"
 
 
-def library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field, families, timer):
+def library_alongside(data, run: LawRun):
     """The law table on the conservative library base (:func:`_law_table`), started beside the training on a thread
     of its own — it needs no network — when it will be wanted: one coordinate, the learned field, a trajectory-level
     fit. (future, cancel) of :func:`nnphd.parallel.alongside`, or None: then it is fitted after the training, as
@@ -218,14 +188,13 @@ def library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field,
 
     from nnphd.parallel import alongside
 
-    if field != "learned" or len(ud.coords) != 1 or law_fit == "pointwise" or os.environ.get("NNPHD_WORKER"):
+    if run.field != "learned" or len(run.coords) != 1 or run.level == "pointwise" or os.environ.get("NNPHD_WORKER"):
         return None
-    angles = [bool(a) for a in ud.is_angle]
 
     def library(cancel):
-        with timer.alongside(LIBRARY_ALONGSIDE):
-            return find_law(data, traj, list(ud.coords), angles, info, row_err, laws=laws, level=law_fit, seed=seed,
-                            families=families, cancel=cancel)  # fmt: skip
+        with run.timer.alongside(LIBRARY_ALONGSIDE):
+            return find_law(data, run.traj, list(run.coords), list(run.is_angle), run.info, run.row_err, laws=run.laws,
+                            level=run.level, seed=run.seed, families=run.families, cancel=cancel)  # fmt: skip
 
     return alongside(library)
 
@@ -233,7 +202,7 @@ def library_alongside(data, traj, ud, info, row_err, laws, law_fit, seed, field,
 FIGURES_ALONGSIDE = "figures (alongside the law table)"
 
 
-def _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer):
+def _figures_alongside(out, res, data, run: LawRun, forces):
     """The figures that need the training only (:func:`nnphd.user.report.training_figures`), made on a thread of
     their own while the law is fitted — the learned field, a report to write, not in a worker of a ``detect`` batch
     (which owns one core). A future of them, or None (then they are made with the others, as before)."""
@@ -242,13 +211,14 @@ def _figures_alongside(out, res, data, traj, coords, fc, fn, field, timer):
     from nnphd.parallel import alongside
     from nnphd.user.report import training_figures
 
-    if out is None or field != "learned" or os.environ.get("NNPHD_WORKER"):
+    if out is None or run.field != "learned" or os.environ.get("NNPHD_WORKER"):
         return None
-    view = {k: res[k] for k in ("checks", "evidence", "table", "lambda_forces")} | {"field": {"kind": field}}
+    view = {k: res[k] for k in ("checks", "evidence", "table", "lambda_forces")} | {"field": {"kind": run.field}}
+    fc, fn = forces
 
     def figures(cancel):  # noqa: ARG001 — nothing to stop early: a few seconds of drawing
-        with timer.alongside(FIGURES_ALONGSIDE):
-            return training_figures(view, data, traj, coords, fc, fn)
+        with run.timer.alongside(FIGURES_ALONGSIDE):
+            return training_figures(view, data, run.traj, list(run.coords), fc, fn)
 
     return alongside(figures)[0]
 

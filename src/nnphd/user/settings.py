@@ -7,13 +7,69 @@ expected — the command line and :class:`nnphd.NNPhD` check the same way.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass, fields
+from dataclasses import field as dc_field
 
 import numpy as np
 
 from nnphd.explain.search import DECLARED_FIELDS
 from nnphd.io.errors import DataError
 
-__all__ = ["FIELDS", "check_declared_field", "check_field", "check_law_fit", "check_settings"]
+__all__ = ["FIELDS", "DetectSettings", "check_declared_field", "check_field", "check_law_fit", "check_settings"]
+
+
+@dataclass(frozen=True)
+class DetectSettings:
+    """The settings of one detection (:func:`nnphd.user.detect.detect_data`), as ``nnphd detect``'s options and
+    :class:`nnphd.NNPhD`'s arguments give them: the ``seed``, training ``steps`` per λ, seconds of genetic symbolic
+    regression per component ``sr_time``, ``n_seeds``, the derivative ``trim`` and ``derivative_method`` (a name,
+    a DerivativeEstimator or a :class:`nnphd.user.derivatives.Derivatives`), ``thin``, your own ``laws``, the law
+    ranking ``law_fit``, the conservative ``field``, the law ``families`` (keys and Family objects; None: all),
+    where the seeds train (``workers``, ``scheduler``: :func:`nnphd.parallel.run_units`), and ``assess``:
+    :func:`nnphd.user.assess.assess`'s own keywords (``width``, ``lambdas``, …)."""
+
+    seed: int = 0
+    steps: int = 1000
+    sr_time: float = 10.0
+    n_seeds: int = 2
+    trim: bool | str = "auto"
+    laws: Sequence[str] = ()
+    law_fit: str = "auto"
+    field: str = "learned"
+    workers: int | None = 1
+    scheduler: str | None = None
+    derivative_method: object = "auto"
+    families: Sequence | None = None
+    thin: bool = True
+    assess: dict = dc_field(default_factory=dict)
+
+    @classmethod
+    def of(cls, **settings) -> DetectSettings:
+        """From keywords: this class's fields, and any other keyword one of :func:`nnphd.user.assess.assess`'s."""
+        own = {f.name for f in fields(cls)} - {"assess"}
+        return cls(**{k: v for k, v in settings.items() if k in own},
+                   assess={k: v for k, v in settings.items() if k not in own})  # fmt: skip
+
+    def report_entry(self, trim: bool, families) -> dict:
+        """The report's ``settings``: the run's own (``trim``: the one used; ``families``: those ranked, None when
+        all), the derivative method, the families and the thinning only where they are not the defaults."""
+        from nnphd.user.derivatives import derivative_name
+        from nnphd.user.strategies import family_names
+
+        name = derivative_name(self.derivative_method)
+        return {
+            "seed": self.seed,
+            "steps": self.steps,
+            "n_seeds": self.n_seeds,
+            "law_fit": self.law_fit,
+            "sr_time_per_component_s": self.sr_time,
+            "trim": trim,
+            "field": self.field,
+            **({"derivative_method": name} if name != "auto" else {}),
+            **({"families": family_names(families)} if families is not None else {}),
+            **({"thin": False} if not self.thin else {}),
+            **self.assess,
+        }
 
 
 def check_law_fit(law_fit: str) -> None:

@@ -162,7 +162,7 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
         job = library_alongside(data, run)
         assert job is not None
         beside = job[0].result(timeout=600)
-    plain = find_law(data, traj, list(ud.coords), angles, info, rows, level="auto", seed=0)
+    plain = find_law(data, LawRun(traj, tuple(ud.coords), tuple(angles), info, rows, level="auto", seed=0))
     assert plain.settings["method"] == "trajectory"  # the trajectory-level fits ran, both times
     assert json.dumps(beside.to_dict(), sort_keys=True, default=str) == json.dumps(
         plain.to_dict(), sort_keys=True, default=str
@@ -179,7 +179,7 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
 def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):
     from concurrent.futures import CancelledError
 
-    from nnphd.explain.search import find_law
+    from nnphd.explain.search import LawRun, find_law
     from nnphd.user.derivatives import Derivatives
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
@@ -192,7 +192,7 @@ def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):
     stop = threading.Event()
     stop.set()
     with pytest.raises(CancelledError):
-        find_law(data, traj, list(ud.coords), [bool(a) for a in ud.is_angle], info, rows, cancel=stop)
+        find_law(data, LawRun(traj, tuple(ud.coords), tuple(bool(a) for a in ud.is_angle), info, rows), cancel=stop)
 
 
 @pytest.mark.parametrize("n, angles", [(1, (True,)), (2, (True, False))])

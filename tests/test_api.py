@@ -218,9 +218,10 @@ def test_the_four_ways_in_give_the_same_data(tmp_path):
     csv = nnphd.Trajectories.from_csv(path, angles=["th"])
     for d in (lists, ids, table, csv):
         assert d.names == ("x", "th") and d.angles == ("th",) and d.n_trajectories == 2 and d.n_samples == 80
-        for a, b in zip(d._ud.trajectories, lists._ud.trajectories):
-            np.testing.assert_array_equal(a.t, b.t)
-            np.testing.assert_array_equal(a.q, b.q)
+        assert len(d.arrays()) == 2
+        for (ta, qa), (tb, qb) in zip(d.arrays(), lists.arrays()):
+            np.testing.assert_array_equal(ta, tb)
+            np.testing.assert_array_equal(qa, qb)
     with pytest.raises(ValueError, match="expected a .csv file"):
         nnphd.Trajectories.from_csv(tmp_path / "d.npz")
 

@@ -227,7 +227,7 @@ def test_a_vertical_field_is_one_column_along_the_last_coordinate():
 
 @pytest.mark.slow  # two trajectory-level law tables, ~25 s
 def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
-    from nnphd.explain.search import find_law, fitted_field
+    from nnphd.explain.search import LawRun, find_law, fitted_field
     from nnphd.user.derivatives import Derivatives
 
     for c in (0.0, 0.012):
@@ -235,7 +235,8 @@ def test_the_fitted_field_is_gravity_and_the_drag_is_the_truth(tmp_path):
         ud = _userdata(tmp_path, t, noisy, ("x", "y"))
         d = Derivatives().dataset(ud)
         data, info, row_err = d.data, d.info, d.row_errors
-        tab = find_law(data, np.zeros(len(data.t), int), ["x", "y"], [False, False], info, row_err, field="uniform")
+        run = LawRun(np.zeros(len(data.t), int), ("x", "y"), (False, False), info, row_err, field="uniform")
+        tab = find_law(data, run)
         assert tab.settings["library"] == "minimal"
         zero = next(r for r in tab.rows if r.key == "none")
         law = tab.law if c else zero
@@ -254,7 +255,7 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
     free direction linear drag is Δχ² 10 behind quadratic in a whole-trajectory fit, with the field vertical 23 (seeds
     0, 1: −1.9 / 8.6 and 5.2 / 6.5). Declared vertical: quadratic drag is claimed within 5 % and the field has no x
     component (it is not fitted)."""
-    from nnphd.explain.search import find_law, fitted_field
+    from nnphd.explain.search import LawRun, find_law, fitted_field
     from nnphd.user.derivatives import Derivatives
     from nnphd.user.recording import load_trajectories
     from tests.fixtures import friction as F
@@ -264,7 +265,7 @@ def test_a_vertical_field_decides_the_throw_look_alike_where_a_free_direction_ti
     d = Derivatives().dataset(ud)
     data, info, row_err = d.data, d.info, d.row_errors
     traj = np.zeros(len(data.t), int)
-    tab = find_law(data, traj, ["x", "y"], [False, False], info, row_err, field="vertical")
+    tab = find_law(data, LawRun(traj, ("x", "y"), (False, False), info, row_err, field="vertical"))
     assert tab.settings["library"] == "vertical" and tab.settings["conservative_columns"] == 1
     assert tab.status == "claimed" and tab.law.key == "quadratic", tab.reason
     assert tab.law.params["c"] == pytest.approx(0.021, rel=0.05)

@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from nnphd.explain.search import find_law
+from nnphd.explain.search import LawRun, find_law
 from nnphd.user.assembly import best_formula, law_formula
 from tests.fixtures import friction as F
 
@@ -24,7 +24,7 @@ def _law_table(name, tmp_path):
     d = Derivatives().dataset(ud)
     data, info, rows = d.data, d.info, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
-    return rec, find_law(data, traj, list(ud.coords), [bool(a) for a in ud.is_angle], info, rows)
+    return rec, find_law(data, LawRun(traj, tuple(ud.coords), tuple(bool(a) for a in ud.is_angle), info, rows))
 
 
 def _force_error(rec, row) -> float:

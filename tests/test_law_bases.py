@@ -1,5 +1,5 @@
 """One law from two conservative bases (:func:`nnphd.explain.table.combine_bases`) and the candidate that bars a
-weaker law (:func:`nnphd.explain.envelope._blocked_by_disagreement`): the rules on hand-made law tables."""
+weaker law (:func:`nnphd.explain.envelope.blocked_by_disagreement`): the rules on hand-made law tables."""
 
 from __future__ import annotations
 

@@ -91,7 +91,7 @@ def test_user_law_linear_and_nonlinear_parameters():
 
 def _law_from_csv(path, angles=()):
     """A recording through the user-data path: positions only → derivatives → find_law (no LNN)."""
-    from nnphd.explain.search import find_law
+    from nnphd.explain.search import LawRun, find_law
     from nnphd.user.derivatives import Derivatives
     from nnphd.user.recording import load_trajectories
 
@@ -99,7 +99,7 @@ def _law_from_csv(path, angles=()):
     d = Derivatives().dataset(ud)
     data, info, rows = d.data, d.info, d.row_errors
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
-    return find_law(data, traj, list(ud.coords), [bool(x) for x in ud.is_angle], info, rows)
+    return find_law(data, LawRun(traj, tuple(ud.coords), tuple(bool(x) for x in ud.is_angle), info, rows))
 
 
 @pytest.mark.slow  # a whole detect run: slow tier (`python3 dev.py test --slow`, and CI)

@@ -101,3 +101,40 @@ def test_the_parser_sees_the_imports():  # the checks above are only as good as 
     assert {"nnphd.engine.train", "nnphd.user.checks"} <= _imports(mods["nnphd.user.rounds"], mods)
     assert "nnphd.user.sampling" in _imports(mods["nnphd.user.assess"], mods)  # a lazy import, inside assess()
     assert _layer("nnphd.paper.discover") > _layer("nnphd.engine.train")
+
+
+def test_the_tests_reach_the_code_through_public_names():
+    """No test imports a ``_name`` of nnphd, reads a ``_attribute`` of an nnphd module or object it imported, or
+    stands in a private function: the tests exercise what a user can call."""
+    tests = Path(__file__).resolve().parent
+    bad = []
+    for p in sorted(tests.rglob("*.py")):
+        tree = ast.parse(p.read_text())
+        nnphd_names = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("nnphd"):
+                bad += [(p.name, node.module, a.name) for a in node.names
+                        if a.name.startswith("_") and not a.name.startswith("__")]  # fmt: skip
+                nnphd_names |= {a.asname or a.name for a in node.names}
+            elif isinstance(node, ast.Import):
+                nnphd_names |= {a.asname or a.name.split(".")[0] for a in node.names if a.name.startswith("nnphd")}
+        for node in ast.walk(tree):
+            if (
+                isinstance(node, ast.Attribute)
+                and node.attr.startswith("_")
+                and not node.attr.startswith("__")
+                and isinstance(node.value, ast.Name)
+                and node.value.id in nnphd_names
+            ):
+                bad.append((p.name, node.value.id, node.attr))
+            if (
+                isinstance(node, ast.Call)
+                and getattr(node.func, "attr", "") == "setattr"
+                and len(node.args) >= 2
+                and isinstance(node.args[0], ast.Name)
+                and node.args[0].id in nnphd_names
+                and isinstance(node.args[1], ast.Constant)
+                and str(node.args[1].value).startswith("_")
+            ):
+                bad.append((p.name, "setattr", node.args[1].value))
+    assert bad == []

@@ -89,7 +89,7 @@ def test_an_active_law_is_compared_with_the_passive_families_over_the_whole_reco
     fits = [("lib", _Ranked([_Row("vanderpol", 0, heldout_mse=np.exp(ic_law / n)),
                              _Row("linear", 0, heldout_mse=np.exp(ic_passive / n))]))]  # fmt: skip
     asked = []
-    monkeypatch.setattr(W, "_whole_record_fits", lambda ctx, keys: (asked.append(keys), (fits, None))[1])
+    monkeypatch.setattr(W, "whole_record_fits", lambda ctx, keys: (asked.append(keys), (fits, None))[1])
     info = W.passivity(_table(law, rows[1:]), _lib(n), q, v, t)
     assert asked == [["vanderpol", "linear"]]  # the eligible passive families only (quadratic is not eligible,
     assert info["passive_candidates"] == ["linear"]  # Rayleigh with a = +0.3 pumps everywhere)

@@ -198,8 +198,8 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
         cons = ConservativeModel(None, None, nan, None)
         return assess_mod.Assessment({"quality": {"oscillating": True}}, nan, nan, cons)
 
-    def find_law(*a, **k):
-        seen.update(families=k["families"], laws=k["laws"], level=k["level"])
+    def find_law(data, run, *a, **k):
+        seen.update(families=run.families, laws=run.laws, level=run.level)
         raise _Stop
 
     monkeypatch.setattr(derivatives, "derive", derived)
@@ -231,7 +231,7 @@ def test_fit_threads_the_objects_to_the_derivatives_and_the_law_table(monkeypatc
 def test_restricted_families_are_the_only_candidates_ranked():
     """find_law (what the fit's law table calls) ranks only the families asked for, beside the zero law and your own
     laws; without a restriction every family that fits is a row."""
-    from nnphd.explain.search import find_law
+    from nnphd.explain.search import LawRun, find_law
 
     rng = np.random.default_rng(0)
     ts = [np.arange(0.0, T_, 0.1) for T_ in (30.0, 25.0)]
@@ -243,7 +243,7 @@ def test_restricted_families_are_the_only_candidates_ranked():
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(info["trajectories"]) for a, b in [tr["kept"]]])
 
     def ranked(**kw):
-        table = find_law(ds, traj, ["x"], [False], info, rows, level="pointwise", **kw)
+        table = find_law(ds, LawRun(traj, ("x",), (False,), info, rows, level="pointwise", **kw))
         return {r.key for r in table.rows}, table
 
     keys, table = ranked(families=("linear",))

@@ -62,7 +62,7 @@ def _with_fits(monkeypatch, ics: dict, chi2n: float = 1.0, significant=True, sho
     fits = [("the conservative library", ranked(ics, 3))]
     if short is not None:
         fits.append(("the short library", ranked(short, 1)))
-    monkeypatch.setattr(W, "_whole_record_fits", lambda ctx, keys: (fits, None))
+    monkeypatch.setattr(W, "whole_record_fits", lambda ctx, keys: (fits, None))
 
 
 def test_the_whole_record_claims_the_family_the_others_trail_by_ic_tie(monkeypatch):
@@ -128,7 +128,7 @@ def test_no_context_or_a_missing_fit_leaves_the_tie(monkeypatch):
 def test_a_claimed_table_is_not_touched(monkeypatch):
     rows = [_Row("linear")]
     table = LawTable(rows, rows[0], "claimed", 1.0, 1.0, "", {})
-    monkeypatch.setattr(W, "_whole_record_fits", lambda ctx, keys: pytest.fail("fitted a claimed table"))
+    monkeypatch.setattr(W, "whole_record_fits", lambda ctx, keys: pytest.fail("fitted a claimed table"))
     assert W.break_tie(table, _lib()) is table
 
 

@@ -103,6 +103,10 @@ class Trajectories:
     def n_samples(self) -> int:
         return self._ud.n_samples
 
+    def arrays(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """(t, q) of each trajectory, in order: t (N_i,), q (N_i, n) — copies, as read and validated."""
+        return [(tr.t.copy(), tr.q.copy()) for tr in self._ud.trajectories]
+
     def __repr__(self) -> str:
         return (
             f"Trajectories({self.n_trajectories} trajectories, {self.n_samples} samples, coordinates "

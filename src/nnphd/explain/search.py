@@ -91,15 +91,13 @@ def decide_law(data, run: LawRun, base: tuple | None, arcs: bool, library=None, 
     coords, level, timer = list(run.coords), run.level, run.timer
     timed = timer.stage if timer is not None else (lambda _name: nullcontext())
     fc, fc_fn = base if base is not None else (None, None)
-    kw = dict(laws=run.laws, level=level, seed=run.seed, progress=run.progress, timer=timer, families=run.families)
-    table = find_law(data, run.traj, coords, run.is_angle, run.info, run.row_err, fc=fc, fc_fn=fc_fn, field=run.field,
-                     **kw)  # fmt: skip
+    table = find_law(data, run, fc, fc_fn)
     if base is not None and (len(coords) == 1 or arcs) and level != "pointwise":
         if library is not None:  # started beside the training
             with timed(LIBRARY_WAIT):
                 lib = library[0].result()
         else:
-            lib = find_law(data, run.traj, coords, run.is_angle, run.info, run.row_err, **kw)
+            lib = find_law(data, replace(run, field="learned"))
         if len(coords) == 1 or lib.settings.get("library") == "minimal":  # (the law stage's own period decides)
             table = combine_bases([(LIBRARY_BASE, lib), (f"seed {run.seed}'s LNN", table)])
     else:
@@ -194,83 +192,65 @@ def _envelope(table, data, traj, coords, info, angle: bool = False) -> dict | No
     )
 
 
-def find_law(
-    data,
-    traj,
-    coords,
-    is_angle,
-    info,
-    row_err=None,
-    *,
-    fc=None,
-    fc_fn=None,
-    laws=(),
-    level="auto",
-    seed=0,
-    progress: Progress | None = None,
-    field: str = "learned",
-    timer: StageTimer | None = None,
-    families: Sequence[str] | None = None,
-    cancel=None,
-):
-    """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.to_dataset`
-    (``info`` its info, ``row_err`` its per-row errors, :class:`nnphd.user.derivatives.DerivedData`): pointwise joint fits to the estimated q̈ (weighted by
-    the per-row q̈ errors), then — unless ``level`` is "pointwise" — re-ranked at trajectory level by multiple
-    shooting on the positions when the data oscillate. ``fc``/``fc_fn``: a conservative force to use as the base
-    (on the rows / as a JAX function); without it the conservative library alone — the uniform field alone when
-    ``field`` is "uniform" (declared: nothing oscillates). ``timer``: the stages are timed on it (law table:
-    pointwise fits, trajectory-level fits, rests, stops and envelope). ``families``: the keys of the candidate
-    families to rank (:func:`nnphd.explain.laws.rank_laws`' ``include``; None: all); your ``laws`` are always ranked.
-    ``cancel`` (a threading.Event): once set, the next stage is not begun (CancelledError). Returns a LawTable."""
+def find_law(data, run: LawRun, fc=None, fc_fn=None, cancel=None):
+    """Rank the candidate laws (:mod:`nnphd.explain.laws`) on a data set from :func:`nnphd.user.derivatives.derive`
+    (``run``: its trajectory ids, coordinates, info and per-row errors, the laws, level, seed, field, families, timer
+    and progress): pointwise joint fits to the estimated q̈ (weighted by the per-row q̈ errors), then — unless
+    ``run.level`` is "pointwise" — re-ranked at trajectory level by multiple shooting on the positions when the data
+    oscillate. ``fc``/``fc_fn``: a conservative force to use as the base (on the rows / as a JAX function); without
+    it the conservative library alone — the uniform field alone when ``run.field`` is declared (nothing
+    oscillates). ``run.timer``: the stages are timed on it (law table: pointwise fits, trajectory-level fits, rests,
+    stops and envelope). ``run.families``: the candidate families to rank (:func:`nnphd.explain.laws.rank_laws`'
+    ``include``; None: all); your ``run.laws`` are always ranked. ``cancel`` (a threading.Event): once set, the next
+    stage is not begun (CancelledError). Returns a LawTable."""
     from concurrent.futures import CancelledError
 
-    timed = timer.stage if timer is not None else (lambda _name: nullcontext())
-    say = Stages(progress, 2)
+    timed = run.timer.stage if run.timer is not None else (lambda _name: nullcontext())
+    say = Stages(run.progress, 2)
+    coords, level = list(run.coords), run.level
 
     def go_on() -> None:
         if cancel is not None and cancel.is_set():
             raise CancelledError("the law table was no longer wanted")
 
     say("candidate laws (pointwise joint fits)")
-    given = (data, traj)
+    given = data
     with timed("law table: pointwise fits"):
-        table, data, traj, rest, whole, period = _pointwise_table(
-            data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families
-        )
+        table, moving, rests, period = _pointwise_table(data, run, fc)
     pointwise = table
     if level != "pointwise":
         go_on()
         say("candidate laws (trajectory level: multiple shooting on the positions)")
         with timed("law table: trajectory-level fits"):
-            table = _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed)
+            table = _trajectory_table(table, moving, run, period, (fc, fc_fn))
     go_on()
     with timed("law table: rests, stops and envelope"):
-        table = _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level,
-                                   seed)  # fmt: skip
+        table = _evidence_of_rests(table, moving, run, period, rests, (fc, fc_fn))
     if fc is None and level != "pointwise" and len(coords) == 1 and np.isfinite(period):
         from nnphd.explain.wholerecord import context
 
-        sigma = [info["per_coordinate"][c]["noise"] for c in coords]
+        sigma = [run.info["per_coordinate"][c]["noise"] for c in coords]
+        data, traj = moving
         rows = _thinned(data.t, traj, period)  # what a tie's whole-record fits need (nnphd.explain.wholerecord)
 
         def refit(library):  # the pointwise table beside another conservative library
-            return _pointwise_table(*given, coords, is_angle, info, row_err, None, laws, level, seed, field, families,
-                                    library=library)[0]  # fmt: skip
+            return _pointwise_table(given, run, None, library=library)[0]
 
-        table = replace(table, whole_record=context(pointwise, data, traj, rows, sigma, period, is_angle, seed, refit))
+        table = replace(table, whole_record=context(pointwise, data, traj, rows, sigma, period, list(run.is_angle),
+                                                    run.seed, refit))  # fmt: skip
     return table
 
 
-def _pointwise_table(
-    data, traj, coords, is_angle, info, row_err, fc, laws, level, seed, field, families=None, library=None
-):
-    """find_law's pointwise stage: (the table, the moving rows' data and trajectory ids, the rest found, the whole
-    data and ids, the period). ``library``: the conservative library (None: :func:`_library`'s choice)."""
+def _pointwise_table(data, run: LawRun, fc, library=None):
+    """find_law's pointwise stage on the data set as given (trajectory ids ``run.traj``): (the table, (the moving
+    rows' data, their trajectory ids), (the rest found, the whole data and ids), the period). ``library``: the
+    conservative library (None: :func:`_library`'s choice)."""
     from nnphd.engine.evidence import dominant_period
     from nnphd.explain.jointfit import trajectory_segments
     from nnphd.explain.laws import rank_laws
 
-    err = None if row_err is None else row_err["qdd_err"]
+    traj, coords, info, field = run.traj, list(run.coords), run.info, run.field
+    err = None if run.row_err is None else run.row_err["qdd_err"]
     period = dominant_period(
         np.concatenate([data.q, data.qd], axis=1),
         data.t,
@@ -285,7 +265,6 @@ def _pointwise_table(
     moving, traj_m, _, _, rest = moving_rows(data, traj, coords, info, None, None, period, margin=False)
     data_p, traj_p, err, fc, _ = moving_rows(data, traj, coords, info, err, fc, period)
     whole = (data, traj)  # rests included: a final rest is evidence (nnphd.explain.stuck)
-    data, traj = moving, traj_m
     table = rank_laws(
         data_p.q,
         data_p.qd,
@@ -293,23 +272,26 @@ def _pointwise_table(
         data_p.t,
         traj_p,
         names=coords,
-        angles=is_angle,
+        angles=list(run.is_angle),
         qdd_err=err,
         fc=fc,
-        user_laws=laws,
-        include=families,
-        seed=seed,
-        library=_library(data.t, traj, period, level) if library is None else library,
+        user_laws=run.laws,
+        include=run.families,
+        seed=run.seed,
+        library=_library(moving.t, traj_m, period, run.level) if library is None else library,
     )
-    return table, data, traj, rest, whole, period
+    return table, (moving, traj_m), (rest, whole), period
 
 
-def _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_fn, seed):
-    """find_law's trajectory-level stage: the table re-ranked by multiple shooting on the positions."""
+def _trajectory_table(table, moving, run: LawRun, period, base):
+    """find_law's trajectory-level stage: the table re-ranked by multiple shooting on the positions of the moving
+    rows (``moving`` = (data, trajectory ids)) beside ``base`` = (f_c, f_c as a JAX function) or (None, None)."""
+    data, traj = moving
+    coords, (fc, fc_fn) = list(run.coords), base
     from nnphd.explain.jointfit import trajectory_segments
     from nnphd.explain.trajectory import rank_trajectory
 
-    sigma = [info["per_coordinate"][c]["noise"] for c in coords]
+    sigma = [run.info["per_coordinate"][c]["noise"] for c in coords]
     rows = _thinned(data.t, traj, period)
     return rank_trajectory(
         table,
@@ -320,16 +302,19 @@ def _trajectory_table(table, data, traj, coords, is_angle, info, period, fc, fc_
         sigma=sigma,
         # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
         period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in trajectory_segments(traj))),
-        angles=is_angle,
+        angles=list(run.is_angle),
         fc_fn=fc_fn if fc is not None else None,
-        seed=seed,
+        seed=run.seed,
         **(SHORT_RECORDS if len(coords) == 1 or not np.isfinite(period) else {}),
     )
 
 
-def _evidence_of_rests(table, data, traj, coords, is_angle, info, period, rest, whole, fc, fc_fn, level, seed):
+def _evidence_of_rests(table, moving, run: LawRun, period, rests, base):
     """find_law's last stage: what a rest, a stop and the amplitude envelope say about the candidates (one
-    coordinate), and the rest left out said in the table's reason."""
+    coordinate), and the rest left out said in the table's reason. ``moving``: (data, trajectory ids) of the moving
+    rows; ``rests``: (the rest found, (the whole data, its ids)); ``base``: (f_c, its JAX function) or (None, None)."""
+    (data, traj), (rest, whole), (fc, fc_fn) = moving, rests, base
+    coords, is_angle, info, level, seed = list(run.coords), list(run.is_angle), run.info, run.level, run.seed
     fc_fn = fc_fn if fc is not None else None
     stuck = {}
     if level != "pointwise" and rest is not None and len(coords) == 1 and np.isfinite(period):

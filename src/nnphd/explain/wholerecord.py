@@ -58,7 +58,7 @@ def context(pointwise, data, traj, rows, sigma, period: float, angles, seed: int
     }
 
 
-def _whole_record_fits(ctx: dict, keys: list[str]):
+def whole_record_fits(ctx: dict, keys: list[str]):
     """The families ``keys`` and the zero law, each fitted to the whole trajectories of ``ctx`` (in-sample) beside
     each conservative library: the full one of the law table and, where ``ctx`` can refit it, the short one (a
     pendulum about any rest angle, springs to degree 3, no velocity terms — the model of an independent reference).
@@ -142,7 +142,7 @@ def break_tie(table, lib):
 
     if ctx is None:
         return stands("no whole-record fit for this record (one coordinate that oscillates, the library base)")
-    fits, why = _whole_record_fits(ctx, keys)
+    fits, why = whole_record_fits(ctx, keys)
     if fits is None:
         return stands(why)
     fam, n_eff, tau = _family_ics(fits, keys, len(ctx["t"]))
@@ -236,7 +236,7 @@ def passivity(table, lib, q, qd, t) -> dict | None:
 
     ``active_share`` (:func:`active_share`) of the law and of each eligible candidate on the rows (q, q̇, t). Where
     the law's is ≥ ACTIVE_SHARE_MAX, the law and the eligible passive candidates (share below it) are fitted over the
-    whole record beside the conservative libraries (:func:`_whole_record_fits`, the library base ``lib``'s context;
+    whole record beside the conservative libraries (:func:`whole_record_fits`, the library base ``lib``'s context;
     one coordinate that oscillates) and ``margin`` = the best passive family's IC − the law's (> 0: the law is
     better). The decision — the record loses energy, and the margin is below PASSIVE_MARGIN_IC — is the verdict's
     (:func:`nnphd.user.rules.unclaim_active`)."""
@@ -263,7 +263,7 @@ def passivity(table, lib, q, qd, t) -> dict | None:
     if ctx is None:
         info["why"] = "no whole-record fit for this record (one coordinate that oscillates, the library base)"
         return info
-    fits, why = _whole_record_fits(ctx, [law.key, *passive])
+    fits, why = whole_record_fits(ctx, [law.key, *passive])
     if fits is None:
         info["why"] = why
         return info

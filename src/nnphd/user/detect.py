@@ -10,6 +10,7 @@ figures in ``--out``. Every file is written atomically, and only after the whole
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -193,8 +194,7 @@ def library_alongside(data, run: LawRun):
 
     def library(cancel):
         with run.timer.alongside(LIBRARY_ALONGSIDE):
-            return find_law(data, run.traj, list(run.coords), list(run.is_angle), run.info, run.row_err, laws=run.laws,
-                            level=run.level, seed=run.seed, families=run.families, cancel=cancel)  # fmt: skip
+            return find_law(data, replace(run, timer=None, progress=None), cancel=cancel)
 
     return alongside(library)
 

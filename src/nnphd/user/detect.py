@@ -109,15 +109,16 @@ def detect_data(
     """:func:`detect_file` on validated data (:class:`nnphd.user.recording.UserData`); returns (the result — its
     ``report`` is report.json —, the fitted pieces that :class:`nnphd.NNPhD` keeps). ``field``: the conservative
     force, a key of FIELDS ("uniform": the verdict and the law rest on a fit of the positions beside a uniform field,
-    :func:`declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
+    :func:`nnphd.user.rules.declared_field_verdict`; the record must not oscillate). ``read_s``: the seconds reading the file took
     (for the report's ``timings``: wall and JAX-compile seconds per stage, :class:`nnphd.io.timing.StageTimer`).
     ``settings``: the keywords of :class:`nnphd.user.settings.DetectSettings` (seed, steps, sr_time, n_seeds, trim,
     laws, law_fit, field, workers, scheduler, derivative_method, families, thin) and assess's own.
     ``derivative_method``: how q̇, q̈ are estimated (a name of :data:`nnphd.user.derivatives.METHODS`, a
     DerivativeEstimator, or a :class:`nnphd.user.derivatives.Derivatives` with its own trim); ``families``: the
     candidate law families ranked (keys and Family objects; None: all, :data:`nnphd.user.strategies.FAMILIES`) — the
-    report's settings name them only when they are not the defaults; ``thin``: a dense record of more than THIN_ROWS rows is thinned after
-    its derivatives are estimated (:func:`dense_thinned`; False: every row is used)."""
+    report's settings name them only when they are not the defaults; ``thin``: a dense record of more than THIN_ROWS
+    rows is thinned after its derivatives are estimated (:func:`nnphd.user.derivatives.dense_thinned`; False: every
+    row is used)."""
     from nnphd.user.strategies import family_filter
 
     s = DetectSettings.of(**settings)
@@ -180,7 +181,7 @@ LIBRARY_ALONGSIDE = "law table: library base (alongside training)"
 
 
 def library_alongside(data, run: LawRun):
-    """The law table on the conservative library base (:func:`_law_table`), started beside the training on a thread
+    """The law table on the conservative library base (:func:`nnphd.explain.search.find_law`), started beside the training on a thread
     of its own — it needs no network — when it will be wanted: one coordinate, the learned field, a trajectory-level
     fit. (future, cancel) of :func:`nnphd.parallel.alongside`, or None: then it is fitted after the training, as
     before — also in a worker of a ``detect`` batch, which owns one core. The numbers are the same either way (the

@@ -94,7 +94,7 @@ for name, K, T in runs:
     )
     t_naive = time.perf_counter() - t0
     t0 = time.perf_counter()
-    r = assess(d, traj, seed=args.seed, steps=args.steps, width=args.width, n_seeds=args.seeds)
+    r = assess(d, traj, seed=args.seed, steps=args.steps, width=args.width, n_seeds=args.seeds).report
     t_assess = time.perf_counter() - t0
     ch = r["checks"]
     ho = np.median([x for x in ch["naive"]["ratio"] if x is not None])

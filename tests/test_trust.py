@@ -203,14 +203,16 @@ FAST = dict(steps=300, width=32, lambdas=(0.1, 0.2, 0.5, 2.0, 5.0), n_seeds=1, l
 
 
 def _run(name, seed=0):
+    """(the data set, the Assessment's report, the Assessment)."""
     d, traj = make_case(name, n_traj=6, seed=seed, T=40.0)
-    return d, assess(d, traj, seed=seed, **FAST)
+    a = assess(d, traj, seed=seed, **FAST)
+    return d, a.report, a
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 @pytest.mark.parametrize("name", ["morse"])  # (the pendulum: tests/test_detect_recordings.py, from positions)
 def test_underfitting_prone_conservative_system_is_not_new_physics(name):
-    d, r = _run(name)
+    d, r, a = _run(name)
     assert CASES[name].conservative
     assert r["status"] != "detected" and not r["new_physics"]
     assert r["status"] == "none"
@@ -219,16 +221,16 @@ def test_underfitting_prone_conservative_system_is_not_new_physics(name):
     assert r["checks"]["gap"]["gap_train"][0] < 2.0
     assert not r["checks"]["time"]["significant"][0]
     assert r["reasons"] and all(isinstance(x, str) for x in r["reasons"])
-    assert r["f_c"].shape == d.q.shape and r["f_n"].shape == d.q.shape
+    assert a.f_c.shape == d.q.shape and a.f_n.shape == d.q.shape
     # f_c carries the force, in the original units; the table is on held-out data, per λ
-    assert np.mean(np.abs(r["f_c"] - d.qdd)) < 0.2 * np.mean(np.abs(d.qdd))
+    assert np.mean(np.abs(a.f_c - d.qdd)) < 0.2 * np.mean(np.abs(d.qdd))
     assert [row["lam"] for row in r["table"]] == list(FAST["lambdas"])
     assert all(row["L_e"] >= 0 and row["L_b"] >= 0 for row in r["table"])
 
 
 @pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_weak_drag_on_a_pendulum_is_detected():
-    d, r = _run("pendulum+drag")
+    d, r, a = _run("pendulum+drag")
     assert np.mean(np.abs(d.fn)) / np.mean(np.abs(d.qdd)) < 0.03  # drag ~2 % of the force
     assert r["status"] == "detected" and r["new_physics"]
     assert r["statistic"]["value"] > 5 and r["confidence"] > 0.9  # the learned energy falls along the record
@@ -238,12 +240,12 @@ def test_weak_drag_on_a_pendulum_is_detected():
     assert 0.5 * 0.02 < rate < 1.1 * 0.02
     # the UAN at λ = 0.2 points along the drag (−γ q̇)
     assert r["lambda_forces"] == 0.2
-    assert np.corrcoef(r["f_n"].ravel(), d.fn.ravel())[0, 1] > 0.5
+    assert np.corrcoef(a.f_n.ravel(), d.fn.ravel())[0, 1] > 0.5
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_weak_periodic_drive_is_detected_by_its_clock():
-    d, r = _run("anharmonic+drive")
+    d, r, _ = _run("anharmonic+drive")
     assert np.mean(np.abs(d.fn)) / np.mean(np.abs(d.qdd)) < 0.03
     assert r["status"] == "detected"
     t = r["checks"]["time"]
@@ -253,7 +255,7 @@ def test_weak_periodic_drive_is_detected_by_its_clock():
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_weak_self_excitation_is_detected():
-    d, r = _run("vanderpol")
+    d, r, _ = _run("vanderpol")
     assert r["status"] == "detected" and r["checks"]["drift"]["rho_median"][0] > 0.9
 
 
@@ -264,7 +266,7 @@ def test_single_trajectory_drive_is_never_a_confident_none():
     # (single-trajectory damping is detected in tests/test_detect_recordings.py, from positions)
     d, _ = make_case("anharmonic+drive", n_traj=1, seed=0, T=60.0)
     calls = []
-    r = assess(d, None, seed=0, progress=lambda done, total, msg: calls.append((done, total)), **FAST)
+    r = assess(d, None, seed=0, progress=lambda done, total, msg: calls.append((done, total)), **FAST).report
     assert r["status"] != "none"
     assert r["checks"]["drift"]["slow_ratio_median"][0] >= 2.0
     assert r["checks"]["time"]["valid"] == [False] and not r["clock"]["testable"]

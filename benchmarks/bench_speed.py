@@ -41,7 +41,7 @@ from nnphd.engine.models import (
     uan_force,
 )
 from nnphd.engine.train import loss_terms, pnorm
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.sweep import SweepSettings, run_sweep
 
 N, P, LAM, BATCHES = 2, 1.0, 1.0, (32, 1000)
 GOAL_REF, GOAL_PLAIN, GOAL_SWEEP = 3.0, 3.0, 20.0
@@ -148,7 +148,7 @@ def bench_sweeps() -> dict:
         ("ho+mf warm", "ho+mf", "warm"),
     ):
         t0 = time.perf_counter()
-        res = run_sweep(system, steps=2000, seed=0, mode=mode)
+        res = run_sweep(system, SweepSettings(steps=2000, seed=0, mode=mode))
         total = time.perf_counter() - t0
         out[label] = {"total_s": total, "sweep_only_s": res.wall_time_s, "goal_met": total <= GOAL_SWEEP}
     return out

@@ -36,10 +36,10 @@ CASES = [
 
 
 def _lambda_p(workers: int, steps: int, out: Path) -> tuple[float, dict]:
-    from nnphd.paper.lambda_p import lambda_p_study
+    from nnphd.paper.lambda_p import LambdaPSettings, lambda_p_study
 
     t0 = time.perf_counter()
-    r = lambda_p_study(steps=steps, seed=0, out=out, workers=workers)
+    r = lambda_p_study(LambdaPSettings(steps=steps, seed=0), out=out, workers=workers)
     return time.perf_counter() - t0, {f"{v.system} p={v.p}": [v.ratio, v.new_physics] for v in r.verdicts}
 
 

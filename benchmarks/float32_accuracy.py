@@ -27,8 +27,8 @@ nnphd.configure()
 
 from nnphd.engine.models import ModelConfig
 from nnphd.engine.systems import get_system
-from nnphd.paper.discover import DISCOVERY_SYSTEMS, discover
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.discover import DISCOVERY_SYSTEMS, DiscoverSettings, discover
+from nnphd.paper.sweep import SweepSettings, run_sweep
 from nnphd.parallel import Unit, run_units
 
 SYSTEMS = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "neptune", "gw"]
@@ -48,7 +48,10 @@ def main() -> None:
         Unit(
             f"{s}/{dt}",
             run_sweep,
-            dict(system=s, steps=a.steps, seed=0, model_cfg=ModelConfig(n=get_system(s).n, dtype=dt)),
+            dict(
+                system=s,
+                settings=SweepSettings(steps=a.steps, seed=0, model_cfg=ModelConfig(n=get_system(s).n, dtype=dt)),
+            ),
         )
         for s in systems
         for dt in ("float64", "float32")
@@ -80,7 +83,11 @@ def main() -> None:
 
 def table2(steps: int, workers: int | None) -> None:
     units = [
-        Unit(f"{s}/{dt}", discover, dict(system=s, steps=steps, sweep_steps=steps, seed=0, sr_time=0.0, dtype=dt))
+        Unit(
+            f"{s}/{dt}",
+            discover,
+            dict(system=s, settings=DiscoverSettings(steps=steps, sweep_steps=steps, seed=0, sr_time=0.0, dtype=dt)),
+        )
         for s in DISCOVERY_SYSTEMS
         for dt in ("float64", "float32")
     ]

@@ -22,9 +22,9 @@ from bench_speed import machine_info, write_json
 
 from nnphd.engine.adaptive import StopRule, fast_sweep
 from nnphd.engine.systems import get_system
-from nnphd.engine.train import PAPER_LAMBDAS, sweep
+from nnphd.engine.train import PAPER_LAMBDAS, SweepSchedule, sweep
 from nnphd.engine.verdict import force_norm, verdict
-from nnphd.paper.sweep import plan_sweep
+from nnphd.paper.sweep import SweepSettings, plan_sweep
 
 SYSTEMS = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "neptune", "gw"]
 
@@ -32,14 +32,16 @@ SYSTEMS = ["ho+mf", "ho+cg", "ho+ld", "ho+cd", "ho+pf", "double-pendulum", "nept
 def one(system: str, seed: int, mode: str, rule: StopRule) -> dict:
     sysm = get_system(system)
     t0 = time.perf_counter()
-    plan = plan_sweep(sysm, seed=seed, mode="warm")
+    plan = plan_sweep(sysm, SweepSettings(seed=seed, mode="warm"))
     common = dict(seed=seed, test_data=plan.test)
     if mode == "fast":
         points, info = fast_sweep(plan.train, plan.cfg, plan.tcfg, PAPER_LAMBDAS, rule=rule, **common)
         steps = info.to_dict()["steps_total"]
         extra = {"lambdas": [p.lam for p in points], "doubts": info.doubts, "ran_paper_protocol": info.paper_protocol}
     else:
-        points = sweep(plan.train, plan.cfg, plan.tcfg, PAPER_LAMBDAS, mode="warm", keep_params=False, **common)
+        points = sweep(
+            plan.train, plan.cfg, plan.tcfg, SweepSchedule(PAPER_LAMBDAS, "warm"), keep_params=False, **common
+        )
         steps, extra = plan.tcfg.steps * len(PAPER_LAMBDAS), {}
     ev = plan.test if plan.test is not None else plan.train
     v = verdict(points, force_norm(ev.qdd, plan.tcfg.p))

@@ -25,10 +25,10 @@ import nnphd
 nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
 
 from nnphd.engine.models import ModelConfig  # noqa: E402
-from nnphd.engine.train import PAPER_LAMBDAS, TrainConfig, sweep
+from nnphd.engine.train import PAPER_LAMBDAS, SweepSchedule, TrainConfig, sweep
 from nnphd.engine.verdict import force_norm, verdict
 from nnphd.io.results import write_json
-from nnphd.user.assess import assess
+from nnphd.user.assess import AssessSettings, assess
 from tests.fixtures.cases import CASES, make_case
 
 ap = argparse.ArgumentParser()
@@ -56,7 +56,7 @@ if args.single or args.only_single:
 
 def naive_paper(d, seed):
     cfg = ModelConfig(n=d.n, lnn_widths=(args.width,) * 2, uan_widths=(args.width,) * 2).standardized(d.q, d.qd, d.t)
-    pts = sweep(d, cfg, TrainConfig(steps=args.steps), PAPER_LAMBDAS, seed=seed, keep_params=False)
+    pts = sweep(d, cfg, TrainConfig(steps=args.steps), SweepSchedule(PAPER_LAMBDAS), seed=seed, keep_params=False)
     return verdict(pts, force_norm(d.qdd, 1.0))
 
 
@@ -94,7 +94,7 @@ for name, K, T in runs:
     )
     t_naive = time.perf_counter() - t0
     t0 = time.perf_counter()
-    r = assess(d, traj, seed=args.seed, steps=args.steps, width=args.width, n_seeds=args.seeds).report
+    r = assess(d, traj, AssessSettings(seed=args.seed, steps=args.steps, width=args.width, n_seeds=args.seeds)).report
     t_assess = time.perf_counter() - t0
     ch = r["checks"]
     ho = np.median([x for x in ch["naive"]["ratio"] if x is not None])

@@ -34,10 +34,10 @@ CONSERVATIVE = {"ho+mf", "ho+cg"}
 
 
 def one(system: str, seed: int, steps: int, samples: int) -> dict:
-    from nnphd.paper.sweep import run_sweep
+    from nnphd.paper.sweep import SweepSettings, run_sweep
 
     t0 = time.perf_counter()
-    res = run_sweep(system, seed=seed, mode="fast", n_train=samples, n_test=samples, steps=steps)
+    res = run_sweep(system, SweepSettings(seed=seed, mode="fast", n_train=samples, n_test=samples, steps=steps))
     pr = res.protocol
     below = [c["L_b"] for c in pr["chain"] if c["lambda"] < 1]
     return {

@@ -20,9 +20,18 @@ from nnphd.engine.adaptive import (
 )
 from nnphd.engine.data import gaussian_dataset
 from nnphd.engine.models import ModelConfig, init_nnphd
-from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, as_arrays, loss_terms, sweep
+from nnphd.engine.train import (
+    PAPER_LAMBDAS,
+    SweepHooks,
+    SweepPoint,
+    SweepSchedule,
+    TrainConfig,
+    as_arrays,
+    loss_terms,
+    sweep,
+)
 from nnphd.engine.verdict import verdict
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.sweep import SweepSettings, run_sweep
 
 SMALL = ModelConfig(n=1, lnn_widths=(32, 32), uan_widths=(32, 32))
 
@@ -167,7 +176,7 @@ def test_fast_sweep_runs_the_paper_protocol_when_undecided(monkeypatch):
 
     monkeypatch.setattr(adaptive, "undecided", spy)
     pts, info = fast_sweep(tr, SMALL, tcfg, lams, rule=StopRule(10, 0.5))
-    paper = sweep(tr, SMALL, tcfg, lams, seed=0, mode="warm")
+    paper = sweep(tr, SMALL, tcfg, SweepSchedule(lams, "warm"), seed=0)
     # 40 steps per λ leave the chain far from converged: L_e below λ = 1 is 0.10-0.15 against 0.37-0.40 above it
     # (measured), a ratio ×3.1 inside the close band [×1, ×6) -> the paper protocol runs and its points are returned
     assert [p.lam for p in chains[0]] == [0.1, 0.5, 2.0, 10.0]
@@ -185,13 +194,13 @@ def test_fast_sweep_runs_the_paper_protocol_when_undecided(monkeypatch):
     monkeypatch.setattr(adaptive, "undecided", lambda v, p: ["forced"])
     saved = {}
     pts2, info2 = fast_sweep(
-        tr, SMALL, tcfg, lams, rule=StopRule(10, 0.5), on_point=lambda pt: saved.update({pt.lam: pt})
+        tr, SMALL, tcfg, lams, rule=StopRule(10, 0.5), hooks=SweepHooks(on_point=lambda pt: saved.update({pt.lam: pt}))
     )
     assert info2.paper_protocol and info2.doubts == ["forced"]
     assert [(p.lam, p.L_e, p.L_b) for p in pts2] == [(p.lam, p.L_e, p.L_b) for p in paper]  # exactly the paper's
     assert sorted(saved) == list(lams)  # only the paper protocol's points are checkpointed
     # a resume continues the paper protocol: nothing is trained again
-    pts3, info3 = fast_sweep(tr, SMALL, tcfg, lams, resume=saved)
+    pts3, info3 = fast_sweep(tr, SMALL, tcfg, lams, hooks=SweepHooks(resume=saved))
     assert info3.paper_protocol and [p.L_e for p in pts3] == [p.L_e for p in paper]
 
 
@@ -204,7 +213,7 @@ def test_fast_mode_does_not_report_an_unlearned_lagrangian_as_a_jump():
     and sends it to the paper protocol for that reason.) Which doubt sends it there depends on the processor's
     rounding, which the undertrained chain amplifies: on another machine (2026-11-28, an AVX-512 Xeon) it was "L_e
     below λ = 1 varies ×5.03", and the paper protocol's verdict the same (×0.40)."""
-    res = run_sweep("ho+mf", seed=0, mode="fast", n_train=300, n_test=300, steps=800)
+    res = run_sweep("ho+mf", SweepSettings(seed=0, mode="fast", n_train=300, n_test=300, steps=800))
     pr = res.protocol
     assert pr["ran_paper_protocol"] and pr["doubts"], pr
     assert not res.new_physics and res.le_ratio < 2, res.verdict
@@ -219,7 +228,7 @@ def test_fast_mode_verdicts(name):
     # benchmarks/time_to_verdict.py. With less HO+MF's 4-λ chain is undertrained: at 800 steps it claims a jump (the
     # test above), at 1000 too (its UAN below λ = 1 unsettled, so the paper protocol runs and says none) — this test
     # ran at 1000 before the chunk fix, when 1000 meant 1200 steps at the first λ and up to 300 per learning rate
-    res = run_sweep(name, seed=0, mode="fast", n_train=300, n_test=300, steps=1200)
+    res = run_sweep(name, SweepSettings(seed=0, mode="fast", n_train=300, n_test=300, steps=1200))
     v = res.verdict
     conservative = name == "ho+mf"
     assert v.new_physics == (not conservative), v

@@ -120,7 +120,7 @@ def _rk4_written_out(s0, tw, qw, gamma, w2, nsub):
 
 @pytest.mark.parametrize("nsub", [1, 3])
 def test_rk4_stages_in_a_loop_integrate_as_the_four_written_out(nsub):
-    from nnphd.engine.shooting import model_residuals, pad_windows, shooting_windows
+    from nnphd.engine.shooting import Integrator, ShootingWindows, model_residuals, pad_windows, shooting_windows
 
     rng = np.random.default_rng(3)
     t = np.cumsum(rng.uniform(0.05, 0.12, 120))  # an uneven clock
@@ -132,8 +132,8 @@ def test_rk4_stages_in_a_loop_integrate_as_the_four_written_out(nsub):
     def rhs(theta, q_, v_, tt, aux):
         return -aux * jnp.sin(q_) - theta[0] * v_
 
-    r = model_residuals(s0, jnp.asarray([0.07]), jnp.asarray(4.0), jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw),
-                        jnp.asarray(mask), jnp.asarray([1.0]), rhs=rhs, nsub=nsub)  # fmt: skip
+    windows = ShootingWindows(jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray([1.0]))
+    r = model_residuals(s0, jnp.asarray([0.07]), jnp.asarray(4.0), windows, Integrator(rhs, nsub))
     want = _rk4_written_out(s0, tw, qw, 0.07, 4.0, nsub) * mask[..., None]
     np.testing.assert_allclose(np.asarray(r), want, rtol=0, atol=1e-13)
     assert np.max(np.abs(want)) > 1e-3  # the positions moved away from the data: a comparison that can fail

@@ -136,8 +136,8 @@ def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_no
     law = _table()
     assert declared_field_decides(res, "uniform") and not declared_field_decides(res, "learned")
     effect = declared_field_effect(law)
-    status, new, conf, reasons = reconcile(res, law, "uniform")
-    assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE) and law["law"]["law"] == "quadratic"
+    status, new, conf, reasons, kept = reconcile(res, law, "uniform")
+    assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE) and kept["law"]["law"] == "quadratic"
     assert reasons[0].startswith("beside the declared uniform field") and reasons[1] == res["reasons"][0]
     assert effect == (
         "beside the declared uniform field, quadratic drag −c |q̇| q̇ lowers the error of the fit of the positions by "
@@ -146,8 +146,10 @@ def test_reconcile_lets_the_declared_field_decide_and_withholds_a_law_it_does_no
     law = _table(zero_mse=0.9, win=(2.0, 0.99, 0.88), claimed=False)
     assert reconcile(res, law, "uniform")[:2] == ("none", False)
     law = _table(zero_mse=1.1, win=(LAW_DETECT_DIC + 2, 0.9, 0.95))
-    assert reconcile(res, law, "uniform")[0] == "inconclusive"
-    assert law["law"] is None and law["candidate_law"]["law"] == "quadratic"  # no law claimed on "inconclusive"
+    verdict = reconcile(res, law, "uniform")
+    assert verdict.status == "inconclusive" and law["law"]["law"] == "quadratic"  # the table handed in: as it was
+    kept = verdict.law
+    assert kept["law"] is None and kept["candidate_law"]["law"] == "quadratic"  # no law claimed on "inconclusive"
 
 
 def test_an_undeclared_arc_says_what_would_decide_without_deciding():
@@ -155,7 +157,7 @@ def test_an_undeclared_arc_says_what_would_decide_without_deciding():
     for lib_law, hint in ((strong, True), (dict(strong, delta_ic=LAW_DETECT_DIC + 1), False), (None, False)):
         res, lib = _report(library_law=lib_law)
         law = {"law": None, "status": "none", "ties": [], "reason": "", "settings": {"bases": [lib]}}
-        status, _, _, reasons = reconcile(res, law)
+        status, _, _, reasons, _ = reconcile(res, law)
         assert status == "inconclusive"  # a hint is no evidence: the verdict is unchanged
         assert ("--field uniform" in reasons[-1] and "48%" in reasons[-1]) == hint
     res, lib = _report(oscillating=True, library_law=strong)  # an oscillation has its own evidence: no hint

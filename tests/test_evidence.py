@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 
 import nnphd  # noqa: F401  (float64)
 from nnphd.engine.evidence import dominant_period, energy_trend, period_blocks
-from nnphd.engine.shooting import shooting_fit, shooting_windows
+from nnphd.engine.shooting import ShootingData, shooting_fit, shooting_windows
 from nnphd.user.checks import (
     EFFECT_MIN,
     Z_BOTH,
@@ -81,7 +81,7 @@ def test_shooting_fit_measures_the_damping_of_a_noisy_pendulum(gamma):
     segs = [np.arange(t.size)]
     P = 2 * np.pi / W0
     # the conservative model is 1 % too stiff: the nuisance c takes it up, d stays the damping
-    r = shooting_fit(_accel, jnp.asarray(1.01 * W0**2), q, qd, t, segs, [0.0025], P)
+    r = shooting_fit(_accel, jnp.asarray(1.01 * W0**2), ShootingData(q, qd, t, segs, [0.0025], P))
     assert r["valid"] and r["n_windows"] >= 15
     assert abs(r["c"] + 0.01) < 0.003
     assert abs(r["d_mean"] - gamma) < 3 * r["se_d_mean"] + 1e-4
@@ -119,7 +119,8 @@ def test_a_fit_that_fails_on_long_windows_is_tried_on_shorter_ones(monkeypatch):
         return {"valid": True, "n_windows": 60, "d_mean": 0.1}
 
     monkeypatch.setattr(sh, "shooting_fit_on_windows", fake)
-    r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    data = sh.ShootingData(np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    r = sh.shooting_fit(None, None, data)
     assert r["valid"] and r["window_periods"] == sh.WINDOW_PERIODS / 2 and calls == [0.75, 0.375]
     assert r["fallbacks"] == ["windows of 0.75 period: the shooting fit collapsed (…)"]
     # too few windows is no failure of the fit: not retried
@@ -127,13 +128,13 @@ def test_a_fit_that_fails_on_long_windows_is_tried_on_shorter_ones(monkeypatch):
     monkeypatch.setattr(
         sh, "shooting_fit_on_windows", lambda *a: calls.append(a[-1]) or {"valid": False, "n_windows": 2}
     )
-    r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    r = sh.shooting_fit(None, None, data)
     assert not r["valid"] and calls == [0.75]
     # every length fails: the last reason, and why the longer ones failed
     monkeypatch.setattr(
         sh, "shooting_fit_on_windows", lambda *a: {"valid": False, "n_windows": 9, "reason": f"bad {a[-1]}"}
     )
-    r = sh.shooting_fit(None, None, np.zeros((5, 1)), np.zeros((5, 1)), np.arange(5.0), [np.arange(5)], [0.1], 1.0)
+    r = sh.shooting_fit(None, None, data)
     assert not r["valid"] and r["reason"] == "bad 0.1875" and len(r["fallbacks"]) == 2
 
 
@@ -261,7 +262,7 @@ def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
     import jax
 
     from nnphd.engine.models import ModelConfig, init_nnphd, lnn_accel
-    from nnphd.engine.shooting import model_residuals_and_jac, rowwise_jvp
+    from nnphd.engine.shooting import Integrator, ShootingWindows, model_residuals_and_jac, rowwise_jvp
 
     cfg = ModelConfig(n=2, lnn_widths=(16, 16), uan_widths=(8,))
     lnn = init_nnphd(jax.random.PRNGKey(0), cfg)["lnn"]
@@ -276,7 +277,7 @@ def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
     qw = jnp.asarray(0.1 * rng.standard_normal((W, L, 2)))
     s = jnp.asarray(0.3 * rng.standard_normal((W, 4)))
     theta = jnp.asarray([0.1, -0.2, 0.05])
-    args = (lnn, tw, jnp.zeros(W), qw, jnp.ones((W, L)), jnp.ones(2))
+    args = (lnn, ShootingWindows(tw, jnp.zeros(W), qw, jnp.ones((W, L)), jnp.ones(2)))
 
     def plain(th, q, v, t, p):
         return (1 + th[0]) * accel(p, q, v) - th[1:] * v * q
@@ -284,41 +285,49 @@ def test_rowwise_jvp_gives_jaxs_own_jacobian_of_a_shooting_fit():
     def rowwise(th, q, v, t, p):
         return (1 + th[0]) * fc(p, q, v) - th[1:] * v * q
 
-    r0, j0 = model_residuals_and_jac(s, theta, *args, rhs=plain, nsub=2)
-    r1, j1 = model_residuals_and_jac(s, theta, *args, rhs=rowwise, nsub=2)
+    r0, j0 = model_residuals_and_jac(s, theta, *args, Integrator(plain, 2))
+    r1, j1 = model_residuals_and_jac(s, theta, *args, Integrator(rowwise, 2))
     assert j0.shape == (7, W, L, 2) and float(jnp.max(jnp.abs(j0))) > 1e-3
     assert np.array_equal(np.asarray(r0), np.asarray(r1))
     assert float(jnp.max(jnp.abs(j1 - j0))) <= 1e-12 * float(jnp.max(jnp.abs(j0)))
     # and by finite differences: a local direction moves the same state component of every window; a parameter
     h = 1e-6
     e = jnp.zeros_like(s).at[:, 1].set(h)
-    fd = (model_residuals_and_jac(s + e, theta, *args, rhs=rowwise, nsub=2)[0] - r1) / h
+    fd = (model_residuals_and_jac(s + e, theta, *args, Integrator(rowwise, 2))[0] - r1) / h
     assert float(jnp.max(jnp.abs(fd - j1[1]))) < 1e-4 * float(jnp.max(jnp.abs(j1[1])))
-    fd = (model_residuals_and_jac(s, theta.at[0].add(h), *args, rhs=rowwise, nsub=2)[0] - r1) / h
+    fd = (model_residuals_and_jac(s, theta.at[0].add(h), *args, Integrator(rowwise, 2))[0] - r1) / h
     assert float(jnp.max(jnp.abs(fd - j1[4]))) < 1e-4 * float(jnp.max(jnp.abs(j1[4])))
 
 
 def test_lm_judges_trial_steps_on_the_residuals_alone():
     """Levenberg–Marquardt with ``res`` (residuals only for a trial step, derivatives only where a step is accepted)
     reaches the same fit as with the derivatives at every trial, with fewer derivative evaluations."""
-    from nnphd.engine.shooting import damping_rhs, lm_windows, model_residuals, model_residuals_and_jac, pad_windows
+    from nnphd.engine.shooting import (
+        Integrator,
+        ShootingWindows,
+        damping_rhs,
+        lm_windows,
+        model_residuals,
+        model_residuals_and_jac,
+        pad_windows,
+    )
 
     t, q, qd = _pendulum(0.011)
     wins = shooting_windows([np.arange(t.size)], t, 2 * np.pi / W0)
     tw, qw, mask, s0 = pad_windows(wins, t, q, (q, qd))
     tw = tw - tw[:, :1]
     p, t0w, inv_sigma = jnp.asarray(1.01 * W0**2), jnp.zeros(len(wins)), jnp.asarray([1 / 0.0025])
-    args = (p, jnp.asarray(tw), t0w, jnp.asarray(qw), jnp.asarray(mask), inv_sigma)
-    rhs = damping_rhs(_accel)
+    args = (p, ShootingWindows(jnp.asarray(tw), t0w, jnp.asarray(qw), jnp.asarray(mask), inv_sigma))
+    model = Integrator(damping_rhs(_accel), 2)
     calls = {"jac": 0, "res": 0}
 
     def resjac(s, th):
         calls["jac"] += 1
-        return model_residuals_and_jac(s, th, *args, rhs=rhs, nsub=2)
+        return model_residuals_and_jac(s, th, *args, model)
 
     def res(s, th):
         calls["res"] += 1
-        return model_residuals(s, th, *args, rhs=rhs, nsub=2)
+        return model_residuals(s, th, *args, model)
 
     free = np.ones(2, bool)
     # from the noisy data's own states and a far start (c = −0.5, d = 1): trial steps get rejected on the way

@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from nnphd.engine.data import Dataset
 from nnphd.explain.envelope import measured_envelope, predicted_envelope
 from nnphd.explain.families import families
-from nnphd.explain.laws import rank_laws
+from nnphd.explain.laws import PointwiseSettings, rank_laws
 from nnphd.explain.rest import rest_mask, without_rest
 from nnphd.explain.table import IC_TIE, MIN_TERM_SHARE, Candidate, phase_locked, select_law
 
@@ -38,7 +39,9 @@ def _pendulum(gamma, mu, c, T=30.0, dt=0.02, w2=9.0, eps=1e-3):
 )
 def test_a_mixed_law_is_found_with_both_coefficients(truth, key):
     q, qd, qdd, t = _pendulum(**truth)
-    tab = rank_laws(q, qd, qdd, t, names=["theta"], angles=[True], n_boot=30)
+    tab = rank_laws(
+        Dataset(q=q, qd=qd, t=t, qdd=qdd), names=["theta"], angles=[True], settings=PointwiseSettings(n_boot=30)
+    )
     assert tab.status == "claimed" and tab.law.key == key, tab.reason
     for p, v in tab.law.params.items():
         assert v == pytest.approx(truth[p], rel=0.05), (p, tab.law.params)
@@ -50,7 +53,9 @@ def test_a_statistically_significant_but_negligible_term_is_not_claimed():
     # exact data with a sharper sign than the model's smoothing: the 3-term sum soaks up the difference with a
     # "significant" quadratic coefficient carrying ~1 % of the force — the law without it is the answer
     q, qd, qdd, t = _pendulum(0.1, 0.05, 0.0)
-    tab = rank_laws(q, qd, qdd, t, names=["theta"], angles=[True], n_boot=30)
+    tab = rank_laws(
+        Dataset(q=q, qd=qd, t=t, qdd=qdd), names=["theta"], angles=[True], settings=PointwiseSettings(n_boot=30)
+    )
     three = next(r for r in tab.rows if r.key == "linear+coulomb+quadratic")
     assert three.shares["c"] < MIN_TERM_SHARE and not three.significant
     assert three.ic < tab.law.ic  # it had the lower IC: only the floor keeps it out

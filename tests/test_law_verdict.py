@@ -50,8 +50,7 @@ def _law(lib=(-17.2, 0.07), lnn=(-35.9, 0.03), lib_status="tie", key="linear"):
 def test_the_seed_free_law_table_decides_an_inconclusive_verdict_only_when_every_base_finds_a_strong_law():
     # the servo drop: its 3 periods too few for the energy trend, the LNN absorbed the damping (shooting z 0.7),
     # while the positions need friction beside the library (error −93 %, ΔIC −17) and beside the LNN (−97 %, −36)
-    law = _law()
-    status, new, conf, reasons = reconcile(_report(), law)
+    status, new, conf, reasons, law = reconcile(_report(), _law())
     assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE)
     assert "every conservative base" in reasons[0] and "error −93%" in reasons[0]
     assert law["law"]["law"] == "linear" and law["status"] == "tie"  # the law stays: the verdict is "detected"
@@ -65,7 +64,7 @@ def test_the_seed_free_law_table_decides_an_inconclusive_verdict_only_when_every
         (_report(oscillating=False), _law()),
         (_report(), {**_law(), "settings": {"bases": _law()["settings"]["bases"][:1]}}),
     ):
-        status, new, conf, _ = reconcile(res, lw)
+        status, new, conf, _, lw = reconcile(res, lw)
         assert (status, conf) == ("inconclusive", 1.0)
         assert lw["law"] is None and lw["candidate_law"]["law"] in ("linear", "drive")
         assert lw["reason"].startswith("the verdict is 'inconclusive', so no law is claimed")
@@ -97,7 +96,7 @@ def _swinging(second="none", drive_dic=2.06, drive_ratio=0.389, fitted=("none", 
 
 def test_a_swing_of_the_learned_energy_alone_gives_way_to_a_fit_of_the_positions_that_needs_no_force():
     res, law = _swinging()
-    status, new, conf, reasons = reconcile(res, law)
+    status, new, conf, reasons, law = reconcile(res, law)
     assert (status, new, conf) == ("none", False, LEARNED_SWING_CONFIDENCE)
     assert "seed 0: slow ratio Z = 3.4" in reasons[0] and "seed 1" not in reasons[0]
     assert "(the drive: ΔIC = +2.1, error -61%; the best other, linear friction: ΔIC = +0.9, error -4%)" in reasons[0]
@@ -110,7 +109,7 @@ def test_a_swing_of_the_learned_energy_alone_gives_way_to_a_fit_of_the_positions
     # law by ΔIC −2343, error −96 %, yet the table claimed nothing — its clock is confounded with the state)
     res, law = _swinging(drive_dic=-2343.3, drive_ratio=0.039)
     law["law"], law["status"] = None, "none"
-    status, _, _, reasons = reconcile(res, law)
+    status, _, _, reasons, _ = reconcile(res, law)
     assert status == "inconclusive" and not reasons[0].startswith("no non-conservation")
     # a seed inconclusive for another reason; no drive fitted (nothing tested the swing's other meaning); a record
     # that does not oscillate: the seeds' status stands
@@ -139,7 +138,7 @@ def _trend_only(probes=(-1.04,), cand_dic=2.1, clock=False):
 
 def test_a_detection_that_rests_on_the_learned_energy_alone_is_inconclusive():
     res, law = _trend_only()
-    status, new, conf, reasons = reconcile(res, law)
+    status, new, conf, reasons, law = reconcile(res, law)
     assert (status, conf) == ("inconclusive", 0.5)
     assert "seed 1: energy trend z = 6.2, shooting probe z = -1.0" in reasons[0]
     assert law["law"] is None
@@ -167,7 +166,7 @@ def _drive(dic=-480.0, ratio=0.027, status="claimed", testable=True, verdict="no
 def test_a_drive_the_law_table_claims_on_trajectories_overlapping_in_time_is_detected_with_its_amplitude():
     # the Duffing oscillator under 0.2 cos(0.7 t), 3 trajectories: both seeds "none", the drive −97 %, ΔIC −480
     res, law = _drive()
-    status, new, conf, reasons = reconcile(res, law)
+    status, new, conf, reasons, law = reconcile(res, law)
     assert (status, new, conf) == ("detected", True, DRIVE_CONFIDENCE)
     assert f"amplitude {math.hypot(0.12, 0.16):.3g} and angular frequency 0.7003" in reasons[0]
     assert "97.3%" in reasons[0] and law["law"]["law"] == "drive"
@@ -180,7 +179,7 @@ def test_a_drive_the_law_table_claims_on_trajectories_overlapping_in_time_is_det
         {"ratio": 1 - DRIVE_EFFECT_MIN + 0.01},
     ):
         res, law = _drive(**kw)
-        status, _, conf, _ = reconcile(res, law)
+        status, _, conf, _, law = reconcile(res, law)
         expect = "none" if "dic" in kw else "inconclusive"
         assert status == expect and law["law"] is None, kw
     # from "inconclusive" (seeds disagree) as well

@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from nnphd.engine.data import Dataset
 from nnphd.explain.families import parse_law
-from nnphd.explain.laws import rank_laws
+from nnphd.explain.laws import CandidateSet, PointwiseSettings, rank_laws
 from tests.fixtures import laws as cases
 
 
@@ -22,14 +23,11 @@ def test_linear_friction_exact_joint_fit():
     conservative part absorbs the coupled spring (no x, y terms in the law)."""
     c, qdd = _exact("anisotropic-damping")
     tab = rank_laws(
-        c.q_true,
-        c.qd_true,
-        qdd,
-        c.t,
+        Dataset(q=c.q_true, qd=c.qd_true, t=c.t, qdd=qdd),
         c.traj,
         names=["x", "y"],
-        n_boot=50,
-        include=("linear", "linear-diag", "linear-full", "quadratic", "rayleigh", "sparse"),
+        candidates=CandidateSet(include=("linear", "linear-diag", "linear-full", "quadratic", "rayleigh", "sparse")),
+        settings=PointwiseSettings(n_boot=50),
     )
     assert tab.law is not None and tab.law.key == "linear-diag"
     assert tab.law.params["gamma_x"] == pytest.approx(0.04, rel=1e-4)
@@ -41,7 +39,12 @@ def test_gyroscopic_force_is_conservative_not_a_law():
     """A magnetic-type force B ẑ×q̇ is odd in q̇ but does no work: the conservative model takes it (minimal f_n), so
     even the full friction matrix Γ, which could fit it, is not a law; the table says no candidate beats zero."""
     c, qdd = _exact("gyroscopic")
-    tab = rank_laws(c.q_true, c.qd_true, qdd, c.t, c.traj, names=["x", "y"], n_boot=20)
+    tab = rank_laws(
+        Dataset(q=c.q_true, qd=c.qd_true, t=c.t, qdd=qdd),
+        c.traj,
+        names=["x", "y"],
+        settings=PointwiseSettings(n_boot=20),
+    )
     assert tab.law is None
     assert tab.reason.startswith("no candidate beats zero")
     full = next(r for r in tab.rows if r.key == "linear-full")
@@ -50,7 +53,9 @@ def test_gyroscopic_force_is_conservative_not_a_law():
 
 def test_drive_frequency_found_from_the_residual_spectrum():
     c, qdd = _exact("drive")
-    tab = rank_laws(c.q_true, c.qd_true, qdd, c.t, c.traj, names=["x"], n_boot=20)
+    tab = rank_laws(
+        Dataset(q=c.q_true, qd=c.qd_true, t=c.t, qdd=qdd), c.traj, names=["x"], settings=PointwiseSettings(n_boot=20)
+    )
     assert tab.law.key == "drive"
     assert tab.law.params["omega"] == pytest.approx(0.7, rel=1e-5)
     assert tab.law.params["A_cos"] == pytest.approx(0.2, rel=1e-4)
@@ -63,7 +68,7 @@ def test_power_law_exponent_is_fitted():
     qd = rng.uniform(-2, 2, (600, 1))
     t = np.arange(600) * 0.1
     qdd = -q - 0.002 * qd**5
-    tab = rank_laws(q, qd, qdd, t, names=["x"], n_boot=20)
+    tab = rank_laws(Dataset(q=q, qd=qd, t=t, qdd=qdd), names=["x"], settings=PointwiseSettings(n_boot=20))
     assert tab.law.key == "power"
     assert tab.law.params["m"] == pytest.approx(2.0, abs=1e-6)
     assert tab.law.params["k"] == pytest.approx(0.002, rel=1e-6)
@@ -76,14 +81,10 @@ def test_user_law_linear_and_nonlinear_parameters():
     q, qd = rng.uniform(-2, 2, (400, 1)), rng.uniform(-2, 2, (400, 1))
     qdd = -q - 0.03 * qd * np.abs(qd) ** 1.5
     tab = rank_laws(
-        q,
-        qd,
-        qdd,
-        np.arange(400) * 0.1,
+        Dataset(q=q, qd=qd, t=np.arange(400) * 0.1, qdd=qdd),
         names=["x"],
-        user_laws=["-c*x_dot*abs(x_dot)**p"],
-        include=("linear",),
-        n_boot=20,
+        candidates=CandidateSet(include=("linear",), user_laws=["-c*x_dot*abs(x_dot)**p"]),
+        settings=PointwiseSettings(n_boot=20),
     )
     user = next(r for r in tab.rows if r.key == "user")
     assert user.params["c"] == pytest.approx(0.03, rel=1e-5) and user.params["p"] == pytest.approx(1.5, rel=1e-5)
@@ -137,10 +138,10 @@ def test_a_strong_candidate_law_turns_none_into_inconclusive():
     res = {"status": "none", "new_physics": False, "confidence": 0.97, "reasons": ["seed 0: a Lagrangian fits"]}
     strong = {"title": "drive A cos(ω t + φ)", "heldout_ratio": 0.03, "delta_ic": -534.0}
     law = {"law": None, "candidate_law": strong, "reason": "the verdict is 'none'"}
-    status, new, conf, reasons = reconcile(res, law)
+    status, new, conf, reasons, kept = reconcile(res, law)
     assert (status, new, conf) == ("inconclusive", True, 0.5)
     assert reasons[0].startswith("conflicting evidence") and "drive" in reasons[0] and "97.0%" in reasons[0]
-    assert "no law is claimed" in law["reason"]
+    assert "no law is claimed" in kept["reason"] and law["reason"] == "the verdict is 'none'"
     weak = {"law": None, "candidate_law": {**strong, "delta_ic": LAW_CONFLICT_DIC + 1}}
     assert reconcile(res, weak)[:3] == ("none", False, 0.97)
     # significant but immaterial: 0.4 % lower held-out error at ΔIC −19 (a sparse polynomial on a gyroscopic
@@ -258,11 +259,11 @@ def test_a_force_in_balance_found_by_every_base_is_detected_on_a_record_that_kee
     w = {"law": "rayleigh", "title": "Rayleigh (a + c q̇²) q̇", "heldout_ratio": 0.146, "delta_ic": -2013.3}
     bases = [{"base": b, "status": "claimed", "law": w, "families": ["rayleigh"]} for b in ("library", "LNN")]
     law = {"law": w, "status": "claimed", "settings": {"bases": bases}, "against_velocity": 0.02, "by_position": 0.03}
-    status, new, conf, reasons = reconcile(res, law)
+    status, new, conf, reasons, kept = reconcile(res, law)
     assert (status, new, conf) == ("detected", True, LAW_DETECT_CONFIDENCE)
     assert "does no net work" in reasons[0] and "no potential can stand in for it" in reasons[0]
-    assert law["law"] is w
-    assert unclaim_unidentifiable(law) is None and law["law"] is w
+    assert kept["law"] is w
+    assert unclaim_unidentifiable(kept) == (kept, None)
     # in balance over the pool only (pumping some trajectories, braking others): no limit cycle, not detected
     pooled = {**law, "work_per_trajectory": 0.8}
     assert reconcile(res, pooled)[0] == "none"
@@ -270,6 +271,6 @@ def test_a_force_in_balance_found_by_every_base_is_detected_on_a_record_that_kee
     weak = {**law, "settings": {"bases": [bases[0], {**bases[1], "status": "none"}]}}
     assert reconcile(res, weak)[0] == "inconclusive"
     # a function of position that does no net work: not identifiable — no conflict, and never claimed
-    pos = {**law, "by_position": 0.9}
-    assert unclaim_unidentifiable(pos).startswith("no law is claimed: the best candidate, Rayleigh")
+    pos, why = unclaim_unidentifiable({**law, "by_position": 0.9})
+    assert why.startswith("no law is claimed: the best candidate, Rayleigh")
     assert pos["law"] is None and pos["candidate_law"] is w

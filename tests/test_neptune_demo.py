@@ -9,9 +9,9 @@ pytest.importorskip("de405")
 pytest.importorskip("jplephem")
 
 import nnphd  # noqa: E402,F401
-from nnphd.astro.neptune import run_neptune_demo  # noqa: E402
+from nnphd.astro.neptune import NeptuneSettings, run_neptune_demo  # noqa: E402
 from nnphd.engine.data import Dataset  # noqa: E402
-from nnphd.engine.features import FEATURE_SETS, train_constrained  # noqa: E402
+from nnphd.engine.features import FEATURE_SETS, ConstrainedScaling, train_constrained  # noqa: E402
 
 # Reduced configuration: 60-day sampling (3 660 epochs), two λ, 5000 Adam steps each (~15–25 s on 2 busy cores).
 # Measured (seed 0): ratio 60, GM +1.2 %, R +0.28 %, P +0.006 %, longitude +0.19°, corr(f_n, a_res) 0.995.
@@ -23,7 +23,9 @@ FAST = dict(step_days=60.0, steps=5000, lambdas=(0.2, 2.0), reference=False)
 def demo(tmp_path_factory):
     out = tmp_path_factory.mktemp("neptune")
     msgs = []
-    res = run_neptune_demo(out=out, seed=0, progress=lambda done, total, m: msgs.append((done, total, m)), **FAST)
+    res = run_neptune_demo(
+        NeptuneSettings(seed=0, **FAST), out=out, progress=lambda done, total, m: msgs.append((done, total, m))
+    )
     return res, out, msgs
 
 
@@ -88,9 +90,9 @@ def test_outputs_written(demo):
 
 def test_bad_lambda_grids():
     with pytest.raises(ValueError, match="explain_lambda"):
-        run_neptune_demo(lambdas=(0.1, 2.0))
+        run_neptune_demo(NeptuneSettings(lambdas=(0.1, 2.0)))
     with pytest.raises(ValueError, match="above 1"):
-        run_neptune_demo(lambdas=(0.2, 0.5))
+        run_neptune_demo(NeptuneSettings(lambdas=(0.2, 0.5)))
 
 
 def test_train_constrained_scaling_keywords():
@@ -101,9 +103,9 @@ def test_train_constrained_scaling_keywords():
     d = Dataset(q=q, qd=qd, t=np.linspace(0, 1, 64), qdd=-q / r**3)
     fl = FEATURE_SETS["kepler"]
     c0 = np.array([0.5, 0.5, 1.0])
-    fit = train_constrained(d, fl, steps=8, c_init=c0, coef_scale=1e-6, uan_scale=1e-3)
+    fit = train_constrained(d, fl, steps=8, scaling=ConstrainedScaling(c_init=c0, coef_scale=1e-6, uan_scale=1e-3))
     assert np.max(np.abs(fit.coefs - c0)) < 4 * 8 * 1e-2 * 1e-6  # Adam steps ~lr (≤ 3.2 lr), times coef_scale
     assert np.sqrt(np.mean(fit.fn**2)) < 1e-2  # UAN output O(1) × uan_scale
     for bad in (dict(c_init=[1.0, 1.0]), dict(coef_scale=0.0), dict(uan_scale=-1.0), dict(uan_scale=np.nan)):
         with pytest.raises(ValueError):
-            train_constrained(d, fl, steps=8, **bad)
+            train_constrained(d, fl, steps=8, scaling=ConstrainedScaling(**bad))

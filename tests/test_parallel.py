@@ -9,7 +9,7 @@ import threading
 
 import pytest
 
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.sweep import SweepSettings, run_sweep
 from nnphd.parallel import (
     CompileClock,
     Outcome,
@@ -26,7 +26,9 @@ SMALL = dict(p=1, steps=60, lambdas=(0.5, 2.0), n_train=64, n_test=64)
 
 
 def _units():
-    return [Unit(f"{s}/{seed}", run_sweep, dict(system=s, seed=seed, **SMALL)) for s, seed in GRID]
+    return [
+        Unit(f"{s}/{seed}", run_sweep, dict(system=s, settings=SweepSettings(seed=seed, **SMALL))) for s, seed in GRID
+    ]
 
 
 def _numbers(outs: dict[str, Outcome]) -> dict[str, list[float]]:

@@ -111,25 +111,24 @@ def _law_dict(info, direction="loses energy"):
 
 def test_an_active_law_on_a_record_losing_energy_is_claimed_only_far_ahead_of_every_passive_family():
     info = {"law": "vanderpol", "active": True, "active_share": 0.62, "margin": 4.0, "best_passive": "linear"}
-    res, law = _law_dict(info)
-    why = unclaim_active(res, law)
+    law, why = unclaim_active(*_law_dict(info))
     assert why.startswith("no law is claimed: the best candidate, van der Pol, adds energy on 62% of the visited")
     assert "only +4.0 in IC against the best passive family, linear" in why
     assert law["law"] is None and law["candidate_law"]["key"] == "vanderpol" and law["status"] == "none"
     assert law["passivity"] == info and list(law)[-1] == "candidate_law"
     # far enough ahead: kept
-    res, law = _law_dict({**info, "margin": 12.0})
-    assert unclaim_active(res, law) is None and law["law"]["key"] == "vanderpol"
+    law, why = unclaim_active(*_law_dict({**info, "margin": 12.0}))
+    assert why is None and law["law"]["key"] == "vanderpol"
     # no whole-record fit at all: not claimed, and the reason says why
     res, law = _law_dict({"law": "vanderpol", "active": True, "active_share": 0.3, "why": "two coordinates"})
-    assert "no fit over the whole record could prefer it (two coordinates)" in unclaim_active(res, law)
+    assert "no fit over the whole record could prefer it (two coordinates)" in unclaim_active(res, law).why
 
 
 @pytest.mark.parametrize("direction", ["gains energy", "none"])
 def test_a_pump_on_a_record_that_does_not_lose_energy_stays_claimed(direction):
     info = {"law": "vanderpol", "active": True, "active_share": 0.62, "margin": -3.0, "best_passive": "linear"}
-    res, law = _law_dict(info, direction)
-    assert unclaim_active(res, law) is None and law["law"]["key"] == "vanderpol"
+    law, why = unclaim_active(*_law_dict(info, direction))
+    assert why is None and law["law"]["key"] == "vanderpol"
 
 
 def test_a_force_of_the_state_is_a_force_of_position_on_one_orbit_but_not_on_a_1d_oscillation():

@@ -14,6 +14,7 @@ from nnphd.engine.models import ModelConfig, lnn_accel
 from nnphd.engine.systems import get_system
 from nnphd.paper.predict import (
     MODELS,
+    PredictionSettings,
     init_model,
     learned_power,
     model_forces,
@@ -28,7 +29,7 @@ SMALL = dict(steps=200, widths=(32, 32), n_traj=600)  # train t ≤ 30, extrapol
 
 @pytest.fixture(scope="module")
 def small():
-    return run_prediction(seed=1, **SMALL)
+    return run_prediction(PredictionSettings(seed=1, **SMALL))
 
 
 def _true_accel(params, q, qd, t):
@@ -130,18 +131,18 @@ def test_small_run_numbers(small):
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)
 def test_same_seed_same_numbers(small):
-    again = run_prediction(seed=1, **SMALL)
+    again = run_prediction(PredictionSettings(seed=1, **SMALL))
     assert again.metrics == small.metrics
     assert again.energy_balance == small.energy_balance and again.claims == small.claims
 
 
 def test_bad_settings_raise():
     with pytest.raises(ValueError, match="steps must be an integer"):
-        run_prediction(steps=2)
+        run_prediction(PredictionSettings(steps=2))
     with pytest.raises(ValueError, match="t_split"):
-        run_prediction(steps=8, n_traj=200, t_split=30.05)
+        run_prediction(PredictionSettings(steps=8, n_traj=200, t_split=30.05))
     with pytest.raises(ValueError, match="λ must be > 0"):
-        run_prediction(steps=8, lam=0)
+        run_prediction(PredictionSettings(steps=8, lam=0))
 
 
 @pytest.mark.slow  # tens of seconds: run by `python3 dev.py test --slow` (and by CI)

@@ -133,14 +133,14 @@ def _res(direction="loses energy", significant=True):
 def test_a_law_that_pumps_energy_into_a_record_that_loses_it_is_not_claimed():
     from nnphd.user.rules import unclaim_against_evidence
 
-    law = _law_dict(-1.0)  # a thrust along the velocity (the camera case: k = −3.1e-15, m = 6.35)
-    why = unclaim_against_evidence(_res(), law)
+    law, why = unclaim_against_evidence(_res(), _law_dict(-1.0))  # a thrust along the velocity (the camera case)
     assert why and "adds energy (-100% of its force against the velocity) where the record loses energy" in why
     assert law["law"] is None and law["candidate_law"]["title"].startswith("power-law") and law["status"] == "none"
     assert list(law)[-2:] == ["against_velocity", "candidate_law"] and law["against_velocity"] == -1.0
+    assert law["reason"] == why
     # the mirror case: a drag claimed on a record that gains energy
-    law = _law_dict(0.9)
-    assert "takes energy" in unclaim_against_evidence(_res("gains energy"), law) and law["law"] is None
+    law, why = unclaim_against_evidence(_res("gains energy"), _law_dict(0.9))
+    assert "takes energy" in why and law["law"] is None
 
 
 @pytest.mark.parametrize(
@@ -156,8 +156,8 @@ def test_a_law_that_pumps_energy_into_a_record_that_loses_it_is_not_claimed():
 def test_a_law_consistent_with_or_untested_by_the_evidence_stands(share, res):
     from nnphd.user.rules import unclaim_against_evidence
 
-    law = _law_dict(share)
-    assert unclaim_against_evidence(res, law) is None
+    law, why = unclaim_against_evidence(res, _law_dict(share))
+    assert why is None
     assert law["law"] == {"title": "power-law drag −k (|q̇|²)^m q̇"} and law["status"] == "claimed"
 
 

@@ -12,6 +12,9 @@ import pytest
 
 import nnphd  # noqa: F401  (float64)
 from nnphd.engine.shooting import (
+    Integrator,
+    LMSettings,
+    ShootingWindows,
     damping_rhs,
     lm_windows,
     model_jac,
@@ -38,30 +41,31 @@ def _windows(gamma=0.02, noise=0.0025, seed=0):
     wins = shooting_windows([np.arange(t.size)], t, 2 * np.pi / W0)
     tw, qw, mask, s0 = pad_windows(wins, t, q, (q, qd))
     tw = tw - tw[:, :1]
-    args = (jnp.asarray(W0**2), jnp.asarray(tw), jnp.zeros(len(wins)), jnp.asarray(qw), jnp.asarray(mask))
-    return (*args, jnp.asarray([1 / noise])), s0
+    tw, qw, mask = jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask)
+    windows = ShootingWindows(tw, jnp.zeros(len(wins)), qw, mask, jnp.asarray([1 / noise]))
+    return (jnp.asarray(W0**2), windows), s0
 
 
 def test_residuals_and_derivatives_alone_are_those_of_the_joint_function():
     args, s0 = _windows()
-    rhs = damping_rhs(_accel)
+    model = Integrator(damping_rhs(_accel), 2)
     for th in (np.zeros(2), np.array([0.03, 0.05])):
-        r, jac = model_residuals_and_jac(s0, th, *args, rhs=rhs, nsub=2)
-        assert np.array_equal(np.asarray(model_residuals(s0, th, *args, rhs=rhs, nsub=2)), np.asarray(r))
-        assert np.array_equal(np.asarray(model_jac(s0, th, *args, rhs=rhs, nsub=2)), np.asarray(jac))
+        r, jac = model_residuals_and_jac(s0, th, *args, model)
+        assert np.array_equal(np.asarray(model_residuals(s0, th, *args, model)), np.asarray(r))
+        assert np.array_equal(np.asarray(model_jac(s0, th, *args, model)), np.asarray(jac))
 
 
 def test_the_search_that_keeps_its_trials_residuals_takes_the_same_steps():
     """lm_windows with the residuals and the derivatives from their own functions (a trial's residuals kept at an
     accepted point) ends where it ends with the joint function, bit for bit, with fewer simulations."""
     args, s0 = _windows()
-    rhs = damping_rhs(_accel)
+    model = Integrator(damping_rhs(_accel), 2)
     calls = {"resjac": 0, "res": 0, "jac": 0}
 
     def counted(name, f):
         def g(s, th):
             calls[name] += 1
-            return f(s, th, *args, rhs=rhs, nsub=2)
+            return f(s, th, *args, model)
 
         return g
 
@@ -158,8 +162,9 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
 
     from nnphd.explain.families import families
     from nnphd.explain.search import moving_rows
-    from nnphd.explain.stuck import stop_contradictions
+    from nnphd.explain.stuck import StopSettings, stop_contradictions
     from nnphd.explain.table import LawTable, law_row, zero_row
+    from nnphd.explain.trajectory import Motion
 
     (q1, t1), (q2, t2) = _swing(0.3), _swing(0.25)
     q, t = np.concatenate([q1, q2]), np.concatenate([t1, t2])
@@ -186,8 +191,8 @@ def test_the_stops_integrated_side_by_side_give_the_same_contradictions(with_fc)
     settings = {"method": "trajectory", "names": ["th"], "library": False if with_fc else "short"}
     table = LawTable([rows[0], zero, rows[1]], rows[0], "r", 10.0, 1.0, "f", settings)
     fc_fn = (lambda q_, v_: -50.0 * jnp.sin(q_)) if with_fc else None
-    outs = [stop_contradictions(table, rest["final"], q, qd, t, traj, period, angles=(True,), fc_fn=fc_fn,
-                                threads=k) for k in (1, 2)]  # fmt: skip
+    outs = [stop_contradictions(table, rest["final"], Motion(q, qd, t, traj), period, angles=(True,), fc_fn=fc_fn,
+                                stop=StopSettings(threads=k)) for k in (1, 2)]  # fmt: skip
     assert "linear" in outs[0] and outs[0] == outs[1]
 
 
@@ -207,17 +212,17 @@ def test_lm_says_whether_it_converged():
     """lm_windows's ``info``: converged once χ² stops falling by more than ``tol``; not when the iterations run out
     first — the trajectory-level law fits start the candidates from the zero law's fit only where it converged."""
     args, s0 = _windows()
-    rhs = damping_rhs(_accel)
+    model = Integrator(damping_rhs(_accel), 2)
 
     def res(s, th):
-        return model_residuals(s, th, *args, rhs=rhs, nsub=2)
+        return model_residuals(s, th, *args, model)
 
     def jac(s, th):
-        return model_jac(s, th, *args, rhs=rhs, nsub=2)
+        return model_jac(s, th, *args, model)
 
     start, free = np.array([-0.5, 1.0]), np.ones(2, bool)
     done, capped = {}, {}
-    full = lm_windows(None, s0, start, free, iters=40, res=res, jac_fn=jac, info=done)
-    short = lm_windows(None, s0, start, free, iters=2, res=res, jac_fn=jac, info=capped)
+    full = lm_windows(None, s0, start, free, LMSettings(iters=40), res=res, jac_fn=jac, info=done)
+    short = lm_windows(None, s0, start, free, LMSettings(iters=2), res=res, jac_fn=jac, info=capped)
     assert done == {"converged": True} and capped == {"converged": False}
     assert short[4] > full[4] * (1 + 1e-6)  # two iterations were not enough: χ² was still falling

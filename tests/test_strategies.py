@@ -191,7 +191,7 @@ def _stand_ins(monkeypatch, seen: dict) -> None:
         seen.update(method=d.info["method"], trim=d.info["trim"])
         return d
 
-    def assess(data, traj, **k):
+    def assess(data, traj, *a, **k):
         seen.update(rows=len(data))
         n = (len(data), 1)
         nan = np.full(n, np.nan)  # a conservative force that is not finite: only the library base is ranked

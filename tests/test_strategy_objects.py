@@ -10,7 +10,8 @@ import pytest
 import sympy as sp
 
 import nnphd
-from nnphd.explain.laws import rank_laws
+from nnphd.engine.data import Dataset
+from nnphd.explain.laws import CandidateSet, rank_laws
 from nnphd.user.derivatives import estimate_derivatives
 from nnphd.user.recording import from_arrays
 from nnphd.user.strategies import FAMILIES
@@ -169,7 +170,8 @@ def test_the_library_takes_family_objects():
 
 def test_rank_laws_ranks_a_family_object():
     t, x, v = _rk4(power15, 1.0)
-    table = rank_laws(np.c_[x], np.c_[v], np.c_[power15(x, v)], t, names=["x"], include=("linear", power15_family()))
+    data = Dataset(q=np.c_[x], qd=np.c_[v], t=t, qdd=np.c_[power15(x, v)])
+    table = rank_laws(data, names=["x"], candidates=CandidateSet(include=("linear", power15_family())))
     assert {r.key for r in table.rows} == {"linear", "power1.5", "none"}
     assert table.law.key == "power1.5" and table.law.params["c"] == pytest.approx(C, rel=1e-4)
 

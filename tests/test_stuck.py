@@ -145,8 +145,9 @@ def _final_rest(data, traj, info, period):
 
 def _stop(table, data, traj, final, period):
     from nnphd.explain.stuck import stop_contradictions
+    from nnphd.explain.trajectory import Motion
 
-    return stop_contradictions(table, final, data.q, data.qd, data.t, traj, period, angles=(True,))
+    return stop_contradictions(table, final, Motion(data.q, data.qd, data.t, traj), period, angles=(True,))
 
 
 def test_a_swing_that_stops_for_good_contradicts_the_laws_that_cannot_stop_it():

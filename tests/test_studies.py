@@ -7,10 +7,10 @@ import re
 import pytest
 
 from nnphd.cli import main
-from nnphd.paper.data_quality import data_quality_study
-from nnphd.paper.lambda_p import lambda_p_study, transition_sharpness
+from nnphd.paper.data_quality import DataQualitySettings, data_quality_study
+from nnphd.paper.lambda_p import LambdaPSettings, lambda_p_study, transition_sharpness
 from nnphd.paper.study_results import DataQualityResult, LambdaPResult
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.sweep import SweepSettings, run_sweep
 
 LP = dict(steps=200, seed=0, lambdas=(0.1, 0.5, 2.0, 10.0, 50.0), ps=(1, "mse"), systems=("ho+ld", "ho+mf"))
 DQ = dict(steps=300, seed=1, alphas=(0.25, 1.0), betas=(0.5, 1.0))
@@ -58,7 +58,7 @@ def test_sharpness_of_step_and_flat_curves():
 def lp(tmp_path_factory):
     out = tmp_path_factory.mktemp("lp")
     calls = []
-    res = lambda_p_study(out=out, progress=lambda d, t, s: calls.append((d, t)), **LP)
+    res = lambda_p_study(LambdaPSettings(**LP), out=out, progress=lambda d, t, s: calls.append((d, t)))
     return out, res, calls
 
 
@@ -120,7 +120,7 @@ def test_lambda_p_verdicts_and_files(lp):
 def test_lambda_p_subrun_is_nnphd_sweep(lp):
     """Same seed → same numbers: a sub-run reproduces `nnphd sweep` (run_sweep) exactly."""
     _, res, _ = lp
-    ref = run_sweep("ho+ld", p=1, steps=LP["steps"], seed=LP["seed"], lambdas=LP["lambdas"])
+    ref = run_sweep("ho+ld", SweepSettings(p=1, steps=LP["steps"], seed=LP["seed"], lambdas=LP["lambdas"]))
     assert [r.L_e for r in res.curves["ho+ld"]["1"]] == [r.L_e for r in ref.table]
     assert [r.m_c for r in res.curves["ho+ld"]["1"]] == [r.m_c for r in ref.table]
 
@@ -128,7 +128,7 @@ def test_lambda_p_subrun_is_nnphd_sweep(lp):
 @pytest.mark.slow  # an end-to-end run of tens of seconds: slow tier (`python3 dev.py test --slow`, and CI)
 def test_lambda_p_cached_rerun_and_cli(lp, capsys):
     out, res, _ = lp
-    again = lambda_p_study(out=out, **LP)
+    again = lambda_p_study(LambdaPSettings(**LP), out=out)
     assert sorted(again.cached) == ["ho+ld/p=1", "ho+ld/p=mse", "ho+mf/p=1", "ho+mf/p=mse"]
     assert again.curves == res.curves and again.claims == res.claims
     assert [v.ratio for v in again.verdicts] == [v.ratio for v in res.verdicts]
@@ -172,7 +172,7 @@ def _assert_claims_printed(text: str, claims: list[dict]) -> None:
 @pytest.fixture(scope="module")
 def dq(tmp_path_factory):
     out = tmp_path_factory.mktemp("dq")
-    return out, data_quality_study(out=out, **DQ)
+    return out, data_quality_study(DataQualitySettings(**DQ), out=out)
 
 
 @pytest.mark.slow  # needs the data-quality study run: slow tier (`python3 dev.py test --slow`, and CI)
@@ -220,7 +220,7 @@ def test_data_quality_coverage_and_imbalance(dq):
 @pytest.mark.slow  # needs the data-quality study run: slow tier (`python3 dev.py test --slow`, and CI)
 def test_data_quality_cached_rerun(dq):
     out, res = dq
-    again = data_quality_study(out=out, **DQ)
+    again = data_quality_study(DataQualitySettings(**DQ), out=out)
     assert again.cached == ("alpha", "beta")
     assert again.alpha.table == res.alpha.table and again.beta.table == res.beta.table
     assert again.claims == res.claims
@@ -283,11 +283,11 @@ def test_study_bad_input_exit_2(argv, msg, tmp_path, capsys):
 
 def test_api_rejects_bad_settings():
     with pytest.raises(ValueError, match="toy systems"):
-        lambda_p_study(systems=("gw",))
+        lambda_p_study(LambdaPSettings(systems=("gw",)))
     with pytest.raises(ValueError, match="below and above 1"):
-        lambda_p_study(lambdas=(2.0, 5.0))
+        lambda_p_study(LambdaPSettings(lambdas=(2.0, 5.0)))
     with pytest.raises(ValueError, match="alphas"):
-        data_quality_study(alphas=(1.2,))
+        data_quality_study(DataQualitySettings(alphas=(1.2,)))
 
 
 def test_the_forces_figure_says_so_when_no_forces_were_stored():

@@ -9,9 +9,19 @@ import nnphd  # noqa: F401
 from nnphd.engine.data import gaussian_dataset
 from nnphd.engine.models import ModelConfig, init_nnphd, nnphd_forces
 from nnphd.engine.systems import get_system
-from nnphd.engine.train import SweepPoint, TrainConfig, loss_terms, make_trainer, parse_p, pnorm, sweep
+from nnphd.engine.train import (
+    SweepHooks,
+    SweepPoint,
+    SweepSchedule,
+    TrainConfig,
+    loss_terms,
+    make_trainer,
+    parse_p,
+    pnorm,
+    sweep,
+)
 from nnphd.engine.verdict import verdict
-from nnphd.paper.sweep import run_sweep
+from nnphd.paper.sweep import SweepSettings, run_sweep
 
 SMALL = ModelConfig(n=1, lnn_widths=(32, 32), uan_widths=(32, 32))
 
@@ -82,7 +92,7 @@ def test_learning_rate_schedule_is_the_papers():
 def test_vmapped_sweep_equals_independent_runs():
     tr = gaussian_dataset("ho+ld", 200, seed=0)
     tcfg = TrainConfig(steps=40)
-    pts = sweep(tr, SMALL, tcfg, lambdas=(0.2, 5.0), seed=3, mode="vmap")
+    pts = sweep(tr, SMALL, tcfg, SweepSchedule((0.2, 5.0), "vmap"), seed=3)
     # train λ=5 alone from the same init and key
     k_init, k_train = jax.random.split(jax.random.PRNGKey(3))
     train = make_trainer(SMALL, tcfg)
@@ -95,8 +105,10 @@ def test_vmapped_sweep_equals_independent_runs():
 
 @pytest.mark.slow  # an interrupted and resumed sweep: slow tier (`python3 dev.py test --slow`, and CI)
 def test_sweep_resumes_after_interruption(tmp_path, monkeypatch):
-    kw = dict(p=1.0, steps=40, seed=1, lambdas=(0.1, 0.5, 2.0, 10.0), model_cfg=SMALL, n_train=100, n_test=100)
-    full = run_sweep("ho+ld", **kw)
+    settings = SweepSettings(
+        p=1.0, steps=40, seed=1, lambdas=(0.1, 0.5, 2.0, 10.0), model_cfg=SMALL, n_train=100, n_test=100
+    )
+    full = run_sweep("ho+ld", settings)
 
     calls = {"n": 0}
     from nnphd.io.cache import Cache
@@ -111,11 +123,11 @@ def test_sweep_resumes_after_interruption(tmp_path, monkeypatch):
 
     monkeypatch.setattr(Cache, "checkpoint", save_then_die)
     with pytest.raises(KeyboardInterrupt):
-        run_sweep("ho+ld", out=tmp_path, **kw)
+        run_sweep("ho+ld", settings, out=tmp_path)
     monkeypatch.undo()
     assert calls["n"] == 2
     assert not (tmp_path / "results.json").exists()  # nothing half-written
-    resumed = run_sweep("ho+ld", out=tmp_path, **kw)
+    resumed = run_sweep("ho+ld", settings, out=tmp_path)
     assert resumed.resumed_lambdas == (0.1, 0.5)
     np.testing.assert_allclose([r.L_e for r in resumed.table], [r.L_e for r in full.table], rtol=1e-9)
     assert (tmp_path / "results.json").exists() and (tmp_path / "loss_vs_lambda.png").exists()
@@ -162,7 +174,7 @@ REDUCED_LAMBDAS = (0.05, 0.1, 0.2, 0.5, 2.0, 5.0, 10.0)
 )
 def test_phase_transition_reduced(name):
     s = get_system(name)
-    res = run_sweep(s, p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000)
+    res = run_sweep(s, SweepSettings(p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000))
     v = res.verdict
     assert v.new_physics == (not s.conservative), v
     if not s.conservative:
@@ -178,7 +190,10 @@ def test_phase_transition_reduced_float32(name):
     """float32 training (what a GPU user may choose): the same verdicts, within the same bands, as float64."""
     s = get_system(name)
     cfg = ModelConfig(n=s.n, dtype="float32")
-    res = run_sweep(s, p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, n_train=1000, n_test=1000, model_cfg=cfg)
+    settings = SweepSettings(
+        p=1.0, steps=300, seed=0, lambdas=REDUCED_LAMBDAS, model_cfg=cfg, n_train=1000, n_test=1000
+    )
+    res = run_sweep(s, settings)
     assert res.settings["model"]["dtype"] == "float32"
     v = res.verdict
     assert v.new_physics == (not s.conservative), v
@@ -205,8 +220,8 @@ def test_lambda_sweep_modes():
     train = make_trainer(SMALL, tcfg)
     p0 = init_nnphd(jax.random.PRNGKey(0), SMALL)
     arrays, key, lams = as_arrays(tr, jnp.float64), jax.random.PRNGKey(1), (0.1, 2.0, 0.5)
-    scratch = lambda_sweep(train, p0, arrays, lams, key, "scratch")
-    vm = lambda_sweep(train, p0, arrays, lams, key, "vmap")
+    scratch = lambda_sweep(train, p0, arrays, SweepSchedule(lams, "scratch"), key)
+    vm = lambda_sweep(train, p0, arrays, SweepSchedule(lams, "vmap"), key)
     assert list(scratch) == [0.1, 0.5, 2.0]
     for lam in lams:
         direct, _ = train(p0, arrays, jnp.asarray(lam), key)
@@ -218,18 +233,21 @@ def test_lambda_sweep_modes():
             np.testing.assert_allclose(a, b, atol=1e-10)
             np.testing.assert_array_equal(a, c)
     seen = []
-    warm = lambda_sweep(train, p0, arrays, lams, key, "warm", on_point=lambda lam, p: seen.append(lam))
+    warm = lambda_sweep(
+        train, p0, arrays, SweepSchedule(lams), key, SweepHooks(on_point=lambda lam, p: seen.append(lam))
+    )
     k = jax.random.split(key, 3)
     p1, _ = train(p0, arrays, jnp.asarray(0.1), k[0])
     p2, _ = train(p1, arrays, jnp.asarray(0.5), k[1])
     np.testing.assert_array_equal(jax.tree_util.tree_leaves(warm[0.5])[0], jax.tree_util.tree_leaves(p2)[0])
     assert seen == [0.1, 0.5, 2.0]
     # accept keeps the old params: the chain continues from them; resume skips a λ and continues from its params
-    kept = lambda_sweep(train, p0, arrays, lams, key, "warm", accept=lambda lam, p: p0)
+    kept = lambda_sweep(train, p0, arrays, SweepSchedule(lams), key, accept=lambda lam, p: p0)
     np.testing.assert_array_equal(jax.tree_util.tree_leaves(kept[2.0])[0], jax.tree_util.tree_leaves(p0)[0])
     seen.clear()
-    res = lambda_sweep(train, p0, arrays, lams, key, "warm", resume={0.1: p1}, on_point=lambda lam, p: seen.append(lam))
+    hooks = SweepHooks(resume={0.1: p1}, on_point=lambda lam, p: seen.append(lam))
+    res = lambda_sweep(train, p0, arrays, SweepSchedule(lams), key, hooks)
     assert seen == [0.5, 2.0]
     np.testing.assert_array_equal(jax.tree_util.tree_leaves(res[0.5])[0], jax.tree_util.tree_leaves(p2)[0])
     with pytest.raises(ValueError, match="mode must be one of"):
-        lambda_sweep(train, p0, arrays, lams, key, "cold")
+        lambda_sweep(train, p0, arrays, SweepSchedule(lams, "cold"), key)

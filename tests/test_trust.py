@@ -7,7 +7,7 @@ import pytest
 
 import nnphd  # noqa: F401
 from nnphd.engine.data import Dataset
-from nnphd.user.assess import assess
+from nnphd.user.assess import AssessSettings, assess
 from nnphd.user.checks import (
     RHO_MIN,
     capacity_check,
@@ -187,7 +187,7 @@ def test_assess_rejects_bad_input():
     with pytest.raises(ValueError, match="traj"):
         assess(d, tr[:-1])
     with pytest.raises(ValueError, match="lambdas"):
-        assess(d, tr, lambdas=(2.0, 5.0))
+        assess(d, tr, AssessSettings(lambdas=(2.0, 5.0)))
     bad = Dataset(q=d.q, qd=d.qd, t=d.t, qdd=np.where(np.arange(len(d))[:, None] == 3, np.nan, d.qdd))
     with pytest.raises(ValueError, match="qdd.*row 3"):
         assess(bad, tr)
@@ -205,7 +205,7 @@ FAST = dict(steps=300, width=32, lambdas=(0.1, 0.2, 0.5, 2.0, 5.0), n_seeds=1, l
 def _run(name, seed=0):
     """(the data set, the Assessment's report, the Assessment)."""
     d, traj = make_case(name, n_traj=6, seed=seed, T=40.0)
-    a = assess(d, traj, seed=seed, **FAST)
+    a = assess(d, traj, AssessSettings(seed=seed, **FAST))
     return d, a.report, a
 
 
@@ -266,7 +266,9 @@ def test_single_trajectory_drive_is_never_a_confident_none():
     # (single-trajectory damping is detected in tests/test_detect_recordings.py, from positions)
     d, _ = make_case("anharmonic+drive", n_traj=1, seed=0, T=60.0)
     calls = []
-    r = assess(d, None, seed=0, progress=lambda done, total, msg: calls.append((done, total)), **FAST).report
+    r = assess(
+        d, None, AssessSettings(seed=0, **FAST), progress=lambda done, total, msg: calls.append((done, total))
+    ).report
     assert r["status"] != "none"
     assert r["checks"]["drift"]["slow_ratio_median"][0] >= 2.0
     assert r["checks"]["time"]["valid"] == [False] and not r["clock"]["testable"]

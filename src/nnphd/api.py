@@ -136,7 +136,7 @@ class NNPhD:
     ``steps``: training steps per model; ``n_seeds``: seeds of the verdict's repeatability; ``derivatives``: how q̇
     and q̈ are estimated, an :class:`nnphd.Derivatives` (method, trim; None: ``Derivatives()``, what ``nnphd detect``
     does); ``library``: which candidate laws are ranked and how, an :class:`nnphd.LawLibrary` (families, your own
-    laws, fit; None: ``LawLibrary()``, every family). The older keywords set the same fields: ``laws`` (your candidate
+    laws, fit; None: ``LawLibrary()``, every family). The older keywords (in ``options``) set the same fields: ``laws`` (your candidate
     laws, SymPy strings, e.g. ``"c*x_dot*abs(x_dot)"``) is ``LawLibrary.laws``, ``law_fit`` ("auto" / "pointwise" /
     "trajectory") ``LawLibrary.fit``, ``trim`` (drop the ends of each trajectory: "auto", True, False)
     ``Derivatives.trim``; one given beside an object that says otherwise is a ValueError. ``sr_time``: seconds of
@@ -144,7 +144,7 @@ class NNPhD:
     the default), "uniform" (declared: gravity near the ground, or none — for a throw, a fall, a coast-down; the
     verdict and the law then rest on a fit of the positions beside it, and ``forces``/``simulate`` use the fitted
     field) or "vertical" (declared uniform and along the last coordinate, which points up: its size fitted); ``workers``: train the seeds on that many local Dask worker processes (default 1: here; the numbers are
-    the same), ``scheduler``: on an existing Dask cluster; further keywords go to :func:`nnphd.user.assess.assess`.
+    the same), ``scheduler``: on an existing Dask cluster; further keywords are fields of :class:`nnphd.user.assess.AssessSettings`.
 
     After ``fit``: ``result_`` (:class:`DetectResult`: everything below, typed), ``verdict_`` (:class:`Verdict`),
     ``status_`` (:class:`Status`), ``confidence_``, ``new_physics_``, ``law_`` (:class:`Law` or None), ``report_``
@@ -159,23 +159,21 @@ class NNPhD:
         n_seeds: int = 2,
         derivatives: Derivatives | None = None,
         library: LawLibrary | None = None,
-        laws: Sequence[str] | None = None,
-        law_fit: str | None = None,
         sr_time: float = 0.0,
-        trim: bool | str | None = None,
         field: str = "learned",
-        **assess_kw: Any,
+        **options: Any,
     ):
         from nnphd.user.settings import check_field
-        from nnphd.user.strategies import with_old_keywords
+        from nnphd.user.strategies import OLD_KEYWORDS, with_old_keywords
 
-        self.derivatives, self.library = with_old_keywords(derivatives, library, trim=trim, laws=laws, law_fit=law_fit)
+        old = {k: options.pop(k) for k in OLD_KEYWORDS if k in options}
+        self.derivatives, self.library = with_old_keywords(derivatives, library, **old)
         check_field(field, self.library.fit)
         self.seed, self.steps, self.n_seeds = int(seed), int(steps), int(n_seeds)
         _check_run_settings(self.seed, self.steps, self.n_seeds, float(sr_time))
         # the older names of the objects' fields (save() writes them)
         self.laws, self.law_fit, self.trim = self.library.laws, self.library.fit, self.derivatives.trim
-        self.sr_time, self.assess_kw = float(sr_time), dict(assess_kw)
+        self.sr_time, self.assess_kw = float(sr_time), options
         self.field = field
         self._model: FittedModel | None = None
         self._fc_jit = None
@@ -327,7 +325,7 @@ class NNPhD:
         m = self._model
         if m.data is None:
             raise RuntimeError("a loaded model keeps no data: report() needs the model from fit()")
-        write_report(out, self.report_, m.data, m.traj, list(m.coords), m.fc, m.fn)
+        write_report(out, self.report_, m)
         return Path(out)
 
     def figures(self) -> dict:

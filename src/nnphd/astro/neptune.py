@@ -40,15 +40,16 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from nnphd.engine.data import Dataset
-from nnphd.engine.features import FEATURE_SETS, FeatureLagrangian, constrained_model
+from nnphd.engine.features import FEATURE_SETS, ConstrainedScaling, FeatureLagrangian, constrained_model
 from nnphd.engine.models import ModelConfig
 from nnphd.engine.systems import get_system
-from nnphd.engine.train import PAPER_LRS, SweepPoint, lambda_sweep
+from nnphd.engine.train import PAPER_LRS, SweepHooks, SweepPoint, SweepSchedule, lambda_sweep
 from nnphd.engine.verdict import MIN_RATIO, MIN_RELATIVE_SIZE, force_norm, verdict
 from nnphd.io.progress import Progress, Stages
 
@@ -59,6 +60,7 @@ __all__ = [
     "DEFAULT_STEP_DAYS",
     "GOALS",
     "DEMO_MIN_RELATIVE_SIZE",
+    "NeptuneSettings",
     "direct_feature_fit",
     "run_neptune_demo",
     "write_neptune_demo",
@@ -77,6 +79,24 @@ GOALS = {"gm_rel": 0.05, "radius_rel": 0.01, "period_rel": 0.01, "longitude_deg"
 #: Size floor of the verdict for this data (see the module docstring).
 DEMO_MIN_RELATIVE_SIZE = 1e-6
 GALLE_JD = 2395562.5  # 1846-09-23: Galle finds Neptune
+
+
+@dataclass(frozen=True)
+class NeptuneSettings:
+    """What the Neptune demo (:func:`run_neptune_demo`) runs: the ``seed``, Adam ``steps`` per λ, the sampling
+    ``step_days`` of Uranus' orbit between ``start_year`` and ``stop_year`` (None: the ephemeris' defaults), the
+    λ-grid ``lambdas`` (it must contain ``explain_lambda`` < 1, whose f_n is explained, and values above 1) and
+    whether the ``reference`` direct fit of the ephemeris residual is made. Checked (and normalised: sorted distinct
+    λ, integer steps) when the demo starts."""
+
+    seed: int = 0
+    steps: int = DEFAULT_STEPS
+    step_days: float = DEFAULT_STEP_DAYS
+    lambdas: Sequence[float] = DEMO_LAMBDAS
+    explain_lambda: float = EXPLAIN_LAMBDA
+    start_year: float | None = None
+    stop_year: float | None = None
+    reference: bool = True
 
 
 # ---------------------------------------------------------------------------------------------------- helpers
@@ -139,32 +159,25 @@ def _longitude_deg(r) -> float:
 
 # ---------------------------------------------------------------------------------------------------- the demo
 def run_neptune_demo(
-    out: str | Path | None = None,
-    seed: int = 0,
-    steps: int = DEFAULT_STEPS,
-    step_days: float = DEFAULT_STEP_DAYS,
-    progress: Progress | None = None,
-    lambdas: Sequence[float] = DEMO_LAMBDAS,
-    explain_lambda: float = EXPLAIN_LAMBDA,
-    start_year: float | None = None,
-    stop_year: float | None = None,
-    reference: bool = True,
+    settings: NeptuneSettings = NeptuneSettings(), out: str | Path | None = None, progress: Progress | None = None
 ) -> dict:
     """Detect and locate Neptune from Uranus' DE405 orbit with NNPhD; see the module docstring.
 
-    ``lambdas`` must contain ``explain_lambda`` (< 1) and values above 1. Returns a JSON-ready dict; with ``out``
-    writes ``results.json`` and ``neptune_demo.png`` there. ``reference=False`` skips the direct fit of the ephemeris
-    residual (the ground-truth pipeline, reported for comparison only; ~10 s). Raises
-    :class:`nnphd.astro.ephemeris.EphemerisUnavailable` when the ephemeris packages are missing.
+    ``settings`` (:class:`NeptuneSettings`): ``lambdas`` must contain ``explain_lambda`` (< 1) and values above 1;
+    ``reference=False`` skips the direct fit of the ephemeris residual (the ground-truth pipeline, reported for
+    comparison only; ~10 s). Returns a JSON-ready dict; with ``out`` writes ``results.json`` and
+    ``neptune_demo.png`` there. Raises :class:`nnphd.astro.ephemeris.EphemerisUnavailable` when the ephemeris
+    packages are missing.
     """
     from nnphd.astro import ephemeris as E
 
-    say = Stages(progress, len(set(lambdas)) + 4 + (out is not None))
+    say = Stages(progress, len(set(settings.lambdas)) + 4 + (out is not None))
     t0 = time.perf_counter()
-    lams, steps = _checked_settings(lambdas, explain_lambda, steps)
+    s = _checked_settings(settings)
+    explain_lambda = s.explain_lambda
 
     say("neptune: reading Uranus from DE405")
-    ud = E.uranus_dataset(start_year, stop_year, step_days, ndim=2, kepler=True)
+    ud = E.uranus_dataset(s.start_year, s.stop_year, s.step_days, ndim=2, kepler=True)
     data = Dataset(q=ud.q, qd=ud.qd, t=ud.t, qdd=ud.qdd)  # no truth columns: the pipeline never sees a_res
     L, T = ud.length_unit_au, ud.time_unit_days
     fl = FEATURE_SETS[get_system("neptune").feature_set]
@@ -173,12 +186,13 @@ def run_neptune_demo(
     c_ls, rem_ls = direct_feature_fit(data, fl)
     scale = _rms(rem_ls)
     coef_scale = scale * np.abs(c_ls)
+    scaling = ConstrainedScaling(c_init=c_ls, coef_scale=coef_scale, uan_scale=scale)
     cfg = ModelConfig(n=2).standardized(data.q, data.qd, data.t)
     fnorm = force_norm(data.qdd, 1.0)
 
     # 2. NNPhD over the λ-grid (every λ from the same initialisation and minibatches)
-    say(f"neptune: NNPhD at {len(lams)} λ ({steps} steps each)")
-    fits, points, table = _nnphd_sweep(data, fl, lams, steps, seed, cfg, c_ls, coef_scale, scale, say)
+    say(f"neptune: NNPhD at {len(s.lambdas)} λ ({s.steps} steps each)")
+    fits, points, table = _nnphd_sweep(data, fl, s, cfg, scaling, say)
 
     # 3. verdict
     v = verdict(points, fnorm, MIN_RATIO, DEMO_MIN_RELATIVE_SIZE)
@@ -191,7 +205,7 @@ def run_neptune_demo(
 
     # 5. score against the ephemeris (truth used only from here on)
     say("neptune: scoring against the ephemeris")
-    truth, err, goals, res_eph, direct, (galle_fit, galle_true) = _score(ud, fit, reference)
+    truth, err, goals, res_eph, direct, (galle_fit, galle_true) = _score(ud, fit, s.reference)
 
     result = {
         "demo": "neptune",
@@ -207,7 +221,7 @@ def run_neptune_demo(
         "goals": goals,
         "all_goals_met": bool(all(g["met"] for g in goals.values())),
         "diagnostics": _diagnostics_section(cf, ud, rem_ls, direct),
-        "settings": _settings_section(seed, steps, lams, explain_lambda, cfg, step_days, ud, scale, coef_scale, c_ls),
+        "settings": _settings_section(s, cfg, ud, scaling),
         "wall_time_s": None,
     }
     if out is not None:
@@ -219,32 +233,33 @@ def run_neptune_demo(
 
 
 # ---------------------------------------------------------------------------------------------------- its stages
-def _checked_settings(lambdas: Sequence[float], explain_lambda: float, steps) -> tuple[list[float], int]:
-    """Check the λ-grid and the number of steps; returns (the sorted distinct λ, steps as an int)."""
-    lams = sorted({float(x) for x in lambdas})
+def _checked_settings(settings: NeptuneSettings) -> NeptuneSettings:
+    """Check the λ-grid and the number of steps; returns the settings with the sorted distinct λ and steps as an
+    int."""
+    explain_lambda, steps = settings.explain_lambda, settings.steps
+    lams = sorted({float(x) for x in settings.lambdas})
     if explain_lambda not in lams or not explain_lambda < 1:
         raise ValueError(f"lambdas must contain explain_lambda = {explain_lambda:g} (< 1); got {lams}")
     if not any(x > 1 for x in lams):
         raise ValueError("lambdas must contain values above 1 (the verdict reads L_e across λ = 1)")
     if int(steps) != steps or steps < len(PAPER_LRS):
         raise ValueError(f"steps must be an integer ≥ {len(PAPER_LRS)}, got {steps!r}")
-    return lams, int(steps)
+    return replace(settings, lambdas=tuple(lams), steps=int(steps))
 
 
-def _nnphd_sweep(data, fl, lams, steps, seed, cfg, c_ls, coef_scale, scale, say) -> tuple[dict, list, list]:
-    """Stage 2: train the constrained Kepler Lagrangian jointly with the UAN at every λ (one "scratch" sweep, every λ
-    from the same initialisation and minibatches). Returns (the fits by λ, the sweep points, the sweep table)."""
-    cm = constrained_model(
-        data, fl, steps=steps, seed=seed, p=1.0, cfg=cfg, c_init=c_ls, coef_scale=coef_scale, uan_scale=scale
-    )
+def _nnphd_sweep(data, fl, settings: NeptuneSettings, cfg, scaling: ConstrainedScaling, say) -> tuple[dict, list, list]:
+    """Stage 2: train the constrained Kepler Lagrangian jointly with the UAN at every λ of the checked ``settings``
+    (one "scratch" sweep, every λ from the same initialisation and minibatches), with the ``scaling`` set from the
+    data. Returns (the fits by λ, the sweep points, the sweep table)."""
+    lams = list(settings.lambdas)
+    cm = constrained_model(data, fl, steps=settings.steps, seed=settings.seed, p=1.0, cfg=cfg, scaling=scaling)
     trained = lambda_sweep(
         cm.trainer(),
         cm.params0,
         cm.arrays,
-        lams,
+        SweepSchedule(lams, "scratch"),
         cm.key,
-        "scratch",
-        progress=lambda d, tot, msg: say(f"neptune: NNPhD, done {msg} ({d}/{tot})"),
+        SweepHooks(progress=lambda d, tot, msg: say(f"neptune: NNPhD, done {msg} ({d}/{tot})")),
     )
     fits, points, table = {}, [], []
     for lam in lams:
@@ -417,28 +432,30 @@ def _diagnostics_section(cf, ud, rem_ls, direct: dict | None) -> dict:
     }
 
 
-def _settings_section(seed, steps, lams, explain_lambda, cfg, step_days, ud, scale, coef_scale, c_ls) -> dict:
-    """The "settings" entry: everything the run depended on."""
+def _settings_section(settings: NeptuneSettings, cfg, ud, scaling: ConstrainedScaling) -> dict:
+    """The "settings" entry: everything the run depended on (``settings``: checked; ``scaling``: set from the
+    data)."""
     from nnphd.astro import ephemeris as E
 
+    s = settings
     return {
-        "seed": seed,
-        "steps_per_lambda": steps,
-        "lambdas": lams,
-        "explain_lambda": explain_lambda,
+        "seed": s.seed,
+        "steps_per_lambda": s.steps,
+        "lambdas": list(s.lambdas),
+        "explain_lambda": s.explain_lambda,
         "p": 1.0,
         "learning_rates": list(PAPER_LRS),
         "batch_size": 32,
         "dtype": cfg.dtype,
         "uan_widths": list(cfg.uan_widths),
-        "step_days": float(step_days),
+        "step_days": float(s.step_days),
         "n_samples": int(len(ud.t)),
         "years": [float(E.jd_to_year(ud.jd[0])), float(E.jd_to_year(ud.jd[-1]))],
         "length_unit_au": ud.length_unit_au,
         "time_unit_days": ud.time_unit_days,
-        "uan_scale": scale,
-        "coef_scale": coef_scale.tolist(),
-        "c_init": c_ls.tolist(),
+        "uan_scale": scaling.uan_scale,
+        "coef_scale": scaling.coef_scale.tolist(),
+        "c_init": scaling.c_init.tolist(),
         "verdict_min_ratio": MIN_RATIO,
         "verdict_min_relative_size": DEMO_MIN_RELATIVE_SIZE,
         "library_min_relative_size": MIN_RELATIVE_SIZE,

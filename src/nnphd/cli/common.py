@@ -3,8 +3,12 @@ input parsing (bad input: a one-line ``error: ...`` on stderr, exit code 2, noth
 
 from __future__ import annotations
 
+import dataclasses
+import functools
+import inspect
 import math
 import os
+import typing
 from contextlib import contextmanager
 from enum import StrEnum
 from pathlib import Path
@@ -23,6 +27,27 @@ app = typer.Typer(
     help="nnphd — Neural New-Physics Detector: find the non-conservative part of a force field.",
 )
 console = Console(emoji=False)  # ":name:" in a column or file name stays literal (markup: nnphd.io.escape.rich)
+
+
+def options_command(options: type):
+    """A typer command whose options are the fields of the frozen dataclass ``options``: each field's default is its
+    ``typer.Argument`` or ``typer.Option``, and the decorated function receives them as one ``options`` record (typer
+    reads the signature made here, one parameter per field). The record is built by typer only: its class defaults
+    are option declarations, not values."""
+    hints = typing.get_type_hints(options)
+    kind = inspect.Parameter.POSITIONAL_OR_KEYWORD
+    params = [inspect.Parameter(f.name, kind, default=f.default, annotation=hints[f.name]) for f in dataclasses.fields(options)]  # fmt: skip
+
+    def decorate(fn):
+        @functools.wraps(fn)
+        def command(**given):
+            return fn(options(**given))
+
+        command.__signature__ = inspect.Signature(params)
+        command.__annotations__ = {p.name: p.annotation for p in params}
+        return command
+
+    return decorate
 
 
 def _version(value: bool) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import typer
@@ -18,30 +19,36 @@ from nnphd.cli.common import (
     Trim,
     app,
     console,
+    options_command,
     parse_lambdas,
     progress_bar,
     scheduler_option,
     workers_option,
 )
+from nnphd.explain.law import TableStatus
 from nnphd.io.escape import one_line
 from nnphd.io.escape import rich as _r
 from nnphd.io.limits import MAX_ROWS, MIN_ROWS
+from nnphd.user.result import Status
 
 
-@app.command()
-def detect(
+@dataclass(frozen=True)
+class DetectOptions:
+    """``nnphd detect``'s arguments and options as given on the command line (typer fills them:
+    :func:`nnphd.cli.common.options_command`)."""
+
     files: list[str] = typer.Argument(
         ...,
         help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ; several files or a "
         "folder: a batch (one report per file in OUT/<name>/, summary.csv/html)",
         show_default=False,
-    ),
-    out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)"),
-    angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)"),
-    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed"),
+    )
+    out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)")
+    angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)")
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed")
     steps: int = typer.Option(
         1000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (and per extra round of the checks)"
-    ),
+    )
     n_seeds: int = typer.Option(
         2,
         "--n-seeds",
@@ -50,29 +57,29 @@ def detect(
         max=MAX_N_SEEDS,
         help="how many seeds (other initialisation and held-out trajectories; NNPhD(n_seeds=…); --repeats is "
         "its old name)",
-    ),
+    )
     sr_time: int = typer.Option(
         10, "--sr-time", min=0, max=MAX_SR_TIME, help="seconds of genetic symbolic regression per component (0: skip)"
-    ),
+    )
     law: list[str] | None = typer.Option(
         None,
         "--law",
         help="a candidate law of your own, as a formula in the "
         "coordinates, <name>_dot and t; other symbols are fitted, e.g. "
         "'c*x_dot*abs(x_dot)' or 'x: -g*x_dot; y: -g*y_dot' (repeatable)",
-    ),
+    )
     law_fit: LawLevel = typer.Option(
         LawLevel.auto,
         "--law-fit",
         help="how the candidate laws are ranked (trajectory: multiple shooting on the positions)",
-    ),
+    )
     families: str | None = typer.Option(
         None,
         "--families",
         help="comma-separated candidate law families to rank (default: all — linear, quadratic, coulomb, their sums "
         "such as linear+coulomb, power, rayleigh, vanderpol, rayleigh-vdp, drive, sparse; -diag/-full variants for "
         "two or more coordinates); your --law laws are ranked too (NNPhD(library=LawLibrary(families=…)))",
-    ),
+    )
     field: Field = typer.Option(
         Field.learned,
         "--field",
@@ -81,49 +88,53 @@ def detect(
         "force acts), or vertical (declared uniform and along the last coordinate, which points up: gravity filmed "
         "with a level camera — one parameter fewer than uniform); the verdict then rests on a fit of the positions "
         "beside the fitted field",
-    ),
+    )
     lambdas: str | None = typer.Option(
         None,
         "--lambdas",
         help="comma-separated λ of the sweep (default 0.05,0.1,0.2,0.5,2,5,10; values below and above 1)",
-    ),
-    width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)"),
+    )
+    width: int = typer.Option(64, "--width", min=2, help="hidden width of the LNN and the UAN (two layers each)")
     max_rows: int = typer.Option(
         MAX_ROWS,
         "--max-rows",
         min=MIN_ROWS,
         help="refuse files with more data rows than this (memory: see docs/promises.md)",
-    ),
+    )
     trim: Trim = typer.Option(
         Trim.auto,
         "--trim",
         help="drop the ends of each trajectory, where the one-sided derivative estimates are ~20x worse",
-    ),
+    )
     thin: bool = typer.Option(
         True,
         "--thin/--no-thin",
         help="use every k-th row of a dense record (over 5000 rows, over 80 per period), its derivatives estimated "
         "at the full rate first",
-    ),
-    workers: int | None = workers_option(),
-    scheduler: str | None = scheduler_option(),
-):
+    )
+    workers: int | None = workers_option()
+    scheduler: str | None = scheduler_option()
+
+
+@app.command()
+@options_command(DetectOptions)
+def detect(o: DetectOptions):
     """Is there new physics in YOUR trajectories? Verdict (detected / none / inconclusive), forces, the law."""
-    fams = _families_setting(families, law)  # checked before anything is read or created
-    ang, extra, trim_v, paths = _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, width)
+    fams = _families_setting(o.families, o.law)  # checked before anything is read or created
+    ang, extra, trim_v, paths = _checked_options(o)
     extra |= fams
-    settings = _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra)
-    if not thin:
+    settings = _run_settings(o, trim_v, extra)
+    if not o.thin:
         settings["thin"] = False
     if paths is not None:
-        return _batch(files, len(paths), out, ang, max_rows, workers, scheduler, settings)
-    ud, t_read = _read_file(files[0], ang, max_rows, law, out)
-    rep = _detect_one(ud, out, workers, scheduler, t_read, settings)
+        return _batch(o.files, len(paths), o.out, ang, o.max_rows, o.workers, o.scheduler, settings)
+    ud, t_read = _read_file(o.files[0], ang, o.max_rows, o.law, o.out)
+    rep = _detect_one(ud, o.out, o.workers, o.scheduler, t_read, settings)
     _print_report(rep)
-    console.print(_r(f"wrote {out}/report.json and {out}/report.html ({rep['wall_time_s']:.0f} s)"))
+    console.print(_r(f"wrote {o.out}/report.json and {o.out}/report.html ({rep['wall_time_s']:.0f} s)"))
 
 
-def _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, width):
+def _checked_options(o: DetectOptions):
     """The options checked before any file is read: (angle names, extra settings (width, λ), the trim setting, the
     batch's paths or None for one file). A batch's --law texts are checked and its output folder claimed here. A bad
     value is an :class:`InputError`."""
@@ -131,13 +142,14 @@ def _checked_options(files, out, angles, law, field, law_fit, lambdas, trim, wid
     from nnphd.user.recording import DataError
 
     try:
-        extra = {"width": width}
-        if lambdas is not None:
-            extra["lambdas"] = parse_lambdas(lambdas)
-        trim_v = {"auto": "auto", "yes": True, "no": False}[trim.value]
+        files, out, angles, law = o.files, o.out, o.angles, o.law
+        extra = {"width": o.width}
+        if o.lambdas is not None:
+            extra["lambdas"] = parse_lambdas(o.lambdas)
+        trim_v = {"auto": "auto", "yes": True, "no": False}[o.trim.value]
         from nnphd.user.settings import check_field
 
-        check_field(field.value, law_fit.value)
+        check_field(o.field.value, o.law_fit.value)
         ang = tuple(a.strip() for a in angles.split(",")) if angles else ()
         if any(not a for a in ang):
             raise InputError(f"--angles must be comma-separated coordinate names, got {angles!r}")
@@ -174,16 +186,17 @@ def _families_setting(families: str | None, law) -> dict:
     return {"families": keys}
 
 
-def _run_settings(seed, steps, n_seeds, sr_time, law, law_fit, field, trim_v, extra) -> dict:
-    """The settings of :func:`nnphd.user.detect.detect_data` (and of each file of a batch)."""
+def _run_settings(o: DetectOptions, trim_v, extra: dict) -> dict:
+    """The settings of :func:`nnphd.user.detect.detect_data` (and of each file of a batch): the options ``o``, the
+    ``trim`` setting they give (``trim_v``) and the ``extra`` ones (width, λ, families)."""
     return dict(
-        seed=seed,
-        steps=steps,
-        n_seeds=n_seeds,
-        sr_time=sr_time,
-        laws=tuple(law or ()),
-        law_fit=law_fit.value,
-        field=field.value,
+        seed=o.seed,
+        steps=o.steps,
+        n_seeds=o.n_seeds,
+        sr_time=o.sr_time,
+        laws=tuple(o.law or ()),
+        law_fit=o.law_fit.value,
+        field=o.field.value,
         trim=trim_v,
         **extra,
     )
@@ -224,7 +237,7 @@ def _print_report(rep: dict) -> None:
     """The verdict of one file's report on the console: status, effect, warnings, angle notes, reasons, the law
     and the hint or blind formula."""
     # every text from the report may quote the file's column names or path: markup and control characters escaped (_r)
-    colour = {"detected": "bold red", "none": "bold green"}.get(rep["status"], "bold yellow")
+    colour = {Status.DETECTED: "bold red", Status.NONE: "bold green"}.get(rep["status"], "bold yellow")
     console.print(
         f"[{colour}]{_r(rep['status'].upper())}[/] — new physics: {'yes' if rep['new_physics'] else 'no'} "
         f"(confidence {rep['confidence']:.2g})",
@@ -261,7 +274,7 @@ def _print_law(lw: dict) -> None:
     """The law of a report (``rep["law"]``) on the console: the winner and any ties with their parameters, or why
     there is none."""
     if lw.get("law"):
-        tie = lw.get("status") == "tie"
+        tie = lw.get("status") == TableStatus.TIE
         if tie:
             console.print(f"  law: [bold]tie[/] — {_r(lw['reason'])}", highlight=False)
         for w in [lw["law"], *(lw.get("ties") or [])]:
@@ -287,7 +300,7 @@ def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) 
 
     from rich.table import Table
 
-    from nnphd.user.batch import detect_batch
+    from nnphd.user.batch import FileStatus, detect_batch
 
     with progress_bar(f"detect: {n_files} files") as status:
         s = detect_batch(
@@ -306,7 +319,7 @@ def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) 
             _r(r["error"] or ""),
         )
     for k in s.get("skipped", []):
-        t.add_row(_r(k["file"]), "skipped", "", "", "", _r(k["reason"]))
+        t.add_row(_r(k["file"]), FileStatus.SKIPPED.value, "", "", "", _r(k["reason"]))
     console.print(t)
     console.print(
         _r(
@@ -315,7 +328,7 @@ def _batch(paths, n_files, out, angles, max_rows, workers, scheduler, settings) 
         )
     )
     if s["failed"]:
-        first = next(r for r in s["rows"] if r["status"] == "error")
+        first = next(r for r in s["rows"] if r["status"] == FileStatus.ERROR)
         print(  # the error and --out quote names: one line, control and bidi characters shown as escapes
             one_line(f"error: {s['failed']} of {s['n_files']} files failed ({first['error']}); see {out}/summary.csv"),
             file=sys.stderr,

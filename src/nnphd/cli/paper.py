@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import math
 import sys
+from dataclasses import dataclass
 
 import typer
 from rich.table import Table
@@ -24,6 +25,7 @@ from nnphd.cli.common import (
     console,
     demo_app,
     fraction_option,
+    options_command,
     parse_csv,
     parse_lambdas,
     parse_loss_p,
@@ -52,39 +54,46 @@ def systems():
         console.print(f"    {s.description}", highlight=False)
 
 
-@app.command()
-def sweep(
-    system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)"),
-    p: str = typer.Option("1", "--p", "--loss-p", help=P_HELP),
+@dataclass(frozen=True)
+class SweepOptions:
+    """``nnphd sweep``'s options as given on the command line (typer fills them:
+    :func:`nnphd.cli.common.options_command`)."""
+
+    system: str = typer.Option(..., "--system", "-s", help="system name (see `nnphd systems`)")
+    p: str = typer.Option("1", "--p", "--loss-p", help=P_HELP)
     steps: int = typer.Option(
         2000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (split over the 4 learning rates)"
-    ),
-    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (data and initialisation)"),
-    lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)"),
+    )
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed (data and initialisation)")
+    lambdas: str | None = typer.Option(None, "--lambdas", help="comma-separated λ values (default: the paper's 13)")
     mode: SweepMode = typer.Option(
         SweepMode.warm,
         "--mode",
         help="warm (paper: warm start, increasing λ), vmap (every λ from the same start, one vmapped run), scratch (the same, one λ after the other) or fast (4 λ, warm, each until converged; the paper protocol when that verdict is close)",
-    ),
+    )
     param: list[str] = typer.Option(
         [], "--param", help="override a system parameter, e.g. --param gamma=0.2 (repeatable)"
-    ),
-    out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png"),
-    resume: bool = typer.Option(True, "--resume/--no-resume", help="continue an interrupted sweep in --out"),
+    )
+    out: str = typer.Option("out/sweep", "--out", help="output directory for results.json and loss_vs_lambda.png")
+    resume: bool = typer.Option(True, "--resume/--no-resume", help="continue an interrupted sweep in --out")
     standardize: bool = typer.Option(
         True,
         "--standardize/--no-standardize",
         help="networks see (q, q̇, t) standardised by the training data's mean and std",
-    ),
-    dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP),
-):
+    )
+    dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP)
+
+
+@app.command()
+@options_command(SweepOptions)
+def sweep(o: SweepOptions):
     """λ-sweep on one system: prints L_e(λ) and the verdict; writes results.json and an L_e(λ) plot."""
     from nnphd.engine.systems import get_system
 
     # --- validate everything before any work
     try:
         overrides = {}
-        for item in param:
+        for item in o.param:
             if "=" not in item:
                 raise InputError(f"--param must look like name=value, got {item!r}")
             k, v = item.split("=", 1)
@@ -94,31 +103,28 @@ def sweep(
                 raise InputError(f"--param {k.strip()} must be a number, got {v!r}") from None
             if not math.isfinite(overrides[k.strip()]):
                 raise InputError(f"--param {k.strip()} must be a finite number, got {v!r}")
-        sysm = get_system(system, **overrides)
-        pp = parse_loss_p(p)
-        lams = parse_lambdas(lambdas)
-        claim_out(out)
+        sysm = get_system(o.system, **overrides)
+        pp = parse_loss_p(o.p)
+        lams = parse_lambdas(o.lambdas)
+        claim_out(o.out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
     from nnphd.engine.models import ModelConfig
-    from nnphd.paper.sweep import run_sweep
+    from nnphd.paper.sweep import SweepSettings, run_sweep
 
     console.print(f"[bold]{sysm.name}[/]: {sysm.description}")
+    settings = SweepSettings(
+        p=pp,
+        steps=o.steps,
+        seed=o.seed,
+        lambdas=lams,
+        mode=o.mode.value,
+        model_cfg=ModelConfig(n=sysm.n, dtype=o.dtype.value),
+        standardize=o.standardize,
+    )
     with progress_bar("λ-sweep (first λ includes compilation)") as bar:
-        res = run_sweep(
-            sysm,
-            p=pp,
-            steps=steps,
-            seed=seed,
-            lambdas=lams,
-            mode=mode.value,
-            out=out,
-            resume=resume,
-            standardize=standardize,
-            progress=bar,
-            model_cfg=ModelConfig(n=sysm.n, dtype=dtype.value),
-        )
+        res = run_sweep(sysm, settings, out=o.out, resume=o.resume, progress=bar)
     t = Table(title=f"L_e(λ) — {sysm.name}, p={pp}")
     has_m = res.table[0].m_c is not None
     for col in ("λ", "L_e", "L_b") + (("m_c", "m_n") if has_m else ()):
@@ -138,7 +144,7 @@ def sweep(
     )
     pr = res.protocol
     if pr is not None:
-        paper_steps = steps * len(res.settings["lambdas"])
+        paper_steps = o.steps * len(res.settings["lambdas"])
         if pr["ran_paper_protocol"]:
             console.print(f"fast mode: the first verdict was close ({'; '.join(pr['doubts'])}): ran the paper protocol")
         else:
@@ -148,68 +154,74 @@ def sweep(
             )
     if res.resumed_lambdas:
         console.print(f"resumed {len(res.resumed_lambdas)} finished λ from a checkpoint")
-    console.print(_r(f"wrote {out}/results.json and {out}/loss_vs_lambda.png ({res.wall_time_s:.1f} s)"))
+    console.print(_r(f"wrote {o.out}/results.json and {o.out}/loss_vs_lambda.png ({res.wall_time_s:.1f} s)"))
+
+
+@dataclass(frozen=True)
+class DiscoverOptions:
+    """``nnphd discover``'s options as given on the command line (typer fills them:
+    :func:`nnphd.cli.common.options_command`)."""
+
+    system: DiscoverySystem | None = typer.Option(None, "--system", "-s", help="one Table I system")
+    all_: bool = typer.Option(False, "--all", help="all three systems, our Table II beside the paper's, and Fig. 3")
+    steps: int = typer.Option(
+        2000, "--steps", min=4, max=MAX_STEPS, help="training steps of the constrained Lagrangian + UAN"
+    )
+    sweep_steps: int = typer.Option(
+        2000, "--sweep-steps", min=4, max=MAX_STEPS, help="training steps per λ of the detection sweep"
+    )
+    lam: float = typer.Option(0.2, "--lam", help="λ of the constrained training, in (0, 1) (paper: 0.2)")
+    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed")
+    standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs")
+    n_steps: int = typer.Option(
+        0, "--n-steps", min=0, help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"
+    )
+    sr_time: int = typer.Option(
+        20, "--sr-time", min=0, help="seconds of genetic symbolic regression per force component (0: skip)"
+    )
+    out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)")
+    dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP)
 
 
 @app.command()
-def discover(
-    system: DiscoverySystem | None = typer.Option(None, "--system", "-s", help="one Table I system"),
-    all_: bool = typer.Option(False, "--all", help="all three systems, our Table II beside the paper's, and Fig. 3"),
-    steps: int = typer.Option(
-        2000, "--steps", min=4, max=MAX_STEPS, help="training steps of the constrained Lagrangian + UAN"
-    ),
-    sweep_steps: int = typer.Option(
-        2000, "--sweep-steps", min=4, max=MAX_STEPS, help="training steps per λ of the detection sweep"
-    ),
-    lam: float = typer.Option(0.2, "--lam", help="λ of the constrained training, in (0, 1) (paper: 0.2)"),
-    seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed"),
-    standardize: bool = typer.Option(True, "--standardize/--no-standardize", help="standardise the networks' inputs"),
-    n_steps: int = typer.Option(
-        0, "--n-steps", min=0, help="RK4 steps of the trajectory (0: 600/1000/1000; the paper's: 300/1000/300)"
-    ),
-    sr_time: int = typer.Option(
-        20, "--sr-time", min=0, help="seconds of genetic symbolic regression per force component (0: skip)"
-    ),
-    out: str = typer.Option("out/discover", "--out", help="output directory (one subdirectory per system)"),
-    dtype: Precision = typer.Option(Precision.float64, "--dtype", help=DTYPE_HELP),
-):
+@options_command(DiscoverOptions)
+def discover(o: DiscoverOptions):
     """Rediscover friction, Neptune or gravitational waves: verdict, Table II row, blind formula (paper Fig. 3, Table II)."""
     from nnphd.paper.discover import DISCOVERY_SYSTEMS
 
     try:
-        if all_ == (system is not None):
+        if o.all_ == (o.system is not None):
             raise InputError("give either --system (double-pendulum, neptune, gw) or --all")
-        if 0 < n_steps < 20:
-            raise InputError(f"--n-steps must be 0 (default) or ≥ 20, got {n_steps!r}")
-        lam_v = lam
+        if 0 < o.n_steps < 20:
+            raise InputError(f"--n-steps must be 0 (default) or ≥ 20, got {o.n_steps!r}")
+        lam_v = o.lam
         if not (0 < lam_v < 1):
-            raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {lam!r}")
-        claim_out(out)
+            raise InputError(f"--lam must be a number in (0, 1) (below the phase transition), got {o.lam!r}")
+        claim_out(o.out)
     except ValueError as e:
         raise InputError(str(e)) from None
 
     from pathlib import Path
 
+    from nnphd.paper.discover import DiscoverSettings, write_discovery, write_table2
     from nnphd.paper.discover import discover as run_discover
-    from nnphd.paper.discover import write_discovery, write_table2
 
-    systems_ = DISCOVERY_SYSTEMS if all_ else (system.value,)
+    settings = DiscoverSettings(
+        steps=o.steps,
+        sweep_steps=o.sweep_steps,
+        lam=lam_v,
+        seed=o.seed,
+        standardize=o.standardize,
+        n_steps=o.n_steps or None,
+        sr_time=o.sr_time,
+        dtype=o.dtype.value,
+    )
+    systems_ = DISCOVERY_SYSTEMS if o.all_ else (o.system.value,)
     results = []
     for name in systems_:
         with progress_bar(f"{name}: starting") as bar:
-            res = run_discover(
-                name,
-                steps=steps,
-                sweep_steps=sweep_steps,
-                lam=lam_v,
-                seed=seed,
-                standardize=standardize,
-                progress=bar,
-                n_steps=n_steps or None,
-                sr_time=sr_time,
-                dtype=dtype.value,
-            )
-        write_discovery(res, Path(out) / name)
+            res = run_discover(name, settings, progress=bar)
+        write_discovery(res, Path(o.out) / name)
         results.append(res)
         v = res["verdict"]
         tag = "[bold red]NEW PHYSICS[/]" if res["new_physics"] else "[bold green]no new physics[/]"
@@ -246,11 +258,11 @@ def discover(
                 f"{r['posthoc']:.4g}",
             )
     console.print(t)
-    if all_:
-        write_table2(results, out)
-        console.print(_r(f"wrote {out}/<system>/results.json, {out}/fig3_loss_vs_lambda.png, {out}/table2.json"))
+    if o.all_:
+        write_table2(results, o.out)
+        console.print(_r(f"wrote {o.out}/<system>/results.json, {o.out}/fig3_loss_vs_lambda.png, {o.out}/table2.json"))
     else:
-        console.print(_r(f"wrote {out}/{system}/results.json and loss_vs_lambda.png"))
+        console.print(_r(f"wrote {o.out}/{o.system}/results.json and loss_vs_lambda.png"))
 
 
 def _print_claims(claims) -> None:
@@ -279,10 +291,10 @@ def predict(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from nnphd.paper.predict import LABELS, MODELS, THETA_TOL, run_prediction
+    from nnphd.paper.predict import LABELS, MODELS, THETA_TOL, PredictionSettings, run_prediction
 
     with progress_bar("starting") as bar:
-        res = run_prediction(seed=seed, steps=steps, out=out, uan_time=uan_time, progress=bar)
+        res = run_prediction(PredictionSettings(seed=seed, steps=steps, uan_time=uan_time), out=out, progress=bar)
     t = Table(title=f"prediction from t = 30 (train t ≤ 30), {steps} training steps, seed {seed}")
     for col in (
         "model",
@@ -351,20 +363,11 @@ def study_lambda_p(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from nnphd.paper.lambda_p import lambda_p_study
+    from nnphd.paper.lambda_p import LambdaPSettings, lambda_p_study
 
+    settings = LambdaPSettings(steps=steps, seed=seed, lambdas=lams, ps=pvals, systems=syss)
     with progress_bar("λ/p study (each sweep compiles first)") as bar:
-        res = lambda_p_study(
-            steps=steps,
-            seed=seed,
-            lambdas=lams,
-            ps=pvals,
-            systems=syss,
-            out=out,
-            progress=bar,
-            workers=workers,
-            scheduler=scheduler,
-        )
+        res = lambda_p_study(settings, out=out, progress=bar, workers=workers, scheduler=scheduler)
     t = Table(title=f"verdicts — {steps} steps per λ, seed {seed}, L_e on the test set")
     for col in ("system", "loss", "L_e λ<1", "L_e λ>1", "stat.", "verdict", "sharpness", "rise"):
         t.add_column(col, justify="right")
@@ -423,12 +426,11 @@ def study_data_quality(
     except ValueError as e:
         raise InputError(str(e)) from None
 
-    from nnphd.paper.data_quality import data_quality_study
+    from nnphd.paper.data_quality import DataQualitySettings, data_quality_study
 
+    settings = DataQualitySettings(steps=steps, seed=seed, alphas=al, betas=be)
     with progress_bar("data-quality study: starting") as bar:
-        res = data_quality_study(
-            steps=steps, seed=seed, alphas=al, betas=be, out=out, progress=bar, workers=workers, scheduler=scheduler
-        )
+        res = data_quality_study(settings, out=out, progress=bar, workers=workers, scheduler=scheduler)
     s = res.settings
     t = Table(title=f"HO+CD, λ={s['lam_alpha']:g}: L_e vs pie coverage α (p=1, {steps} steps)")
     for col in ("α", "L_e (test, same α)", "L_e (train)", "L_e (full Gaussian)", "L_b"):
@@ -520,11 +522,11 @@ def demo_neptune(
         claim_out(out)
     except ValueError as e:
         raise InputError(str(e)) from None
-    from nnphd.astro.neptune import print_summary, run_neptune_demo
+    from nnphd.astro.neptune import NeptuneSettings, print_summary, run_neptune_demo
 
     try:
         with progress_bar("neptune: starting") as bar:
-            res = run_neptune_demo(out=out, seed=seed, progress=bar)
+            res = run_neptune_demo(NeptuneSettings(seed=seed), out=out, progress=bar)
     except EphemerisUnavailable as e:
         raise InputError(str(e)) from None
     print_summary(res, console)

@@ -40,7 +40,9 @@ from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.train import (
     PAPER_LAMBDAS,
     SWEEP_MODES,
+    SweepHooks,
     SweepPoint,
+    SweepSchedule,
     TrainConfig,
     as_arrays,
     loss_terms,
@@ -49,7 +51,6 @@ from nnphd.engine.train import (
     validate_lambdas,
 )
 from nnphd.engine.verdict import PhaseTransition, force_norm, verdict
-from nnphd.io.progress import Progress
 
 FIRST_LAMBDAS: tuple[float, ...] = (0.1, 0.5, 2.0, 10.0)
 # Theorem 1: at every λ < 1 the minimiser's UAN carries exactly f_n, so its output L_b is the same at each of them.
@@ -216,34 +217,31 @@ def fast_sweep(
     seed: int = 0,
     test_data=None,
     rule: StopRule = StopRule(),
-    progress: Progress | None = None,
-    resume: dict | None = None,
-    on_point: Callable[[SweepPoint], None] | None = None,
+    hooks: SweepHooks = SweepHooks(),
 ) -> tuple[list[SweepPoint], FastInfo]:
     """The λ-sweep of :func:`nnphd.engine.train.sweep` with convergence stopping and an adaptive grid (module doc).
 
     ``lambdas`` is the paper protocol's grid. Returns the points of the protocol whose verdict stands (the four
     converged λ, or every λ of the paper's protocol), sorted by λ, and what it did. Only the paper protocol's points
-    go to ``on_point`` (a checkpoint); a ``resume`` (λ → point) therefore continues the paper's protocol.
+    go to ``hooks.on_point`` (a checkpoint); a ``hooks.resume`` (λ → point) therefore continues the paper's protocol.
     """
     pool = validate_lambdas(lambdas)
     if not any(x < 1 for x in pool) or not any(x > 1 for x in pool):
         raise ValueError("the λ grid must contain values below and above 1 to read the phase transition")
     first = first_lambdas(pool)
+    resume, progress = hooks.resume, hooks.progress
     paper = partial(
         sweep,
         train_data,
         cfg,
         tcfg,
-        pool,
+        SweepSchedule(pool, "warm"),
         seed=seed,
         test_data=test_data,
-        mode="warm",
-        progress=progress,
-        on_point=on_point,
+        hooks=hooks,  # an empty hooks.resume: the paper protocol starts afresh
     )
     if resume:
-        pts = paper(resume=resume)
+        pts = paper()
         return pts, FastInfo({lam: tcfg.steps for lam in pool}, first, ["resumed the paper protocol"], True)
     dtype = jnp.dtype(cfg.dtype)
     k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))

@@ -14,7 +14,7 @@ not identifiable (L and αL give the same motion); :meth:`FeatureLagrangian.norm
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -116,21 +116,9 @@ class ConstrainedModel:
         return ConstrainedFit(np.asarray(self.coefs(params)), np.asarray(fc), np.asarray(fn), float(le), float(lb))
 
 
-def constrained_model(
-    data,
-    fl: FeatureLagrangian,
-    steps: int = 2000,
-    seed: int = 0,
-    p: float | str = 1.0,
-    cfg: ModelConfig | None = None,
-    *,
-    c_init=None,
-    coef_scale=None,
-    uan_scale: float | None = None,
-) -> ConstrainedModel:
-    """L = c·φ with a UAN on ``data``, set up for training (paper: Adam {1e-2…1e-5}, 2000 steps); c starts at 1.
-
-    Optional scaling for a faint remainder (all None = the paper's setup, unchanged):
+@dataclass(frozen=True, eq=False)
+class ConstrainedScaling:
+    """Optional scaling of a constrained model for a faint remainder (all None = the paper's setup, unchanged):
 
     * ``c_init`` — starting coefficients (default all ones);
     * ``coef_scale`` — scalar or per-coefficient array s_c: the coefficients are trained as c = c_init + s_c·θ with θ
@@ -139,12 +127,33 @@ def constrained_model(
     * ``uan_scale`` — the UAN's output is multiplied by it, so f_n starts at and is resolved on that scale instead
       of O(1) (set it to the size of the remainder when f_n is many orders smaller than f).
 
+    :func:`constrained_model` checks the values against the feature set."""
+
+    c_init: Sequence[float] | np.ndarray | None = None
+    coef_scale: float | Sequence[float] | np.ndarray | None = None
+    uan_scale: float | None = None
+
+
+def constrained_model(
+    data,
+    fl: FeatureLagrangian,
+    steps: int = 2000,
+    seed: int = 0,
+    p: float | str = 1.0,
+    cfg: ModelConfig | None = None,
+    *,
+    scaling: ConstrainedScaling = ConstrainedScaling(),
+) -> ConstrainedModel:
+    """L = c·φ with a UAN on ``data``, set up for training (paper: Adam {1e-2…1e-5}, 2000 steps); c starts at 1
+    unless ``scaling`` (:class:`ConstrainedScaling`, for a faint remainder) says otherwise.
+
     ``L_e``, ``L_b``, ``fc``, ``fn`` and ``coefs`` are always in the data's units.
     """
     n = data.q.shape[1]
     cfg = cfg or ModelConfig(n=n)
     tcfg = TrainConfig(steps=steps, p=p)
     n_c = len(fl.names)
+    c_init, coef_scale, uan_scale = scaling.c_init, scaling.coef_scale, scaling.uan_scale
     if c_init is not None:
         c_init = np.asarray(c_init, dtype=np.float64)
         if c_init.shape != (n_c,) or not np.all(np.isfinite(c_init)):
@@ -191,7 +200,7 @@ def constrained_model(
 
 def train_constrained(data, fl: FeatureLagrangian, lam: float = 0.2, **model_kw) -> ConstrainedFit:
     """Train L = c·φ jointly with the UAN on ``data`` at one λ (paper: λ = 0.2); ``model_kw`` (steps, seed, p, cfg,
-    c_init, coef_scale, uan_scale) as :func:`constrained_model`."""
+    scaling) as :func:`constrained_model`."""
     cm = constrained_model(data, fl, **model_kw)
     params, _ = cm.trainer()(cm.params0, cm.arrays, lam, cm.key)
     return cm.fit(params)

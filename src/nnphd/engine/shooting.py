@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -17,6 +20,66 @@ MAX_WINDOW = 80
 
 
 WINDOW_PERIODS = 0.75
+
+
+class ShootingWindows(NamedTuple):
+    """The windows to fit, as JAX arrays (a pytree: traced under jax.jit): ``tw`` (W, L) the times from each window's
+    start (a padded row repeats the last time: dt = 0), ``t0w`` (W,) the windows' start times (the model's time is
+    t0w + tw), ``qw`` (W, L, n) the positions, ``mask`` (W, L) 1 on a recorded row and 0 on padding, ``inv_sigma``
+    (n,) the residuals' weights 1/σ."""
+
+    tw: jax.Array
+    t0w: jax.Array
+    qw: jax.Array
+    mask: jax.Array
+    inv_sigma: jax.Array
+
+
+@dataclass(frozen=True)
+class Integrator:
+    """The model integrated across every window: q̈ = ``rhs``(theta, q, v, t, aux), by RK4 with ``nsub`` sub-steps
+    per sample step. A static argument of the compiled shooting functions (hashable: ``rhs`` by identity), so one
+    compiled function serves every call with the same right-hand side and sub-steps."""
+
+    rhs: Callable
+    nsub: int
+
+
+@dataclass(frozen=True)
+class LMSettings:
+    """Levenberg–Marquardt's settings (:func:`lm_windows`): at most ``iters`` iterations, stopping once χ² falls by
+    less than ``tol`` of itself; ``mu0`` the first damping (relative to the normal matrix's diagonal), smaller where
+    the start is known to be near an optimum."""
+
+    iters: int = 20
+    tol: float = 1e-8
+    mu0: float = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class ShootingData:
+    """What a shooting fit fits: ``q``, ``qd`` (N, n) the positions and the estimated velocities (these only start
+    the windows), ``t`` (N,) the times, ``segs`` the rows of each trajectory, ``sigma`` (n,) the position noise and
+    ``period`` the oscillation period (it sets the window length)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    t: np.ndarray
+    segs: Sequence[np.ndarray]
+    sigma: Sequence[float]
+    period: float
+
+
+@dataclass(frozen=True)
+class ShootingOptions:
+    """How a shooting fit measures: ``kinetic_weights`` (n,) the weights of d in d̄ (None: mean q̇_j²),
+    ``n_boot`` window-bootstrap replicas drawn from ``seed``, at most ``max_windows`` windows (an evenly spaced
+    subset beyond)."""
+
+    kinetic_weights: Sequence[float] | None = None
+    n_boot: int = 200
+    seed: int = 0
+    max_windows: int = 400
 
 
 def shooting_windows(
@@ -126,14 +189,12 @@ def damping_rhs(accel):
     return rhs
 
 
-def _residuals_and_jac(params, s, theta, tw, qw, mask, inv_sigma, accel, nsub):
+def _residuals_and_jac(params, s, theta, windows: ShootingWindows, model: Integrator):
     """Residuals (W, L, n) of the windows under the damping probe and their forward derivatives along every local
     direction (one direction perturbs the same component of every window's initial state; windows are independent)
     and every global one (see :func:`model_residuals_and_jac`) — by the two programs :func:`_lm` runs (the numbers
     of :func:`model_residuals_and_jac`, bit for bit), so that no third is compiled."""
-    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), damping_rhs(accel)
-    args = (params, tw, t0w, qw, mask, inv_sigma)
-    return model_residuals(s, theta, *args, rhs=rhs, nsub=nsub), model_jac(s, theta, *args, rhs=rhs, nsub=nsub)
+    return model_residuals(s, theta, params, windows, model), model_jac(s, theta, params, windows, model)
 
 
 def _solve(A, b):
@@ -175,21 +236,19 @@ def schur_complement(AtA, AtB, BtB, Atr, Btr, mu, free):
     return S, g, XB, Xr
 
 
-def _lm(params, accel, s, theta, tw, qw, mask, inv_sigma, nsub, free, iters=20, tol=1e-8):
+def _lm(params, model: Integrator, s, theta, windows: ShootingWindows, free, settings: LMSettings = LMSettings()):
     """Levenberg–Marquardt over window initial states and the free global parameters."""
 
-    t0w, rhs = jnp.zeros(tw.shape[0], tw.dtype), damping_rhs(accel)
-
     def jac(s_, th_):  # at an accepted point: its trial's residuals are kept, the simulation not run again
-        return model_jac(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
+        return model_jac(s_, th_, params, windows, model)
 
     def res(s_, th_):
-        return model_residuals(s_, th_, params, tw, t0w, qw, mask, inv_sigma, rhs=rhs, nsub=nsub)
+        return model_residuals(s_, th_, params, windows, model)
 
-    return lm_windows(None, s, theta, free, iters, tol, res=res, jac_fn=jac)
+    return lm_windows(None, s, theta, free, settings, res=res, jac_fn=jac)
 
 
-def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None, mu0=1e-3, info=None):
+def lm_windows(resjac, s, theta, free, settings: LMSettings = LMSettings(), res=None, jac_fn=None, info=None):
     """Levenberg–Marquardt over per-window states ``s`` (W, P_loc) and global parameters ``theta`` (only the ``free``
     ones move); ``resjac(s, theta)`` → residuals (W, L, n) and forward derivatives (P_loc + P_glob, W, L, n). The
     window states are eliminated per step (Schur complement). Returns (s, theta, r, jac, χ²).
@@ -200,11 +259,12 @@ def lm_windows(resjac, s, theta, free, iters=20, tol=1e-8, res=None, jac_fn=None
     ``jac_fn(s, theta)`` → the derivatives alone (with ``res``; ``resjac`` may then be None): at an accepted point
     the residuals of its trial are kept, and the simulation is not run a second time (a seventh of the time of
     ``resjac``). The numbers are those of ``resjac`` (:func:`model_residuals` and :func:`model_jac` give
-    :func:`model_residuals_and_jac`'s, bit for bit: tests/test_speed_equivalence.py). ``mu0``: the first damping
-    (relative to the normal matrix's diagonal); smaller where the start is known to be near an optimum. ``info``: a
-    dict, given, gets ``converged`` — False when the iterations ran out with χ² still falling by more than ``tol``."""
+    :func:`model_residuals_and_jac`'s, bit for bit: tests/test_speed_equivalence.py). ``settings``: the iterations,
+    the tolerance and the first damping (:class:`LMSettings`). ``info``: a dict, given, gets ``converged`` — False
+    when the iterations ran out with χ² still falling by more than ``settings.tol``."""
+    iters, tol = settings.iters, settings.tol
     P_loc = s.shape[1]
-    mu = mu0
+    mu = settings.mu0
     if jac_fn is not None:
         r, jac = np.asarray(res(s, theta)), np.asarray(jac_fn(s, theta))
     else:
@@ -259,8 +319,10 @@ RK4_A = (0.0, 0.5, 0.5, 1.0)
 RK4_B = (1.0, 2.0, 2.0, 1.0)
 
 
-def _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+def _simulate(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """Weighted position residuals (W, L, n) of the windows started at states ``s`` under q̈ = rhs(theta, …)."""
+    tw, t0w, qw, mask, inv_sigma = windows
+    rhs, nsub = model.rhs, model.nsub
     n = qw.shape[-1]
     q0, v0 = s[:, :n], s[:, n:]
 
@@ -293,19 +355,19 @@ def _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
     return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
 
 
-@functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
-def model_residuals(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+@functools.partial(jax.jit, static_argnames=("model",))
+def model_residuals(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """The residuals of :func:`model_residuals_and_jac` alone: what a trial step of :func:`lm_windows` needs (one
     simulation instead of one per direction)."""
-    return _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
+    return _simulate(s, theta, aux, windows, model)
 
 
-def _jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+def _jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """The forward derivatives (P_loc + P_glob, W, L, n) of :func:`_simulate`'s residuals along every local and
     global direction (see :func:`model_residuals_and_jac`)."""
 
     def simulate(s, theta):
-        return _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
+        return _simulate(s, theta, aux, windows, model)
 
     P_loc, P_glob = s.shape[1], theta.shape[0]
     ds = jnp.concatenate(
@@ -319,20 +381,20 @@ def _jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
     return jax.vmap(lambda a, b: jax.jvp(simulate, (s, theta), (a, b))[1])(ds, dth)
 
 
-@functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
-def model_residuals_and_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+@functools.partial(jax.jit, static_argnames=("model",))
+def model_residuals_and_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """Like :func:`_residuals_and_jac` for any model q̈ = rhs(theta, q, v, t, aux) (batched over windows; t the
-    absolute time: window start ``t0w`` plus the window clock ``tw``; ``aux`` any data the model needs, not
-    differentiated — so one compiled function serves many models that differ only in data)."""
-    r = _simulate(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
-    return r, _jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
+    absolute time: window start ``windows.t0w`` plus the window clock ``windows.tw``; ``aux`` any data the model
+    needs, not differentiated — so one compiled function serves many models that differ only in data)."""
+    r = _simulate(s, theta, aux, windows, model)
+    return r, _jac(s, theta, aux, windows, model)
 
 
-@functools.partial(jax.jit, static_argnames=("rhs", "nsub"))
-def model_jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub):
+@functools.partial(jax.jit, static_argnames=("model",))
+def model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """The forward derivatives of :func:`model_residuals_and_jac` alone: where :func:`lm_windows` has just computed
     the residuals at the point (:func:`model_residuals`, the same numbers), the simulation is not run again."""
-    return _jac(s, theta, aux, tw, t0w, qw, mask, inv_sigma, rhs, nsub)
+    return _jac(s, theta, aux, windows, model)
 
 
 def pad_windows(wins, t, q, x0):
@@ -352,20 +414,7 @@ def pad_windows(wins, t, q, x0):
     return tw, qw, mask, s0
 
 
-def shooting_fit(
-    accel,
-    params,
-    q,
-    qd,
-    t,
-    segs,
-    sigma,
-    period: float,
-    kinetic_weights=None,
-    n_boot: int = 200,
-    seed: int = 0,
-    max_windows: int = 400,
-) -> dict:
+def shooting_fit(accel, params, data: ShootingData, options: ShootingOptions = ShootingOptions()) -> dict:
     """See :func:`shooting_fit_on_windows`; a fit that cannot be carried out (the model's trajectories leave the finite
     numbers, singular normal equations) or that collapses (:func:`collapsed`) is reported as ``valid: False`` with
     the reason, never raised. Such a fit is tried again on windows half and a quarter as long (on chaotic motion a
@@ -375,9 +424,7 @@ def shooting_fit(
     for periods in (WINDOW_PERIODS, WINDOW_PERIODS / 2, WINDOW_PERIODS / 4):
         try:
             with np.errstate(all="ignore"):
-                out = shooting_fit_on_windows(
-                    accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows, periods
-                )
+                out = shooting_fit_on_windows(accel, params, data, options, periods)
         except (np.linalg.LinAlgError, FloatingPointError, ValueError) as e:
             out = {"valid": False, "reason": f"the shooting fit failed ({e.__class__.__name__}: {e})"}
         out["window_periods"], out["fallbacks"] = periods, list(tried)
@@ -404,26 +451,35 @@ def collapsed(d, se_d_mean: float, d_start, period: float) -> str | None:
     return None
 
 
+def _device_windows(tw, qw, mask, inv_sigma) -> ShootingWindows:
+    """The padded windows as JAX arrays, every window's clock starting at 0 (the damping probe is autonomous)."""
+    tw = jnp.asarray(tw)
+    return ShootingWindows(
+        tw, jnp.zeros(tw.shape[0], tw.dtype), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma)
+    )
+
+
 def shooting_fit_on_windows(
-    accel, params, q, qd, t, segs, sigma, period, kinetic_weights, n_boot, seed, max_windows, periods=WINDOW_PERIODS
+    accel, params, data: ShootingData, options: ShootingOptions, periods: float = WINDOW_PERIODS
 ):
     """Multiple-shooting fit of q̈ = (1 + c) f_c(q, q̇) − diag(d) q̇ to the positions (see the module docstring).
 
-    ``accel(params, q, qd)`` is the conservative model (batched, JAX); q, qd (N, n) the positions and the estimated
-    velocities (used only to start the windows); t (N,); segs: rows per trajectory; sigma (n,) the position noise;
-    period: oscillation period (sets the window length). ``kinetic_weights`` (n,): weights of d in d̄ (default
-    mean q̇_j²). Returns the fitted ``c``, ``d`` (n,), ``d_mean`` (= d̄), their standard errors (``se_*``: max of
-    jackknife over groups of windows and model-based), ``z`` = d̄/se(d̄), the χ² with and without d (``chi2``,
-    ``chi2_conservative``; positions weighted by sigma), the window count and length, and ``bootstrap_z`` (d̄ of
-    window-bootstrap replicas over se(d̄)).
+    ``accel(params, q, qd)`` is the conservative model (batched, JAX); ``data`` the positions, velocities, times,
+    trajectories, position noise and period (:class:`ShootingData`); ``options`` the weights of d in d̄, the
+    bootstrap and the window cap (:class:`ShootingOptions`); ``periods`` the window length in periods. Returns the
+    fitted ``c``, ``d`` (n,), ``d_mean`` (= d̄), their standard errors (``se_*``: max of jackknife over groups of
+    windows and model-based), ``z`` = d̄/se(d̄), the χ² with and without d (``chi2``, ``chi2_conservative``;
+    positions weighted by sigma), the window count and length, and ``bootstrap_z`` (d̄ of window-bootstrap replicas
+    over se(d̄)).
     """
-    q = np.asarray(q, float)
-    qd = np.asarray(qd, float)
-    t = np.asarray(t, float)
+    segs, sigma, period = data.segs, data.sigma, data.period
+    q = np.asarray(data.q, float)
+    qd = np.asarray(data.qd, float)
+    t = np.asarray(data.t, float)
     n = q.shape[1]
     wins = shooting_windows(segs, t, period, periods=periods)
-    if len(wins) > max_windows:  # evenly spaced subset: bounded cost on very long records
-        keep = np.unique(np.linspace(0, len(wins) - 1, max_windows).round().astype(int))
+    if len(wins) > options.max_windows:  # evenly spaced subset: bounded cost on very long records
+        keep = np.unique(np.linspace(0, len(wins) - 1, options.max_windows).round().astype(int))
         wins = [wins[i] for i in keep]
     out = {"valid": False, "n_windows": len(wins)}
     if len(wins) < 3:
@@ -438,9 +494,9 @@ def shooting_fit_on_windows(
     vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
     nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
     inv_sigma = 1.0 / sig
-    args = (jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma))
+    windows, model = _device_windows(tw, qw, mask, inv_sigma), Integrator(damping_rhs(accel), nsub)
     theta0 = np.zeros(1 + n)
-    r0, j0 = (np.asarray(a) for a in _residuals_and_jac(params, s0, theta0, *args, accel, nsub))
+    r0, j0 = (np.asarray(a) for a in _residuals_and_jac(params, s0, theta0, windows, model))
     bad = ~(np.all(np.isfinite(r0), axis=(1, 2)) & np.all(np.isfinite(j0), axis=(0, 2, 3)))
     out["dropped_windows"] = int(bad.sum())
     if bad.any():  # windows where the conservative model leaves the finite numbers from the data's start
@@ -449,11 +505,11 @@ def shooting_fit_on_windows(
             return out
         wins = [w_ for w_, b in zip(wins, bad) if not b]
         tw, qw, mask, s0 = (a[~bad] for a in (tw, qw, mask, s0))
-        args = (jnp.asarray(tw), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma))
+        windows = _device_windows(tw, qw, mask, inv_sigma)
     free_c = np.array([True] + [False] * n)
     free_all = np.ones(1 + n, dtype=bool)
-    s_c, th_c, _, _, chi2_c = _lm(params, accel, s0, theta0, *args, nsub, free_c)
-    _s, th, r, jac, chi2 = _lm(params, accel, s_c, th_c, *args, nsub, free_all)
+    s_c, th_c, _, _, chi2_c = _lm(params, model, s0, theta0, windows, free_c)
+    _s, th, r, jac, chi2 = _lm(params, model, s_c, th_c, windows, free_all)
     if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
         out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
         return out
@@ -474,7 +530,7 @@ def shooting_fit_on_windows(
     reps = np.asarray(reps)
     # jackknife variance (G-1)/G Σ (θ_(g) − θ̄)²; np.cov with bias=True divides by G
     cov_jack = (G - 1) * np.cov(reps.T, bias=True) if G > 1 else np.zeros_like(Stot)
-    w = np.mean(qd**2, axis=0) if kinetic_weights is None else np.asarray(kinetic_weights, float)
+    w = np.mean(qd**2, axis=0) if options.kinetic_weights is None else np.asarray(options.kinetic_weights, float)
     w = w / w.sum() if w.sum() > 0 else np.full(n, 1.0 / n)
     a = np.concatenate([[0.0], w])  # d̄ = a·θ
     var_model = float(a @ cov_model @ a)
@@ -482,9 +538,9 @@ def shooting_fit_on_windows(
     se_mean = math.sqrt(max(var_model, var_jack, 1e-300))
     se_d = np.sqrt(np.maximum(np.diag(cov_model), np.diag(cov_jack)))
     d_mean = float(a @ th)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(options.seed)
     zb = []
-    for _ in range(n_boot):
+    for _ in range(options.n_boot):
         idx = rng.integers(0, W, W)
         Sb, gb = S[idx].sum(0), g[idx].sum(0)
         thb = th - _solve(Sb, gb)

@@ -12,7 +12,7 @@ trainer serves every λ (and ``vmap`` over λ trains all of them at once).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import partial
 
@@ -199,41 +199,66 @@ class SweepPoint:
 SWEEP_MODES = ("warm", "vmap", "scratch")
 
 
+@dataclass(frozen=True)
+class SweepSchedule:
+    """The λ values of a sweep and how they are trained (:func:`lambda_sweep`): ``lambdas`` (positive, distinct;
+    stored as a tuple of floats), the ``mode`` (one of :data:`SWEEP_MODES`) and, in warm mode, whether the chain runs
+    in ``descending`` order of λ (default: increasing)."""
+
+    lambdas: tuple[float, ...] = PAPER_LAMBDAS
+    mode: str = "warm"
+    descending: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "lambdas", validate_lambdas(self.lambdas))
+        if self.mode not in SWEEP_MODES:
+            raise ValueError(f"mode must be one of {', '.join(SWEEP_MODES)}, got {self.mode!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class SweepHooks:
+    """How a λ-sweep resumes and reports: ``resume`` maps λ → a finished result to skip (params for
+    :func:`lambda_sweep`, a :class:`SweepPoint` with params for :func:`sweep`); ``on_point`` is called for every λ
+    trained (with ``(lam, params)`` in :func:`lambda_sweep`, with the :class:`SweepPoint` in :func:`sweep`);
+    ``progress(done, total, message)`` after every λ."""
+
+    resume: Mapping | None = None
+    on_point: Callable | None = None
+    progress: Progress | None = None
+
+
 def lambda_sweep(
     train: Callable,
     params0,
     arrays,
-    lambdas: Sequence[float],
+    schedule: SweepSchedule,
     key,
-    mode: str = "warm",
-    *,
-    descending: bool = False,
-    resume: dict | None = None,
+    hooks: SweepHooks = SweepHooks(),
     accept: Callable | None = None,
-    on_point: Callable | None = None,
-    progress: Progress | None = None,
 ) -> dict:
-    """The one λ-sweep: train ``train`` (any model and loss, from :func:`make_trainer`) at every λ; return λ → params.
+    """The one λ-sweep: train ``train`` (any model and loss, from :func:`make_trainer`) at every λ of ``schedule``;
+    return λ → params.
 
-    ``mode``:
+    ``schedule.mode``:
 
-    * ``"warm"`` — the paper's protocol (appendix B): λ in increasing order (decreasing with ``descending``), each run
-      starting from the previous λ's parameters; run j draws its minibatches from the j-th of ``split(key, len(λ))``;
+    * ``"warm"`` — the paper's protocol (appendix B): λ in increasing order (decreasing with ``schedule.descending``),
+      each run starting from the previous λ's parameters; run j draws its minibatches from the j-th of
+      ``split(key, len(λ))``;
     * ``"vmap"`` — every λ from ``params0`` with the same ``key``, all in one vmapped run;
     * ``"scratch"`` — the same as ``"vmap"`` (every λ from ``params0``, same ``key``), one λ after the other (less
       memory; the same numbers up to rounding).
 
-    ``resume`` maps λ → finished params to skip (warm mode continues from them). ``accept(lam, params)`` (warm mode)
-    returns the params the chain keeps for λ and continues from (default: the new ones). ``on_point(lam, params)``
-    is called for every λ trained here; ``progress(done, total, message)`` after every λ.
+    ``hooks.resume`` maps λ → finished params to skip (warm mode continues from them). ``accept(lam, params)`` (warm
+    mode) returns the params the chain keeps for λ and continues from (default: the new ones).
+    ``hooks.on_point(lam, params)`` is called for every λ trained here; ``hooks.progress(done, total, message)``
+    after every λ.
     """
-    lams = validate_lambdas(lambdas)
-    if mode not in SWEEP_MODES:
-        raise ValueError(f"mode must be one of {', '.join(SWEEP_MODES)}, got {mode!r}")
+    lams, mode = schedule.lambdas, schedule.mode
+    on_point, progress = hooks.on_point, hooks.progress
     dtype = jax.tree_util.tree_leaves(arrays)[0].dtype
-    done = dict(resume or {})
+    done = dict(hooks.resume or {})
     out: dict = {}
-    order = sorted(lams, reverse=descending)
+    order = sorted(lams, reverse=schedule.descending)
 
     def tick(j, lam):
         if progress:
@@ -286,25 +311,24 @@ def sweep(
     train_data,
     cfg: ModelConfig,
     tcfg: TrainConfig,
-    lambdas: Sequence[float] = PAPER_LAMBDAS,
+    schedule: SweepSchedule = SweepSchedule(),
     seed: int = 0,
     test_data=None,
-    mode: str = "warm",
-    progress: Progress | None = None,
-    resume: dict | None = None,
-    on_point: Callable[[SweepPoint], None] | None = None,
+    hooks: SweepHooks = SweepHooks(),
     keep_params: bool = True,
 ) -> list[SweepPoint]:
-    """Train NNPhD for each λ (:func:`lambda_sweep`) and record L_e(λ), L_b(λ) (and m_c, m_n when the data carry the
-    true split).
+    """Train NNPhD for each λ of ``schedule`` (:func:`lambda_sweep`) and record L_e(λ), L_b(λ) (and m_c, m_n when the
+    data carry the true split).
 
-    ``mode``: see :func:`lambda_sweep`. ``resume`` maps λ → a finished :class:`SweepPoint` (with params) to skip
-    (warm mode continues from its params).
+    ``schedule``: see :func:`lambda_sweep`. ``hooks.resume`` maps λ → a finished :class:`SweepPoint` (with params) to
+    skip (warm mode continues from its params); ``hooks.on_point(point)`` is called with every new
+    :class:`SweepPoint`.
     """
-    lams = validate_lambdas(lambdas)
+    lams = schedule.lambdas
+    on_point = hooks.on_point
     dtype = jnp.dtype(cfg.dtype)
     k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
-    points = {lam: pt for lam, pt in (resume or {}).items() if pt.params is not None}
+    points = {lam: pt for lam, pt in (hooks.resume or {}).items() if pt.params is not None}
 
     def finish(lam, params):
         points[lam] = pt = sweep_point(lam, params, train_data, test_data, cfg, tcfg.p)
@@ -315,12 +339,9 @@ def sweep(
         make_trainer(cfg, tcfg),
         init_nnphd(k_init, cfg),
         as_arrays(train_data, dtype),
-        lams,
+        schedule,
         k_train,
-        mode,
-        resume={lam: pt.params for lam, pt in points.items()},
-        on_point=finish,
-        progress=progress,
+        SweepHooks(resume={lam: pt.params for lam, pt in points.items()}, on_point=finish, progress=hooks.progress),
     )
     out = sorted((points[lam] for lam in set(lams)), key=lambda pt: pt.lam)
     if not keep_params:

@@ -20,8 +20,12 @@ A = 0 (dry friction ends the motion in finite time); a law that cannot be integr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from nnphd.explain.trajectory import Motion
 
 __all__ = ["envelope_evidence", "fit_envelope", "measured_envelope", "predicted_envelope", "swing_orbit"]
 
@@ -148,15 +152,16 @@ def tabulated_rate(law, grid, orbit: Orbit, times: tuple[float, float]) -> np.nd
 
 
 def envelope_report(
-    rows, q, qd, t, traj, sigma: float, period: float, limit: int = 4, angle: bool = False
+    rows, motion: Motion, sigma: float, period: float, limit: int = 4, angle: bool = False
 ) -> dict | None:
-    """The measured envelope of one coordinate and the envelope each of the first ``limit`` candidate laws of
-    ``rows`` (Candidate, best first; the zero law skipped) predicts, per trajectory from its first measured
-    amplitude; with each one's rms log-error against the measured amplitudes (JSON-ready). None without ≥ 4 half
-    swings or a finite period."""
+    """The measured envelope of the first coordinate of ``motion`` (its trajectory ids given; ``sigma`` its position
+    noise) and the envelope each of the first ``limit`` candidate laws of ``rows`` (Candidate, best first; the zero
+    law skipped) predicts, per trajectory from its first measured amplitude; with each one's rms log-error against
+    the measured amplitudes (JSON-ready). None without ≥ 4 half swings or a finite period."""
     if not np.isfinite(period) or period <= 0:
         return None
-    q, qd, t, traj = (np.asarray(a) for a in (q, qd, t, traj))
+    q, qd = np.asarray(motion.q)[:, 0], np.asarray(motion.qd)[:, 0]
+    q, qd, t, traj = (np.asarray(a) for a in (q, qd, motion.t, motion.traj))
     tm, A, k = measured_envelope(q, qd, t, traj, sigma)
     if len(A) < 4:
         return None

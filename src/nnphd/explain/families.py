@@ -382,7 +382,7 @@ def family_from_spec(spec: dict, names: Sequence[str]) -> Family:
 def perturber_family(names: Sequence[str]) -> Family:
     """A point mass on a circular orbit, g = GM (r_p(t) − q)/|r_p(t) − q|³, r_p = R (cos(ωt + φ), sin(ωt + φ)) (n = 2;
     the paper's Neptune). GM is linear; R, ω, φ are started from :func:`nnphd.explain.parametric.fit_perturber`'s grid
-    on the conservative residual (ctx["residual"]). Opt-in (``rank_laws(perturber=True)``): it only makes sense
+    on the conservative residual (ctx["residual"]). Opt-in (``rank_laws(candidates=CandidateSet(perturber=True))``): it only makes sense
     for orbits."""
 
     def _rp(xp, th, t):

@@ -4,8 +4,9 @@ Whatever found it — the ranked candidate table (:mod:`nnphd.explain.table`: th
 via :meth:`~nnphd.explain.table.Candidate.to_law`), a post-hoc parametric fit of a learned f_n
 (:mod:`nnphd.explain.parametric`: the paper's Table II hypotheses) or a blind formula
 (:mod:`nnphd.explain.sparse`, :mod:`nnphd.explain.symbolic`) — its result is a frozen :class:`Law`. ``status`` says
-what it is worth: "claimed" (the law), "tie" (the record cannot tell it from other families), "candidate" (fitted,
-not claimed) or "hint" (a blind formula: a suggestion, never the law).
+what it is worth (:class:`LawStatus`): "claimed" (the law), "tie" (the record cannot tell it from other families),
+"candidate" (fitted, not claimed) or "hint" (a blind formula: a suggestion, never the law). How a ranked law table
+ended — report.json's ``law.status`` — is a :class:`TableStatus`: "claimed", "tie" or "none" (no law claimed).
 
 Dicts only at the JSON boundary: :meth:`Law.to_dict` / :meth:`Law.from_dict` (checked as untrusted input, one
 ValueError naming the field); :meth:`Law.from_report` reads the claimed law of a report.json; the shapes older files
@@ -17,13 +18,45 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field, fields
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
 
-__all__ = ["STATUSES", "FittedFamily", "Law"]
+__all__ = ["STATUSES", "FittedFamily", "Law", "LawStatus", "TableStatus"]
 
-STATUSES = ("claimed", "tie", "candidate", "hint")  # what a Law is worth, from the law itself to a blind hint
+
+class LawStatus(StrEnum):
+    """What a :class:`Law` is worth, from the law itself to a blind hint. A str: ``LawStatus.CLAIMED == "claimed"``,
+    written to JSON as the plain word.
+
+    - ``CLAIMED``: the law — one family of the ranked table, the others clearly worse;
+    - ``TIE``: the first of families the record cannot tell apart (no family is claimed; predictions use it);
+    - ``CANDIDATE``: fitted, not claimed (a row of the table, a post-hoc parametric fit);
+    - ``HINT``: a blind formula — a suggestion, never the law."""
+
+    CLAIMED = "claimed"
+    TIE = "tie"
+    CANDIDATE = "candidate"
+    HINT = "hint"
+
+
+class TableStatus(StrEnum):
+    """How a ranked law table ended: :attr:`nnphd.explain.table.LawTable.status`, report.json's ``law.status``. A
+    str, written to JSON as the plain word.
+
+    - ``CLAIMED``: one family is claimed, the others clearly worse;
+    - ``TIE``: the record cannot tell the best family from others: no family is claimed;
+    - ``NONE``: no law is claimed — no candidate beats zero, or the verdict's rules withdrew the table's law
+      (:mod:`nnphd.user.rules`). Not the verdict's "none" (the motion is conservative): a verdict of "detected"
+      can stand without a law."""
+
+    CLAIMED = "claimed"
+    TIE = "tie"
+    NONE = "none"
+
+
+STATUSES = tuple(s.value for s in LawStatus)  # what a Law is worth, as plain words
 
 # a report's law.law (a candidate row of the table): its keys and their types, checked by Law.from_report
 _REPORT_KEYS = {"law": str, "title": str, "formula": dict, "latex": dict, "params": dict, "stderr": dict, "method": str}
@@ -80,7 +113,7 @@ class Law:
     stderr: dict[str, float]
     method: str
     table: tuple[dict, ...] = field(default=(), repr=False)
-    status: str = "claimed"
+    status: LawStatus = LawStatus.CLAIMED
     ties: tuple[dict, ...] = field(default=(), repr=False)
     rms: float | None = None
     rel_rms: float | None = None
@@ -88,6 +121,9 @@ class Law:
     readable: bool | None = None
     note: str = ""
     fitted: FittedFamily | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "status", LawStatus(self.status))  # a plain word is taken as its LawStatus
 
     def predict(self, q, qd, t=None, xp=np):
         """The law's force at states q, qd (N, n) and times t (N,; None: zeros): (N, n); ``xp`` numpy, or jax.numpy
@@ -147,7 +183,7 @@ class Law:
                 raise _error(where, f"law.law.{k} must be a {typ.__name__}")
         cands = _rows(table.get("candidates", []), "law.candidates", where)
         ties = _rows(table.get("ties", []), "law.ties", where)
-        status = _status(table.get("status", "claimed"), "law.status", where)
+        status = _status(table.get("status", LawStatus.CLAIMED), "law.status", where)
         return cls(
             w["law"],
             w["title"],
@@ -218,10 +254,10 @@ def _rows(v: Any, name: str, where: str) -> tuple[dict, ...]:
     return tuple(v)
 
 
-def _status(v: Any, name: str, where: str) -> str:
+def _status(v: Any, name: str, where: str) -> LawStatus:
     if v not in STATUSES:
         raise _error(where, f"{name} must be one of {', '.join(map(repr, STATUSES))}, got {v!r:.60}")
-    return v
+    return LawStatus(v)
 
 
 def _optional_number(v: Any, name: str, where: str) -> float | None:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -45,7 +46,7 @@ from nnphd.explain.table import (
     zero_row,
 )
 
-__all__ = ["rank_laws"]
+__all__ = ["CandidateSet", "ConservativeBase", "PointwiseSettings", "rank_laws"]
 
 
 LS_CELLS = 2**21  # complex cells per temporary of :func:`lomb_scargle_grid` (32 MB)
@@ -140,40 +141,69 @@ def _sparse_supports(prob: JointProblem, mons_n: int, n: int) -> list[np.ndarray
     return sups
 
 
+@dataclass(frozen=True, eq=False)
+class ConservativeBase:
+    """The conservative model the candidate laws are fitted jointly with: ``fc`` (N, n) a conservative force on the
+    rows whose scale is fitted (e.g. the LNN's; None: none); ``library`` the conservative correction library added
+    to it (True: the full one; "minimal": the uniform field only, "short", "vertical":
+    :func:`nnphd.explain.conservative.conservative_basis`; False: fc's scale alone — for a system's own feature
+    Lagrangian); ``columns`` (N, n, K) more conservative columns, e.g. the derivatives ∂f_c/∂c of a feature
+    Lagrangian's force by its coefficients, so that the joint fit re-fits c (linearised at the trained c) — a table
+    built with them is for the pointwise ranking only."""
+
+    fc: np.ndarray | None = None
+    library: bool | str = True
+    columns: np.ndarray | None = None
+
+    def take(self, keep: np.ndarray) -> ConservativeBase:
+        """The base on the rows ``keep`` (fc and the columns, where given)."""
+        fc = None if self.fc is None else np.asarray(self.fc, float)[keep]
+        columns = None if self.columns is None else np.asarray(self.columns, float)[keep]
+        return ConservativeBase(fc, self.library, columns)
+
+
+@dataclass(frozen=True)
+class CandidateSet:
+    """Which candidate laws are ranked: ``include`` the families to try — built-in keys and
+    :class:`~nnphd.explain.families.Family` objects of your own, ranked as they are (None: every built-in one but
+    the opt-in ``"perturber"``); ``user_laws`` SymPy strings (:func:`nnphd.explain.families.parse_law`), always
+    ranked; ``perturber``: add the perturber family (n = 2 orbits)."""
+
+    include: Sequence[str | Family] | None = None
+    user_laws: Sequence[str] = ()
+    perturber: bool = False
+
+
+@dataclass(frozen=True)
+class PointwiseSettings:
+    """How the pointwise ranking measures: ``n_boot`` bootstrap replicates of the uncertainties, drawn with
+    ``seed``; rows beyond ``max_rows`` are thinned evenly."""
+
+    n_boot: int = N_BOOT
+    seed: int = 0
+    max_rows: int = 20000
+
+
 def rank_laws(
-    q,
-    qd,
-    qdd,
-    t,
+    data,
     traj=None,
     *,
     names: Sequence[str] | None = None,
     angles=None,
     qdd_err=None,
-    fc=None,
-    user_laws: Sequence[str] = (),
-    include: Sequence[str | Family] | None = None,
-    n_boot: int = N_BOOT,
-    seed: int = 0,
-    max_rows: int = 20000,
-    library: bool | str = True,
-    conservative_cols=None,
-    perturber: bool = False,
+    base: ConservativeBase = ConservativeBase(),
+    candidates: CandidateSet = CandidateSet(),
+    settings: PointwiseSettings = PointwiseSettings(),
 ) -> LawTable:
     """Fit every candidate law jointly with the conservative model and rank them (see the module docstring).
 
-    q, qd, qdd (N, n); t (N,); traj (N,) trajectory ids (rows of a trajectory contiguous; None: one trajectory);
-    names: coordinate names (default q1…); angles: n booleans; qdd_err (N, n) per-row q̈ errors (weights); fc (N, n) a
-    conservative force to scale (e.g. the LNN's); user_laws: SymPy strings (:func:`nnphd.explain.families.parse_law`); include: the
-    families to try — built-in keys and :class:`~nnphd.explain.families.Family` objects of your own, ranked as they are
-    (default: every built-in one but the opt-in ``"perturber"``); library: add the conservative correction library ("minimal":
-    the uniform field only, :func:`nnphd.explain.conservative.conservative_basis`) to the
-    scale of fc (False: fc's scale alone — for a system's own feature Lagrangian). Rows beyond ``max_rows`` are
-    thinned evenly. conservative_cols (N, n, K): more conservative columns, e.g. the derivatives ∂f_c/∂c of a feature
-    Lagrangian's force by its coefficients, so that the joint fit re-fits c (linearised at the trained c); a table
-    built with them is for the pointwise ranking only. perturber: add the perturber family (n = 2 orbits).
+    data: the rows — q, qd, qdd (N, n) and t (N,), e.g. a :class:`nnphd.engine.data.Dataset` (its fc and fn are not
+    used); traj (N,) trajectory ids (rows of a trajectory contiguous; None: one trajectory); names: coordinate names
+    (default q1…); angles: n booleans; qdd_err (N, n) per-row q̈ errors (weights); base: the conservative model
+    (:class:`ConservativeBase`: a force to scale, the correction library, more columns); candidates: the laws to
+    rank (:class:`CandidateSet`); settings: the bootstrap and the row limit (:class:`PointwiseSettings`).
     """
-    q, qd, qdd, t = (np.asarray(a, float) for a in (q, qd, qdd, t))
+    q, qd, qdd, t = (np.asarray(a, float) for a in (data.q, data.qd, data.qdd, data.t))
     if q.ndim != 2 or qd.shape != q.shape or qdd.shape != q.shape or t.shape != (q.shape[0],):
         raise ValueError(f"q, qd, qdd must be (N, n) and t (N,); got {q.shape}, {qd.shape}, {qdd.shape}, {t.shape}")
     N, n = q.shape
@@ -181,31 +211,30 @@ def rank_laws(
     angles = np.zeros(n, bool) if angles is None else np.asarray(angles, bool)
     traj = np.zeros(N, int) if traj is None else np.asarray(traj)
     w = _row_weights(qdd, qdd_err)
-    if N > max_rows:
-        q, qd, qdd, t, w, traj, fc, conservative_cols = _thin_rows(
-            max_rows, q, qd, qdd, t, w, traj, fc, conservative_cols
-        )
+    if N > settings.max_rows:
+        keep = _thinned(N, settings.max_rows)
+        q, qd, qdd, t, w, traj = q[keep], qd[keep], qdd[keep], t[keep], w[keep], traj[keep]
+        base = base.take(keep)
         N = len(q)
     segs = trajectory_segments(traj)
-    C, center, n_extra = _conservative_design(q, qd, angles, fc, library, conservative_cols)
+    C, center, n_extra = _conservative_design(q, qd, angles, base)
     prob = JointProblem(q, qd, qdd, t, w, C, angles)
     folds, fold_desc = heldout_folds(segs)
-    v_rms = np.sqrt(np.mean(qd**2, axis=0))
 
     zero = prob.fit(None, {})
-    fams, ctx = _candidates(prob, zero, q, t, w, segs, names, v_rms, include, perturber, user_laws)
+    fams, ctx = _candidates(prob, zero, segs, names, candidates)
     fits = _fit_candidates(prob, fams, ctx, zero)
     # τ from the residuals of the best in-sample fit (the most signal removed), then held-out errors
     best_in = min(fits, key=lambda x: float(np.sum(x[1]["r"] ** 2)))
     tau = autocorrelation_time(best_in[1]["r"].reshape(N, n), segs)
     n_eff = N * n / tau
-    rows, stats, alphas = _score_fits(prob, fits, folds, segs, tau, n_boot, seed, names, q, qd, t)
+    rows, stats, alphas = _score_fits(prob, fits, folds, segs, tau, settings, names)
     n_eff, tau = _information_criteria(rows, stats, n_eff, tau)
     y_rms = float(np.sqrt(np.mean(qdd**2)))
     relative_to_zero(rows, y_rms)
     rows = _best_sparse_only(rows)
-    settings = _table_settings(n_boot, seed, N, C, prob, fc, names, library, n_extra)
-    return select_law(rows, n_eff, tau, fold_desc, settings, base=BaseFit(alphas, center, y_rms))
+    table_settings = _table_settings(settings, prob, base, names, n_extra)
+    return select_law(rows, n_eff, tau, fold_desc, table_settings, base=BaseFit(alphas, center, y_rms))
 
 
 def _row_weights(qdd, qdd_err) -> np.ndarray:
@@ -223,19 +252,16 @@ def _row_weights(qdd, qdd_err) -> np.ndarray:
     return np.broadcast_to(1.0 / np.maximum(np.sqrt(np.mean(qdd**2, axis=0)), 1e-300), (N, n)).copy()
 
 
-def _thin_rows(max_rows, q, qd, qdd, t, w, traj, fc, conservative_cols):
-    """The rows thinned evenly to at most ``max_rows`` (fc and conservative_cols too, where given)."""
-    keep = np.unique(np.linspace(0, len(q) - 1, max_rows).round().astype(int))
-    q, qd, qdd, t, w, traj = q[keep], qd[keep], qdd[keep], t[keep], w[keep], traj[keep]
-    fc = None if fc is None else np.asarray(fc, float)[keep]
-    conservative_cols = None if conservative_cols is None else np.asarray(conservative_cols, float)[keep]
-    return q, qd, qdd, t, w, traj, fc, conservative_cols
+def _thinned(N: int, max_rows: int) -> np.ndarray:
+    """The rows kept when N rows are thinned evenly to at most ``max_rows``."""
+    return np.unique(np.linspace(0, N - 1, max_rows).round().astype(int))
 
 
-def _conservative_design(q, qd, angles, fc, library, conservative_cols):
+def _conservative_design(q, qd, angles, base: ConservativeBase):
     """The conservative columns C (N, n, K) of the joint fit — the library on standardised positions, then any given
-    columns — with the standardisation (mean, sd) and the number of given columns."""
+    columns (``base``) — with the standardisation (mean, sd) and the number of given columns."""
     N, n = q.shape
+    fc, library, conservative_cols = base.fc, base.library, base.columns
     sd = q.std(axis=0)
     center = (q.mean(axis=0), np.where(sd > 0, sd, 1.0))  # positions enter the conservative library standardised
     C = conservative_basis(np, q, qd, angles, None if fc is None else np.asarray(fc, float), center, library)
@@ -248,10 +274,13 @@ def _conservative_design(q, qd, angles, fc, library, conservative_cols):
     return C, center, n_extra
 
 
-def _candidates(prob: JointProblem, zero, q, t, w, segs, names, v_rms, include, perturber, user_laws):
-    """The candidate families (built-in ones in ``include``, the perturber, the sparse supports, the Family objects in
-    ``include``, the user's laws) and the context of their fits (the drive's start frequencies from the zero law's
-    residual)."""
+def _candidates(prob: JointProblem, zero, segs, names, candidates: CandidateSet):
+    """The candidate families (built-in ones in ``candidates.include``, the perturber, the sparse supports, the Family
+    objects in ``include``, the user's laws) and the context of their fits (the drive's start frequencies from the
+    zero law's residual)."""
+    q, t, w = prob.q, prob.t, prob.w
+    include, perturber, user_laws = candidates.include, candidates.perturber, candidates.user_laws
+    v_rms = np.sqrt(np.mean(prob.qd**2, axis=0))
     N, n = q.shape
     r0 = zero["r"].reshape(N, n) / w
     ctx = {"drive_omegas": drive_start_omegas(t, r0, segs), "q": q, "t": t, "residual": r0}
@@ -278,9 +307,11 @@ def _fit_candidates(prob: JointProblem, fams, ctx, zero) -> list:
     return fits
 
 
-def _score_fits(prob: JointProblem, fits, folds, segs, tau, n_boot, seed, names, q, qd, t):
+def _score_fits(prob: JointProblem, fits, folds, segs, tau, settings: PointwiseSettings, names):
     """Held-out errors and bootstrap uncertainties of every fit: its table row, its (held-out mse, k, overdispersion
     ratio) and its conservative coefficients (by ``id(row)``)."""
+    q, qd, t = prob.q, prob.qd, prob.t
+    n_boot, seed = settings.n_boot, settings.seed
     N = len(q)
     rows: list[Candidate] = []
     stats: list = []
@@ -327,18 +358,19 @@ def _best_sparse_only(rows: list[Candidate]) -> list[Candidate]:
     return [r for r in rows if r.key != "sparse" or tuple(r.formula.values()) not in named]
 
 
-def _table_settings(n_boot, seed, N, C, prob: JointProblem, fc, names, library, n_extra):
+def _table_settings(settings: PointwiseSettings, prob: JointProblem, base: ConservativeBase, names, n_extra):
     """The table's settings, as the report shows them."""
+    library = base.library
     return {
         "mu": MU,
         "ic_tie": IC_TIE,
-        "n_boot": n_boot,
-        "seed": seed,
-        "rows": int(N),
+        "n_boot": settings.n_boot,
+        "seed": settings.seed,
+        "rows": int(prob.N),
         "method": "pointwise",
-        "conservative_columns": int(C.shape[2]),
+        "conservative_columns": int(prob.C.shape[2]),
         "conservative_rank": int(prob.Z.shape[1]),
-        "conservative_base": fc is not None,
+        "conservative_base": base.fc is not None,
         "names": names,
         "library": library if library in ("minimal", "short", "vertical") else bool(library),
         "conservative_extra": int(n_extra),

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
-from nnphd.explain.law import Law
+from nnphd.explain.law import Law, LawStatus
 
 TITLES = {  # the fits' titles (Law.title), by key
     "linear_friction": "linear friction −Γ q̇ (full n×n Γ)",
@@ -79,7 +79,7 @@ def _make_fit(name, names, values, errors, resid, fn, formula) -> Law:
         params={k: float(v) for k, v in zip(names, values)},
         stderr={k: float(e) for k, e in zip(names, errors)},
         method="pointwise",
-        status="candidate",
+        status=LawStatus.CANDIDATE,
         rms=float(rms),
         rel_rms=float(rel),
     )

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from nnphd.explain.law import TableStatus
 from nnphd.io.limits import MIN_ROWS
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.timing import StageTimer
@@ -102,7 +103,7 @@ def decide_law(data, run: LawRun, base: tuple | None, arcs: bool, library=None, 
             table = combine_bases([(LIBRARY_BASE, lib), (f"seed {run.seed}'s LNN", table)])
     else:
         lib = table  # the library itself is the base (a declared field, no finite f_c) — or there is none
-    if table.status == "tie" and level != "pointwise":  # can the whole record tell them apart?
+    if table.status == TableStatus.TIE and level != "pointwise":  # can the whole record tell them apart?
         with timed(WHOLE_RECORD):
             table = break_tie(table, lib)
     out = table.to_dict()
@@ -176,16 +177,14 @@ def _envelope(table, data, traj, coords, info, angle: bool = False) -> dict | No
     """One coordinate: the measured amplitude envelope and those of the law, its ties and the next best eligible
     candidates (:mod:`nnphd.explain.envelope`); None otherwise."""
     from nnphd.explain.envelope import envelope_report
+    from nnphd.explain.trajectory import Motion
 
     if len(coords) != 1:
         return None
     lead = [r for r in table.rows if r.family is not None and r.significant]
     return envelope_report(
         lead,
-        data.q[:, 0],
-        data.qd[:, 0],
-        data.t,
-        traj,
+        Motion(data.q, data.qd, data.t, traj),
         info["per_coordinate"][coords[0]]["noise"],
         table.settings.get("period", float("nan")),
         angle=angle,
@@ -227,6 +226,7 @@ def find_law(data, run: LawRun, fc=None, fc_fn=None, cancel=None):
     with timed("law table: rests, stops and envelope"):
         table = _evidence_of_rests(table, moving, run, period, rests, (fc, fc_fn))
     if fc is None and level != "pointwise" and len(coords) == 1 and np.isfinite(period):
+        from nnphd.explain.trajectory import Motion
         from nnphd.explain.wholerecord import context
 
         sigma = [run.info["per_coordinate"][c]["noise"] for c in coords]
@@ -236,8 +236,9 @@ def find_law(data, run: LawRun, fc=None, fc_fn=None, cancel=None):
         def refit(library):  # the pointwise table beside another conservative library
             return _pointwise_table(given, run, None, library=library)[0]
 
-        table = replace(table, whole_record=context(pointwise, data, traj, rows, sigma, period, list(run.is_angle),
-                                                    run.seed, refit))  # fmt: skip
+        thinned = Motion(data.q, data.qd, data.t, traj).take(rows)
+        table = replace(table, whole_record=context(pointwise, thinned, sigma, period, list(run.is_angle), run.seed,
+                                                    refit))  # fmt: skip
     return table
 
 
@@ -247,7 +248,7 @@ def _pointwise_table(data, run: LawRun, fc, library=None):
     conservative library (None: :func:`_library`'s choice)."""
     from nnphd.engine.evidence import dominant_period
     from nnphd.explain.jointfit import trajectory_segments
-    from nnphd.explain.laws import rank_laws
+    from nnphd.explain.laws import CandidateSet, ConservativeBase, PointwiseSettings, rank_laws
 
     traj, coords, info, field = run.traj, list(run.coords), run.info, run.field
     err = None if run.row_err is None else run.row_err["qdd_err"]
@@ -266,19 +267,14 @@ def _pointwise_table(data, run: LawRun, fc, library=None):
     data_p, traj_p, err, fc, _ = moving_rows(data, traj, coords, info, err, fc, period)
     whole = (data, traj)  # rests included: a final rest is evidence (nnphd.explain.stuck)
     table = rank_laws(
-        data_p.q,
-        data_p.qd,
-        data_p.qdd,
-        data_p.t,
+        data_p,
         traj_p,
         names=coords,
         angles=list(run.is_angle),
         qdd_err=err,
-        fc=fc,
-        user_laws=run.laws,
-        include=run.families,
-        seed=run.seed,
-        library=_library(moving.t, traj_m, period, run.level) if library is None else library,
+        base=ConservativeBase(fc, _library(moving.t, traj_m, period, run.level) if library is None else library),
+        candidates=CandidateSet(include=run.families, user_laws=run.laws),
+        settings=PointwiseSettings(seed=run.seed),
     )
     return table, (moving, traj_m), (rest, whole), period
 
@@ -289,23 +285,24 @@ def _trajectory_table(table, moving, run: LawRun, period, base):
     data, traj = moving
     coords, (fc, fc_fn) = list(run.coords), base
     from nnphd.explain.jointfit import trajectory_segments
-    from nnphd.explain.trajectory import rank_trajectory
+    from nnphd.explain.trajectory import Motion, TrajectorySettings, WindowPlan, rank_trajectory
 
     sigma = [run.info["per_coordinate"][c]["noise"] for c in coords]
     rows = _thinned(data.t, traj, period)
     return rank_trajectory(
         table,
-        data.q[rows],
-        data.qd[rows],
-        data.t[rows],
-        traj[rows],
+        Motion(data.q, data.qd, data.t, traj).take(rows),
         sigma=sigma,
         # no oscillation (a throw, a fall): each trajectory one window, ranked in-sample
         period=period if np.isfinite(period) else float(max(np.ptp(data.t[s]) for s in trajectory_segments(traj))),
         angles=list(run.is_angle),
         fc_fn=fc_fn if fc is not None else None,
-        seed=run.seed,
-        **(SHORT_RECORDS if len(coords) == 1 or not np.isfinite(period) else {}),
+        windows=(
+            WindowPlan(window_periods=SHORT_RECORDS, allow_in_sample=True)
+            if len(coords) == 1 or not np.isfinite(period)
+            else WindowPlan()
+        ),
+        settings=TrajectorySettings(seed=run.seed),
     )
 
 
@@ -319,21 +316,18 @@ def _evidence_of_rests(table, moving, run: LawRun, period, rests, base):
     stuck = {}
     if level != "pointwise" and rest is not None and len(coords) == 1 and np.isfinite(period):
         from nnphd.explain.rest import REST_WINDOW_PERIODS
-        from nnphd.explain.stuck import stop_contradictions, stuck_contradictions
+        from nnphd.explain.stuck import StopSettings, stop_contradictions, stuck_contradictions
+        from nnphd.explain.trajectory import Motion
 
         stuck = stuck_contradictions(table, rest["final"], angles=is_angle, fc_fn=fc_fn)
         stop = stop_contradictions(
             table,
             rest["final"],
-            whole[0].q,
-            whole[0].qd,
-            whole[0].t,
-            whole[1],
+            Motion(whole[0].q, whole[0].qd, whole[0].t, whole[1]),
             period,
             angles=is_angle,
             fc_fn=fc_fn,
-            seed=seed,
-            window_periods=REST_WINDOW_PERIODS,
+            stop=StopSettings(seed=seed, window_periods=REST_WINDOW_PERIODS),
         )
         stuck = {**stop, **stuck}
     if level != "pointwise" and len(coords) == 1:
@@ -368,7 +362,7 @@ def _evidence_of_rests(table, moving, run: LawRun, period, rests, base):
 # ΔIC −419 → −2563, a jittered clock's viscous law right), but with the LNN's f_c as base on the law table's noisy
 # pendulum a dry + quadratic law beat the true viscous one by ΔIC 66 (1.5 periods: a tie) — a conservative misfit
 # accumulates over long windows and friction terms soak it up — so the windows stay at ¾ period.
-SHORT_RECORDS = {"window_periods": (0.75,), "allow_in_sample": True}
+SHORT_RECORDS = (0.75,)  # the window lengths (periods) of such records, ranked in-sample where too few
 
 
 def _library(t, traj, period: float, level: str):
@@ -383,7 +377,7 @@ def _library(t, traj, period: float, level: str):
         return "minimal"
     if level == "pointwise":
         return True
-    wins = shooting_windows(trajectory_segments(traj), t, period, periods=min(SHORT_RECORDS["window_periods"]))
+    wins = shooting_windows(trajectory_segments(traj), t, period, periods=min(SHORT_RECORDS))
     return "short" if len(wins) < MIN_WINDOWS else True
 
 

@@ -13,30 +13,58 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
-from nnphd.explain.law import Law
+from nnphd.explain.law import Law, LawStatus
 
 READABLE_MAX_TERMS = 12
 READABLE_MAX_REL_RMS = 0.25
 
 
-def blind_law(
-    key: str, title: str, method: str, exprs, component_names, rel_rms: float, n_terms: int, readable: bool, note: str
-) -> Law:
-    """A blind formula as a :class:`Law` of status "hint": ``exprs`` one SymPy expression per component of f_n
-    (``formula`` component → its string), ``rel_rms`` the residual rms / rms of f_n, ``n_terms`` its size."""
+@dataclass(frozen=True)
+class BlindMethod:
+    """How a blind formula was found, as its :class:`Law` names it: the ``key`` ("sparse", "genetic"), the
+    ``title`` and the ``method`` in words."""
+
+    key: str
+    title: str
+    method: str
+
+
+SPARSE = BlindMethod(
+    "sparse",
+    "blind formula (sparse regression)",
+    "sparse regression (pysindy STLSQ; every term must cut the residual by 25%)",
+)
+
+
+@dataclass(frozen=True)
+class SparseLibrary:
+    """The library of candidate terms of the sparse regression: polynomials to ``degree`` in every input, isotropic
+    drag laws v_j·(|v|²)^m for m ≤ ``speed_powers`` (with velocities named), sin/cos(k·t) for k ≤ ``fourier`` (with
+    a time named)."""
+
+    degree: int = 3
+    speed_powers: int = 6
+    fourier: int = 2
+
+
+def blind_law(how: BlindMethod, exprs, component_names, rel_rms: float, n_terms: int, readable: bool, note: str) -> Law:
+    """A blind formula found by ``how`` as a :class:`Law` of status "hint": ``exprs`` one SymPy expression per
+    component of f_n (``formula`` component → its string), ``rel_rms`` the residual rms / rms of f_n, ``n_terms`` its
+    size."""
     return Law(
-        key=key,
-        title=title,
+        key=how.key,
+        title=how.title,
         formula=dict(zip(component_names, (str(e) for e in exprs))),
         latex={},
         params={},
         stderr={},
-        method=method,
-        status="hint",
+        method=how.method,
+        status=LawStatus.HINT,
         rel_rms=float(rel_rms),
         n_terms=int(n_terms),
         readable=bool(readable),
@@ -44,19 +72,12 @@ def blind_law(
     )
 
 
-def _library(
-    x: np.ndarray,
-    names: Sequence[str],
-    vel_idx: Sequence[int],
-    t_idx: int | None,
-    degree: int,
-    speed_powers: int,
-    fourier: int,
-):
-    """Columns Θ(x) and their SymPy terms (no duplicates)."""
+def _library(x: np.ndarray, names: Sequence[str], vel_idx: Sequence[int], t_idx: int | None, library: SparseLibrary):
+    """Columns Θ(x) and their SymPy terms (no duplicates) of ``library``."""
     from nnphd._extras import require
 
     PolynomialLibrary = require("pysindy", "the sparse (blind) explanation").PolynomialLibrary
+    degree, speed_powers, fourier = library.degree, library.speed_powers, library.fourier
 
     syms = {n: sp.Symbol(n) for n in names}
     cols, terms, seen = [], [], set()
@@ -151,14 +172,13 @@ def sparse_formula(
     component_names: Sequence[str],
     velocities: Sequence[str] = (),
     time: str | None = None,
-    degree: int = 3,
-    speed_powers: int = 6,
-    fourier: int = 2,
+    library: SparseLibrary = SparseLibrary(),
     thresholds: Sequence[float] | None = None,
     term_cost: float = float(np.log(1.25)),
 ) -> Law:
-    """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,)): a :class:`Law`
-    of status "hint" (``n_terms``: nonzero library terms over all components)."""
+    """Sparse-regression formula for f_n (N, n) in terms of the named input columns (each (N,)) over the terms of
+    ``library`` (``velocities``, ``time``: the inputs that are velocities, time): a :class:`Law` of status "hint"
+    (``n_terms``: nonzero library terms over all components)."""
     from nnphd._extras import require
 
     STLSQ = require("pysindy", "the sparse (blind) explanation").STLSQ
@@ -166,7 +186,7 @@ def sparse_formula(
     names, x, y = regression_data(inputs, fn, component_names)
     vel_idx = [names.index(v) for v in velocities]
     t_idx = names.index(time) if time is not None else None
-    theta, terms = _library(x, names, vel_idx, t_idx, degree, speed_powers, fourier)
+    theta, terms = _library(x, names, vel_idx, t_idx, library)
     scale = float(np.sqrt(np.mean(y**2))) or 1.0
     ys = y / scale
     m = ys.size
@@ -206,14 +226,4 @@ def sparse_formula(
             f"nothing readable: the best sparse model needs {k} terms and leaves {100 * rel:.0f}% rms "
             f"(readable means ≤ {READABLE_MAX_TERMS} terms and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)"
         )
-    return blind_law(
-        "sparse",
-        "blind formula (sparse regression)",
-        "sparse regression (pysindy STLSQ; every term must cut the residual by 25%)",
-        exprs,
-        component_names,
-        rel,
-        k,
-        readable,
-        note,
-    )
+    return blind_law(SPARSE, exprs, component_names, rel, k, readable, note)

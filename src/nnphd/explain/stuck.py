@@ -36,14 +36,19 @@ the record moves 0.0014: viscous, quadratic, Rayleigh and van der Pol candidates
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from nnphd.explain.trajectory import Motion
 
 __all__ = [
     "OFFSET_MIN",
     "STOP_MIN",
     "Z_STUCK",
+    "StopSettings",
     "bar_stuck",
     "holds_at_rest",
     "stop_contradictions",
@@ -54,6 +59,17 @@ Z_STUCK = 3.0
 OFFSET_MIN = 3.0
 STOP_MIN = 3.0  # the swing a law predicts into a final rest: at least this many rest tolerances (std) to contradict
 N_DRAWS = 256  # draws of a candidate's coefficients for the spread of its predicted swing
+
+
+@dataclass(frozen=True)
+class StopSettings:
+    """How a stop is judged (:func:`stop_contradictions`): the coefficients' draws are seeded with ``seed``, the
+    rest window is ``window_periods`` periods long (the rest detector's), and the rests' integrations run side by
+    side on ``threads`` threads (None: one per core, :func:`nnphd.explain.trajectory.default_threads`)."""
+
+    seed: int = 0
+    window_periods: float = 0.5
+    threads: int | None = None
 
 
 def holds_at_rest(row) -> bool:
@@ -202,17 +218,12 @@ def _integrate(run, q0: float, t0: float, t1: float, period: float):
 def stop_contradictions(
     table,
     stretches,
-    q,
-    qd,
-    t,
-    traj,
+    motion: Motion,
     period: float,
     *,
     angles,
     fc_fn=None,
-    seed: int = 0,
-    window_periods: float = 0.5,
-    threads: int | None = None,
+    stop: StopSettings = StopSettings(),
 ) -> dict:
     r"""{family key: {"kind": "stop", …}} for the candidates of a trajectory-level ``table`` (one coordinate) without
     a dry term that a *finite-time stop* contradicts: the record swings, then rests for good, where the candidate
@@ -223,17 +234,17 @@ def stop_contradictions(
     point before a rest that ends its trajectory (q̇ = 0 there; the last one at least :data:`STOP_MIN` rest
     tolerances from the rest), each candidate's joint fit (its conservative force and its law, the coefficients
     drawn :data:`N_DRAWS` times from their covariances — τ-widened for the conservative part, the cross-covariance
-    neglected) is integrated over the first rest window (``window_periods`` of the period: the rest detector's);
+    neglected) is integrated over the first rest window (``stop.window_periods`` of the period: the rest detector's);
     the candidate is contradicted when the standard deviation of its predicted motion there, less :data:`Z_STUCK`
     times its spread over the draws, is still :data:`STOP_MIN` times the measured one (at least the rest tolerance:
     a swing hidden below the noise or the encoder's steps is not missed motion). The true law predicts what was
     measured; a law that cannot stop a swing predicts a swing where the record is still.
 
     ``stretches``: dicts with "t0" (start), "traj" (its trajectory id), "seconds", "tolerance" (n,) (from
-    ``nnphd.explain.search.moving_rows``); ``q``, ``qd``, ``t``, ``traj``: the whole record, rests included;
-    ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws: reproducible. The
-    rests' integrations run side by side on ``threads`` threads (None: one per core,
-    :func:`nnphd.explain.trajectory.default_threads`), with the same numbers whatever the number."""
+    ``nnphd.explain.search.moving_rows``); ``motion``: the whole record, rests included (its trajectory ids given);
+    ``fc_fn(q, v)`` the conservative force the table was fitted beside, if any. Seeded draws (``stop.seed``):
+    reproducible. The rests' integrations run side by side on ``stop.threads`` threads, with the same numbers
+    whatever the number (:class:`StopSettings`)."""
     settings = table.settings
     if (
         settings.get("method") != "trajectory"
@@ -254,7 +265,9 @@ def stop_contradictions(
     if not rows:
         return {}
     center, library = (table.base.center if table.base is not None else None), settings.get("library", True)
-    q, qd, t, traj = (np.asarray(a, float).reshape(len(t), -1) for a in (q, qd, t, traj))
+    seed, window_periods, threads = stop.seed, stop.window_periods, stop.threads
+    N = len(motion.t)
+    q, qd, t, traj = (np.asarray(a, float).reshape(N, -1) for a in (motion.q, motion.qd, motion.t, motion.traj))
     t, traj, q, qd = t[:, 0], traj[:, 0], q[:, 0], qd[:, 0]
     fc_fn = _compiled(fc_fn)
     rng = np.random.default_rng(seed)

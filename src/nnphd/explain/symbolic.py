@@ -13,17 +13,37 @@ being stochastic (the seed fixes it) and slower.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
 from nnphd.explain.law import Law
 from nnphd.explain.lawtext import parse_formula
-from nnphd.explain.sparse import READABLE_MAX_REL_RMS, blind_law, regression_data
+from nnphd.explain.sparse import READABLE_MAX_REL_RMS, BlindMethod, blind_law, regression_data
 
 READABLE_MAX_LENGTH = 30  # expression-tree nodes per component
 NODE_COST = float(np.log(1.25)) / 4
 OPERATORS = "add,sub,mul,div,square,sin,cos,constant,variable"
+GENETIC = BlindMethod(
+    "genetic",
+    "blind formula (genetic symbolic regression)",
+    "genetic symbolic regression (pyoperon; Pareto front of accuracy vs size; each node must cut the residual by 5.7%)",
+)
+
+
+@dataclass(frozen=True)
+class GeneticSearch:
+    """pyoperon's search per component of f_n: at most ``max_time`` seconds and ``generations`` generations
+    (whichever comes first) of a population of ``population_size`` trees of at most ``max_length`` nodes, evaluated
+    on ``n_threads`` threads (single-threaded search is deterministic; with more, pyoperon's evaluation order may
+    differ run to run)."""
+
+    max_time: float = 20.0
+    generations: int = 1000
+    population_size: int = 1000
+    max_length: int = 30
+    n_threads: int = 2
 
 
 def _round_floats(expr: sp.Expr, digits: int = 4) -> sp.Expr:
@@ -51,18 +71,14 @@ def genetic_formula(
     fn: np.ndarray,
     component_names: Sequence[str],
     seed: int = 0,
-    max_time: float = 20.0,
-    generations: int = 1000,
-    population_size: int = 1000,
-    max_length: int = 30,
-    n_threads: int = 2,
+    search: GeneticSearch = GeneticSearch(),
 ) -> Law:
     """Genetic symbolic-regression formula for f_n (N, n) in terms of the named input columns (each (N,)): a
     :class:`~nnphd.explain.law.Law` of status "hint" (``n_terms``: expression-tree nodes over all components).
 
-    ``max_time`` bounds the search per component in seconds (pyoperon stops at whichever of time and generations
-    comes first). Same seed and inputs → the same formula (single-threaded search is deterministic; with more threads
-    pyoperon's evaluation order may differ run to run).
+    ``search`` bounds the search per component (:class:`GeneticSearch`: pyoperon stops at whichever of time and
+    generations comes first). Same seed and inputs → the same formula (single-threaded search is deterministic; with
+    more threads pyoperon's evaluation order may differ run to run).
     """
     from nnphd._extras import require
 
@@ -79,12 +95,12 @@ def genetic_formula(
         reg = SymbolicRegressor(  # pyoperon always adds a linear scale and an intercept for the r2 objective
             allowed_symbols=OPERATORS,
             objectives=["r2", "length"],
-            max_length=max_length,
-            generations=generations,
-            population_size=population_size,
+            max_length=search.max_length,
+            generations=search.generations,
+            population_size=search.population_size,
             max_evaluations=10**8,
-            max_time=max(1, int(round(max_time))),
-            n_threads=n_threads,
+            max_time=max(1, int(round(search.max_time))),
+            n_threads=search.n_threads,
             random_state=seed + i,
         )
         reg.fit(x, yi)
@@ -116,14 +132,4 @@ def genetic_formula(
             f"nothing readable: the selected models leave {100 * rel:.0f}% rms with up to {max(lengths)} nodes "
             f"(readable means ≤ {READABLE_MAX_LENGTH} nodes and ≤ {100 * READABLE_MAX_REL_RMS:.0f}%)"
         )
-    return blind_law(
-        "genetic",
-        "blind formula (genetic symbolic regression)",
-        "genetic symbolic regression (pyoperon; Pareto front of accuracy vs size; each node must cut the residual by 5.7%)",
-        exprs,
-        component_names,
-        rel,
-        int(sum(lengths)),
-        readable,
-        note,
-    )
+    return blind_law(GENETIC, exprs, component_names, rel, int(sum(lengths)), readable, note)

@@ -32,7 +32,7 @@ import numpy as np
 import sympy as sp
 
 from nnphd.explain.families import DIGITS, Family
-from nnphd.explain.law import FittedFamily, Law
+from nnphd.explain.law import FittedFamily, Law, LawStatus, TableStatus
 
 __all__ = ["IC_TIE", "Z_TERM", "Candidate", "LawTable"]
 
@@ -104,10 +104,12 @@ class Candidate:
             **({"stuck": self.stuck} if self.stuck is not None else {}),
         }
 
-    def to_law(self, status: str = "candidate", table: tuple[dict, ...] = (), ties: tuple[dict, ...] = ()) -> Law:
-        """This candidate as a :class:`Law` of ``status`` ("claimed", "tie" or "candidate"), with the ``table`` and
-        ``ties`` it was ranked in (rows as :meth:`to_dict` writes them) — the Law that
-        :meth:`Law.from_report <nnphd.explain.law.Law.from_report>` reads back from report.json."""
+    def to_law(
+        self, status: LawStatus = LawStatus.CANDIDATE, table: tuple[dict, ...] = (), ties: tuple[dict, ...] = ()
+    ) -> Law:
+        """This candidate as a :class:`Law` of ``status`` (:class:`~nnphd.explain.law.LawStatus`: claimed, tie or
+        candidate), with the ``table`` and ``ties`` it was ranked in (rows as :meth:`to_dict` writes them) — the Law
+        that :meth:`Law.from_report <nnphd.explain.law.Law.from_report>` reads back from report.json."""
         return Law(
             self.key,
             self.title,
@@ -177,10 +179,13 @@ class LawTable:
     whole_record: dict | None = None
 
     @property
-    def status(self) -> str:
+    def status(self) -> TableStatus:
         """ "claimed" (one family, the others clearly worse), "tie" (the record cannot tell :attr:`law` from
-        :attr:`ties`: no family is claimed) or "none" (no candidate beats zero)."""
-        return "none" if self.law is None else ("tie" if self.ties else "claimed")
+        :attr:`ties`: no family is claimed) or "none" (no candidate beats zero): a
+        :class:`~nnphd.explain.law.TableStatus`."""
+        if self.law is None:
+            return TableStatus.NONE
+        return TableStatus.TIE if self.ties else TableStatus.CLAIMED
 
     def to_law(self) -> Law | None:
         """The table's result: its law (status "claimed" or "tie", with the candidates and ties as report.json writes
@@ -188,7 +193,7 @@ class LawTable:
         if self.law is None:
             return None
         rows = tuple(r.to_dict() for r in self.rows)
-        return self.law.to_law(self.status, rows, tuple(r.to_dict() for r in self.ties))
+        return self.law.to_law(LawStatus(self.status), rows, tuple(r.to_dict() for r in self.ties))
 
     def to_dict(self) -> dict:
         return {
@@ -315,7 +320,7 @@ def dissipative_ok(fam: Family, beta) -> bool:
     return not fam.dissipative or bool(np.all(np.asarray(beta, float) >= 0))
 
 
-def fitted_law(fitted: FittedFamily, names, status: str = "claimed") -> Law:
+def fitted_law(fitted: FittedFamily, names, status: LawStatus = LawStatus.CLAIMED) -> Law:
     """The :class:`Law` of a family with fitted coefficients and no table behind it (a model file holding a law its
     report does not name): the formula in the coordinates' ``names`` and the parameters; standard errors unknown
     (NaN); method "model file"."""

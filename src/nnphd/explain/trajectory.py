@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -24,10 +26,106 @@ from nnphd.explain.table import (
     zero_row,
 )
 
-__all__ = ["rank_trajectory"]
+__all__ = ["Motion", "TrajectorySettings", "WindowPlan", "rank_trajectory"]
 
 MIN_WINDOWS = 6  # fewer shooting windows: the pointwise table stands (or, allowed, whole trajectories in-sample)
 IN_SAMPLE_MAX_ROWS = 4000  # whole-trajectory fits only for short records (one window per trajectory)
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """The recorded motion a fit follows: positions ``q`` and velocities ``qd`` (N, n), times ``t`` (N,) and each
+    row's trajectory id ``traj`` (N,; rows of a trajectory contiguous; None: one trajectory)."""
+
+    q: np.ndarray
+    qd: np.ndarray
+    t: np.ndarray
+    traj: np.ndarray | None = None
+
+    def take(self, rows) -> Motion:
+        """The motion on the rows ``rows`` (an index array)."""
+        traj = None if self.traj is None else np.asarray(self.traj)[rows]
+        return Motion(self.q[rows], self.qd[rows], self.t[rows], traj)
+
+
+@dataclass(frozen=True)
+class WindowPlan:
+    """How the record is cut into shooting windows: the first length in ``window_periods`` (periods; None: ¾, ⅜,
+    3/16) that gives ``min_windows`` windows of at most ``max_window_rows`` rows each (None: the shooting module's
+    cap), thinned evenly to ``max_windows``. With fewer and ``allow_in_sample``, each trajectory is one window and the
+    IC uses the in-sample χ² (BIC; no held-out groups, no bootstrap)."""
+
+    window_periods: tuple[float, ...] | None = None
+    max_window_rows: int | None = None
+    max_windows: int = 200
+    min_windows: int = MIN_WINDOWS
+    allow_in_sample: bool = False
+
+
+@dataclass(frozen=True)
+class TrajectorySettings:
+    """How the trajectory-level ranking measures: the first ``shortlist`` candidates of the pointwise table are
+    re-fitted, with ``n_boot`` window-bootstrap replicates drawn with ``seed``, side by side on ``threads`` threads
+    (None: :func:`default_threads`; the same numbers whatever the number)."""
+
+    shortlist: int = 16
+    n_boot: int = N_BOOT
+    seed: int = 0
+    threads: int | None = None
+
+
+class _Layout(NamedTuple):
+    """The universal θ of one ranking (:func:`_parameter_layout`): each family's ``slots`` (offset, K, m), the
+    parameters one candidate fits ``P_dir``, the default θ ``nl_defaults``, the pointwise α of every row ``alpha0``
+    (by ``id(row)``) and the conservative columns ``Kc``."""
+
+    slots: list
+    P_dir: int
+    nl_defaults: np.ndarray
+    alpha0: dict
+    Kc: int
+
+
+class _Shot(NamedTuple):
+    """One candidate's multiple-shooting fit (:func:`_shoot_candidate`): the window states ``s``, the parameters
+    ``th``, the residuals ``r`` and their Jacobian ``jac``, ``chi2`` and whether LM ``converged``."""
+
+    s: np.ndarray
+    th: np.ndarray
+    r: np.ndarray
+    jac: np.ndarray
+    chi2: float
+    converged: bool
+
+
+@dataclass(frozen=True, eq=False)
+class _Windows:
+    """The shooting windows of one ranking: ``args`` the windows as the model residuals take them
+    (:class:`nnphd.engine.shooting.ShootingWindows`, :func:`_window_arrays`), ``s0`` their start states from the data, ``nsub`` the RK4 substeps per step, ``n`` the
+    coordinates, ``W`` the windows, ``groups`` their held-out groups, ``n_res`` the residuals and ``in_sample``
+    (whole trajectories, ranked by their in-sample fit)."""
+
+    args: tuple
+    s0: np.ndarray
+    nsub: int
+    n: int
+    W: int
+    groups: list
+    n_res: int
+    in_sample: bool
+
+
+@dataclass(frozen=True, eq=False)
+class _Ranking:
+    """What every candidate's fit of one trajectory-level ranking shares (:func:`_fit_row`): the shortlisted
+    candidates ``cands``, the universal θ's ``layout``, the right-hand side ``rhs`` (:func:`_universal_rhs`), the
+    ``windows`` and the ranking's ``settings``."""
+
+    cands: list
+    layout: _Layout
+    rhs: Callable
+    windows: _Windows
+    settings: TrajectorySettings
 
 
 def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center, library: bool = True):
@@ -99,14 +197,15 @@ def heldout_chi2(c_loc, S, g, groups) -> float | None:
     return cv
 
 
-def _choose_windows(
-    segs, t, period: float, window_periods, max_window_rows, max_windows: int, min_windows: int, allow_in_sample: bool
-):
-    """The shooting windows: the first length in ``window_periods`` (periods; default ¾, ⅜, 3/16) that gives
-    ``min_windows`` windows of at most ``max_window_rows`` rows, thinned evenly to ``max_windows``. Returns
+def _choose_windows(segs, t, period: float, plan: WindowPlan):
+    """The shooting windows of ``plan``: the first length in ``window_periods`` (periods; default ¾, ⅜, 3/16) that
+    gives ``min_windows`` windows of at most ``max_window_rows`` rows, thinned evenly to ``max_windows``. Returns
     (windows, in_sample); with fewer windows the whole trajectories (in_sample True) where allowed and short enough,
     else None: the record is not ranked by trajectory."""
     from nnphd.engine.shooting import MAX_WINDOW, MIN_WINDOW, WINDOW_PERIODS, shooting_windows
+
+    window_periods, max_window_rows, max_windows = plan.window_periods, plan.max_window_rows, plan.max_windows
+    min_windows, allow_in_sample = plan.min_windows, plan.allow_in_sample
 
     # the first of the window lengths that leaves min_windows of them (else, allowed, whole trajectories in-sample)
     cap = MAX_WINDOW if max_window_rows is None else max(MAX_WINDOW, int(max_window_rows))
@@ -132,7 +231,7 @@ def _window_arrays(wins, t, q_pos, qd, sigma, period: float):
     for 0.3 rad of the fastest motion, at most 8)."""
     import jax.numpy as jnp
 
-    from nnphd.engine.shooting import pad_windows
+    from nnphd.engine.shooting import ShootingWindows, pad_windows
 
     n = q_pos.shape[1]
     spread = np.array([np.ptp(q_pos[:, j]) for j in range(n)])
@@ -143,7 +242,9 @@ def _window_arrays(wins, t, q_pos, qd, sigma, period: float):
     dtmax = float(np.max(np.diff(tw, axis=1)))
     vmax = float(np.max(np.abs(qd)) / max(np.min(spread), 1e-12))
     nsub = int(min(8, max(1, math.ceil(dtmax * max(vmax, 2 * math.pi / period if np.isfinite(period) else 0) / 0.3))))
-    args = (jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(1.0 / sig))
+    args = ShootingWindows(
+        jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(1.0 / sig)
+    )
     return args, s0, mask, nsub
 
 
@@ -190,9 +291,9 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
     """Levenberg–Marquardt of the windows from each of ``starts`` ((window states, u, LM's first damping)) until one
     gives a finite χ²; a family's nonlinear parameters out of their bounds are clipped, fixed (in ``free``, in place)
     and the fit repeated. ``model``: the residuals and the derivatives (res, jac_fn) of
-    :func:`nnphd.engine.shooting.lm_windows`. Returns (s, θ, r, jac, χ², converged: whether LM stopped with χ² no
-    longer falling), or None when no fit is finite."""
-    from nnphd.engine.shooting import lm_windows
+    :func:`nnphd.engine.shooting.lm_windows`. Returns the fit (:class:`_Shot`: s, θ, r, jac, χ², converged: whether
+    LM stopped with χ² no longer falling), or None when no fit is finite."""
+    from nnphd.engine.shooting import LMSettings, lm_windows
 
     res, jac_fn = model
     chi2 = np.nan
@@ -200,7 +301,7 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
     for s_start, u_start, mu0 in starts:
         try:
             s, th, r, jac, chi2 = lm_windows(
-                None, s_start, u_start, free, iters=15, res=res, jac_fn=jac_fn, mu0=mu0, info=info
+                None, s_start, u_start, free, LMSettings(iters=15, mu0=mu0), res=res, jac_fn=jac_fn, info=info
             )
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             continue
@@ -216,10 +317,12 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
             th1 = th.copy()
             th1[Kc + K : n_fit] = np.clip(nl, lo, hi)
             free[Kc + K : n_fit] = False
-            s, th, r, jac, chi2 = lm_windows(None, s, th1, free, iters=15, res=res, jac_fn=jac_fn, info=info)
+            s, th, r, jac, chi2 = lm_windows(
+                None, s, th1, free, LMSettings(iters=15), res=res, jac_fn=jac_fn, info=info
+            )
             if not np.isfinite(chi2):
                 return None
-    return s, th, r, jac, chi2, bool(info.get("converged"))
+    return _Shot(s, th, r, jac, chi2, bool(info.get("converged")))
 
 
 def lowest_first(res, starts: list) -> list:
@@ -248,12 +351,17 @@ def _window_bootstrap(th, fi, S, g, W: int, n_boot: int, seed: int) -> list:
     return reps
 
 
-def _candidate_statistics(row, th, r, jac, chi2, free, n_fit, *, Kc, n, W, groups, in_sample, n_res, n_boot, seed):
+def _candidate_statistics(row, shot: _Shot, free, n_fit: int, ranking: _Ranking):
     """A fitted row's ranking entry (row, θ, held-out χ², se, ρ, overdispersion ratio, law covariance, conservative
-    covariance): the held-out χ² of the groups of windows (in-sample: the fit's χ²), se the larger of the window
-    bootstrap's and the model's, ρ the residuals' lag-one correlation. None when the fit is not at an optimum."""
+    covariance) from its fit ``shot``: the held-out χ² of the groups of windows (in-sample: the fit's χ²), se the
+    larger of the window bootstrap's and the model's, ρ the residuals' lag-one correlation. None when the fit is not
+    at an optimum."""
     from nnphd.engine.shooting import normal_blocks, schur_complement
 
+    th, r, jac, chi2 = shot.th, shot.r, shot.jac, shot.chi2
+    wins, Kc = ranking.windows, ranking.layout.Kc
+    n, W, groups, in_sample, n_res = wins.n, wins.W, wins.groups, wins.in_sample, wins.n_res
+    n_boot, seed = ranking.settings.n_boot, ranking.settings.seed
     th = th[:n_fit]
     free = free[:n_fit]
     jac = jac[: 2 * n + n_fit]
@@ -325,12 +433,11 @@ def _trajectory_rows(results, settings: dict, y_rms: float, q_pos, qd, t, n_res:
     return rows, n_eff, tau
 
 
-def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **stats):
-    """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``cands``; :func:`_candidate_statistics`):
-    its joint fit by multiple shooting, or None when no fit is finite or it is not at an optimum; and the fit's
-    window states and conservative α (the candidates' ``warm`` start), or None (no fit, or LM did not converge).
-    ``layout``: the universal θ (:func:`_parameter_layout`: slots, P_dir, defaults; the pointwise α of every row;
-    Kc), ``model``: the shooting functions' data, the right-hand side and the RK4 substeps.
+def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
+    """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``ranking.cands``;
+    :func:`_candidate_statistics`): its joint fit by multiple shooting, or None when no fit is finite or it is not at
+    an optimum; and the fit's window states and conservative α (the candidates' ``warm`` start), or None (no fit, or
+    LM did not converge). ``ranking``: the universal θ's layout, the right-hand side, the windows and the settings.
 
     Starts: the row's pointwise fit (window states ``s0`` from the data) and, given ``warm`` (the zero law's
     trajectory-level fit, where LM converged), the zero law's window states and α with this row's law at zero and at its pointwise values
@@ -339,19 +446,20 @@ def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **
     there to where the zero law's fit already is."""
     import jax.numpy as jnp
 
-    from nnphd.engine.shooting import model_jac, model_residuals
+    from nnphd.engine.shooting import Integrator, model_jac, model_residuals
 
-    slots, P_dir, nl_defaults, alpha0, Kc = layout
-    args, rhs, nsub = model
+    cands, (slots, P_dir, nl_defaults, alpha0, Kc) = ranking.cands, ranking.layout
+    args, rhs, nsub = ranking.windows.args, ranking.rhs, ranking.windows.nsub
+    s0, in_sample = ranking.windows.s0, ranking.windows.in_sample
     fam = row.family
     base, D, u0, n_fit = _candidate_start(row, ci, slots, nl_defaults, alpha0, Kc, P_dir)
     aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32))  # branch ci: this row's family
 
     def res(s_, u_):
-        return model_residuals(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
+        return model_residuals(s_, u_, aux, args, Integrator(rhs, nsub))
 
     def jac(s_, u_):
-        return model_jac(s_, u_, aux, *args, rhs=rhs, nsub=nsub)
+        return model_jac(s_, u_, aux, args, Integrator(rhs, nsub))
 
     free = np.zeros(P_dir, bool)
     free[:n_fit] = True
@@ -370,8 +478,8 @@ def _fit_row(ci: int, row, *, cands, layout, model, s0, in_sample, warm=None, **
     fit = _shoot_candidate((res, jac), starts, free, fam, Kc, n_fit)
     if fit is None:
         return None, None
-    s, th, r, J, chi2, converged = fit
-    entry = _candidate_statistics(row, th, r, J, chi2, free, n_fit, Kc=Kc, in_sample=in_sample, **stats)
+    entry = _candidate_statistics(row, fit, free, n_fit, ranking)
+    s, th, converged = fit.s, fit.th, fit.converged
     # a start for the others only where LM converged: a fit stopped by the iteration cap is no optimum to start from
     # (a seismometer's LNN base: its zero law's χ² still falling after 15 iterations; candidates started from it
     # ended, at their own cap, where the pointwise starts ended lower)
@@ -426,27 +534,17 @@ def fit_rows(fit, zero, cands, threads: int | None) -> list | None:
 
 def rank_trajectory(
     table: LawTable,
-    q_pos,
-    qd,
-    t,
-    traj=None,
+    motion: Motion,
     *,
     sigma,
     period: float,
     angles=None,
     fc_fn=None,
-    shortlist: int = 16,
-    n_boot: int = N_BOOT,
-    seed: int = 0,
-    max_windows: int = 200,
-    window_periods: Sequence[float] | None = None,
-    max_window_rows: int | None = None,
-    min_windows: int = MIN_WINDOWS,
-    allow_in_sample: bool = False,
-    threads: int | None = None,
+    windows: WindowPlan = WindowPlan(),
+    settings: TrajectorySettings = TrajectorySettings(),
 ) -> LawTable:
-    """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* by multiple shooting and
-    rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
+    """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* of ``motion`` by multiple
+    shooting and rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
     :mod:`nnphd.engine.evidence`: windows of ¾ period with free initial states, RK4 at the recorded times).
 
     The model is the same joint one, q̈ = f_c(q, q̇; α) + g(q, q̇, t; β, θ), with (α, β, θ) started from the
@@ -455,24 +553,18 @@ def rank_trajectory(
     larger); IC as in :func:`nnphd.explain.laws.rank_laws` with the position residuals. ``fc_fn(q, v)`` (JAX) must reproduce the ``fc``
     given to :func:`nnphd.explain.laws.rank_laws`; ``sigma`` (n,) the position noise.
 
-    Windows: the first length in ``window_periods`` (periods; default ¾, ⅜, 3/16) that gives ``min_windows``
-    windows, at most ``max_window_rows`` rows each. With fewer and ``allow_in_sample``, each trajectory is one window
-    and the IC uses the in-sample χ² (BIC; no held-out groups, no bootstrap) — a record of a few periods or a throw;
-    a zero law that runs away over a whole trajectory is started again from the candidates' conservative fits.
-
-    ``threads``: the candidates are fitted side by side on that many threads (None: :func:`default_threads`;
-    :func:`fit_rows`), the same numbers whatever the number.
+    ``windows``: how the record is cut (:class:`WindowPlan`); with too few windows and ``allow_in_sample``, a zero
+    law that runs away over a whole trajectory is started again from the candidates' conservative fits.
+    ``settings``: the shortlist, the bootstrap and the threads (:class:`TrajectorySettings`; :func:`fit_rows`).
     """
     if table.settings.get("conservative_extra", 0):
         raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
-    q_pos, qd, t = (np.asarray(a, float) for a in (q_pos, qd, t))
+    q_pos, qd, t = (np.asarray(a, float) for a in (motion.q, motion.qd, motion.t))
     N, n = q_pos.shape
-    traj = np.zeros(N, int) if traj is None else np.asarray(traj)
+    traj = np.zeros(N, int) if motion.traj is None else np.asarray(motion.traj)
     angles = tuple(bool(a) for a in (np.zeros(n, bool) if angles is None else angles))
     segs = trajectory_segments(traj)
-    chosen = _choose_windows(
-        segs, t, period, window_periods, max_window_rows, max_windows, min_windows, allow_in_sample
-    )
+    chosen = _choose_windows(segs, t, period, windows)
     if chosen is None:
         return table
     wins, in_sample = chosen
@@ -483,16 +575,20 @@ def rank_trajectory(
     n_res = int(mask.sum()) * n
     Kc = table.settings["conservative_columns"]
     zero = next(r for r in table.rows if r.key == "none")
-    cands = [r for r in table.rows if r.key != "none"][:shortlist]  # the table holds one row per family
+    cands = [r for r in table.rows if r.key != "none"][: settings.shortlist]  # the table holds one row per family
     alpha0 = table.base.alphas
     fams = [r.family for r in cands]
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
     rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.base.center, table.settings.get("library", True))
-    fit = functools.partial(
-        _fit_row, cands=cands, layout=(slots, P_dir, nl_defaults, alpha0, Kc), model=(args, rhs, nsub), s0=s0,
-        in_sample=in_sample, n=n, W=W, groups=groups, n_res=n_res, n_boot=n_boot, seed=seed,
-    )  # fmt: skip
-    results = fit_rows(fit, zero, cands, threads)
+    ranking = _Ranking(
+        cands,
+        _Layout(slots, P_dir, nl_defaults, alpha0, Kc),
+        rhs,
+        _Windows(args, s0, nsub, n, W, groups, n_res, in_sample),
+        settings,
+    )
+    fit = functools.partial(_fit_row, ranking=ranking)
+    results = fit_rows(fit, zero, cands, settings.threads)
     if results is None or len(results) < 2:  # no zero law, or nothing beside it: the table stands
         return table
     rows, n_eff, tau = _trajectory_rows(results, table.settings, table.base.y_rms, q_pos, qd, t, n_res)

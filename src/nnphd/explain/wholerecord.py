@@ -29,8 +29,12 @@ saying what the whole record said (or why it was not asked).
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from nnphd.explain.trajectory import Motion
 
 __all__ = ["MAX_CHI2_PER_ROW", "active_share", "break_tie", "context", "passivity"]
 
@@ -38,19 +42,19 @@ MAX_CHI2_PER_ROW = 2.0  # the best whole-record fit's χ²/N (position noise uni
 ALL_WINDOWS = 10**9  # min_windows for rank_trajectory: never enough windows, so whole trajectories in-sample
 
 
-def context(pointwise, data, traj, rows, sigma, period: float, angles, seed: int, refit=None) -> dict:
+def context(pointwise, motion: Motion, sigma, period: float, angles, seed: int, refit=None) -> dict:
     """What :func:`break_tie` needs of a library-base law table, kept as its ``whole_record``: the
-    pointwise table (its rows carry the conservative starts of the fits), the moving rows' data, the rows the
-    trajectory-level fits use (thinned), the position noise, the period, the angles, the seed, and ``refit(library)``
-    → the pointwise table with another conservative library ("short": a pendulum about any rest angle, springs to
-    degree 3), or None."""
+    pointwise table (its rows carry the conservative starts of the fits), the moving rows the trajectory-level fits
+    use (``motion``: thinned, its trajectory ids given), the position noise, the period, the angles, the seed, and
+    ``refit(library)`` → the pointwise table with another conservative library ("short": a pendulum about any rest
+    angle, springs to degree 3), or None."""
     return {
         "pointwise": pointwise,
         "refit": refit,
-        "q": np.asarray(data.q, float)[rows],
-        "qd": np.asarray(data.qd, float)[rows],
-        "t": np.asarray(data.t, float)[rows],
-        "traj": np.asarray(traj)[rows],
+        "q": np.asarray(motion.q, float),
+        "qd": np.asarray(motion.qd, float),
+        "t": np.asarray(motion.t, float),
+        "traj": np.asarray(motion.traj),
         "sigma": list(sigma),
         "period": float(period),
         "angles": [bool(a) for a in angles],
@@ -63,7 +67,7 @@ def whole_record_fits(ctx: dict, keys: list[str]):
     each conservative library: the full one of the law table and, where ``ctx`` can refit it, the short one (a
     pendulum about any rest angle, springs to degree 3, no velocity terms — the model of an independent reference).
     Returns ([(library name, ranked LawTable), …], None) or (None, why not)."""
-    from nnphd.explain.trajectory import rank_trajectory
+    from nnphd.explain.trajectory import Motion, TrajectorySettings, WindowPlan, rank_trajectory
 
     short = "the short library (a pendulum or a spring)"
     is_short = ctx["pointwise"].settings.get("library") == "short"  # a record too short for held-out windows
@@ -80,18 +84,13 @@ def whole_record_fits(ctx: dict, keys: list[str]):
         sub = replace(pw, rows=[by_key["none"], *(by_key[k] for k in keys)], law=None, ties=[])
         ranked = rank_trajectory(
             sub,
-            ctx["q"],
-            ctx["qd"],
-            ctx["t"],
-            ctx["traj"],
+            Motion(ctx["q"], ctx["qd"], ctx["t"], ctx["traj"]),
             sigma=ctx["sigma"],
             period=ctx["period"],
             angles=ctx["angles"],
             fc_fn=None,
-            seed=ctx["seed"],
-            window_periods=(0.75,),
-            min_windows=ALL_WINDOWS,
-            allow_in_sample=True,
+            windows=WindowPlan(window_periods=(0.75,), min_windows=ALL_WINDOWS, allow_in_sample=True),
+            settings=TrajectorySettings(seed=ctx["seed"]),
         )
         if ranked is not sub and ranked.settings.get("in_sample"):
             out.append((name, ranked))
@@ -128,9 +127,10 @@ def break_tie(table, lib):
     and the envelope). The tie stands where a member has no whole-record fit at an optimum that follows the record
     (χ²/N ≤ :data:`MAX_CHI2_PER_ROW`), the best whole-record fit is not eligible, or all stay within IC_TIE.
     ``settings["whole_record"]``: what was found, or why not."""
+    from nnphd.explain.law import TableStatus
     from nnphd.explain.table import IC_TIE
 
-    if table.status != "tie":
+    if table.status != TableStatus.TIE:
         return table
     ctx = lib.whole_record if lib is not None else None
     members = [table.law, *table.ties]

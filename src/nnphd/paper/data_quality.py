@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import jax
@@ -44,12 +44,26 @@ from nnphd.paper.lambda_p import ALIGN_TOL, NEAR_ZERO_FRACTION, RESULT_FORMAT
 from nnphd.paper.study_results import AlphaRow, BetaRow, Claim, DataQualityGrid, DataQualityResult
 from nnphd.parallel import Unit, UnitsFailed, run_units
 
-__all__ = ["DQ_GRID", "data_quality_study"]
+__all__ = ["DQ_GRID", "DataQualitySettings", "data_quality_study"]
 
 DQ_GRID: tuple[float, ...] = tuple(i / 8 for i in range(9))  # α and β grid: 0, 0.125, …, 1
 DQ_LAM_ALPHA = 10.0
 DQ_LAM_BETA = 0.5
 DQ_P = 1.0
+
+
+@dataclass(frozen=True)
+class DataQualitySettings:
+    """What a data-quality study (:func:`data_quality_study`) runs: training ``steps`` per data set, the ``seed``,
+    the pie coverages ``alphas`` and imbalances ``betas`` (in [0, 1]) and the sample sizes ``n_train``, ``n_test``.
+    Checked when the study starts."""
+
+    steps: int = 2000
+    seed: int = 0
+    alphas: Sequence[float] = DQ_GRID
+    betas: Sequence[float] = DQ_GRID
+    n_train: int = 1000
+    n_test: int = 1000
 
 
 def _stack(datasets: Sequence[Dataset]):
@@ -222,14 +236,9 @@ def _check_grid(values, name: str) -> tuple[float, ...]:
 
 
 def data_quality_study(
-    steps: int = 2000,
-    seed: int = 0,
-    alphas: Sequence[float] = DQ_GRID,
-    betas: Sequence[float] = DQ_GRID,
+    settings: DataQualitySettings = DataQualitySettings(),
     out: str | Path | None = None,
     progress: Progress | None = None,
-    n_train: int = 1000,
-    n_test: int = 1000,
     workers: int | None = 1,
     scheduler: str | None = None,
 ) -> DataQualityResult:
@@ -240,15 +249,17 @@ def data_quality_study(
     is results.json's content. With ``out``: writes results.json and fig6.png, and caches the two grids in
     out/alpha.json, out/beta.json (a repeated call with the same settings loads them). The two grids are units of
     :func:`nnphd.parallel.run_units` (``workers``: 1 here, None one process per core; ``scheduler``).
+    ``settings``: :class:`DataQualitySettings`.
     """
     t0 = time.perf_counter()
+    steps, seed, n_train, n_test = settings.steps, settings.seed, settings.n_train, settings.n_test
     if isinstance(steps, bool) or int(steps) != steps or steps < 4:
         raise ValueError(f"steps must be an integer ≥ 4, got {steps!r}")
     if isinstance(seed, bool) or int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be an integer ≥ 0, got {seed!r}")
     steps, seed = int(steps), int(seed)
-    al = _check_grid(alphas, "alphas")
-    be = _check_grid(betas, "betas")
+    al = _check_grid(settings.alphas, "alphas")
+    be = _check_grid(settings.betas, "betas")
     outdir = ensure_writable_dir(out) if out is not None else None
     units = [
         Unit(

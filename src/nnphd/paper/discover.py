@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -38,13 +38,13 @@ from nnphd.engine.features import FEATURE_SETS, train_constrained
 from nnphd.engine.models import ModelConfig
 from nnphd.engine.systems import SYSTEMS, get_system
 from nnphd.engine.train import PAPER_LAMBDAS
-from nnphd.explain.laws import rank_laws
+from nnphd.explain.laws import CandidateSet, ConservativeBase, PointwiseSettings, rank_laws
 from nnphd.explain.parametric import fit_drag_power, fit_linear_friction, fit_perturber
 from nnphd.explain.sparse import sparse_formula
-from nnphd.explain.symbolic import genetic_formula
+from nnphd.explain.symbolic import GeneticSearch, genetic_formula
 from nnphd.io.progress import Progress, Stages
 from nnphd.io.results import ensure_writable_dir, plot_sweep, save_figure, write_json
-from nnphd.paper.sweep import SweepPlan, plan_sweep, run_sweep
+from nnphd.paper.sweep import SweepPlan, SweepSettings, plan_sweep, run_sweep
 from nnphd.paper.sweep_result import SweepResult
 
 # the systems with a Table II row; each names its feature Lagrangian, hypothesis family, truth, goals and default
@@ -58,6 +58,25 @@ PAPER_TABLE2 = {
     "neptune": {"GM": 0.0052, "R": 3.004, "omega": 0.192},
     "gw": {"k": 0.00170, "m": 3.94},
 }
+
+
+@dataclass(frozen=True)
+class DiscoverSettings:
+    """How :func:`discover` runs on a Table I system: ``steps`` of the constrained Lagrangian + UAN at ``lam``,
+    ``sweep_steps`` per λ of the detection sweep over ``sweep_lambdas``, the ``seed``, ``standardize``-d inputs, the
+    trajectory length ``n_steps`` (None: the system's
+    :attr:`~nnphd.engine.systems.System.discover_n_steps`), ``sr_time`` seconds of genetic symbolic regression per
+    force component (0 skips it) and the training precision ``dtype``."""
+
+    steps: int = 2000
+    sweep_steps: int = 2000
+    lam: float = 0.2
+    seed: int = 0
+    standardize: bool = True
+    n_steps: int | None = None
+    sr_time: float = 20.0
+    sweep_lambdas: Sequence[float] = PAPER_LAMBDAS
+    dtype: str = "float64"
 
 
 def table2_params(sysm, row) -> tuple[dict, dict]:
@@ -77,18 +96,12 @@ def joint_laws(sysm, d, fl, cf, seed: int = 0, n_boot: int = 200):
 
     dfc = np.asarray(jax.jit(jax.jacfwd(fl.accel))(jnp.asarray(cf.coefs), jnp.asarray(d.q), jnp.asarray(d.qd)))
     return rank_laws(
-        d.q,
-        d.qd,
-        d.qdd,
-        d.t,
+        d,
         names=sysm.coords,
         angles=list(sysm.angles),
-        fc=cf.fc,
-        library=False,
-        conservative_cols=dfc,
-        perturber=not any(sysm.angles),
-        seed=seed,
-        n_boot=n_boot,
+        base=ConservativeBase(fc=cf.fc, library=False, columns=dfc),
+        candidates=CandidateSet(perturber=not any(sysm.angles)),
+        settings=PointwiseSettings(n_boot=n_boot, seed=seed),
     )
 
 
@@ -103,47 +116,36 @@ def _parametric(sysm, d, fn):
     raise ValueError(f"no post-hoc parametric fit for the law family {sysm.law_family!r}")
 
 
-def discover(
-    system: str,
-    steps: int = 2000,
-    sweep_steps: int = 2000,
-    lam: float = 0.2,
-    seed: int = 0,
-    standardize: bool = True,
-    progress: Progress | None = None,
-    n_steps: int | None = None,
-    sr_time: float = 20.0,
-    sweep_lambdas: Sequence[float] = PAPER_LAMBDAS,
-    dtype: str = "float64",
-) -> dict:
-    """Detection sweep, constrained Lagrangian + UAN at ``lam``, parametric Table II row and blind formulas.
+def discover(system: str, settings: DiscoverSettings = DiscoverSettings(), progress: Progress | None = None) -> dict:
+    """Detection sweep, constrained Lagrangian + UAN at ``settings.lam``, parametric Table II row and blind formulas.
 
-    ``n_steps``: trajectory length (None → the system's
+    ``settings`` (:class:`DiscoverSettings`): ``n_steps`` is the trajectory length (None → the system's
     :attr:`~nnphd.engine.systems.System.discover_n_steps`); ``sr_time``: seconds of genetic symbolic
     regression per force component (0 skips it); ``dtype``: the precision of every training (the sweep's LNN and
     UAN, the constrained Lagrangian and its UAN; "float32" for a GPU); the law is then fitted in float64 on the
     trained forces.
     """
+    s = settings
     if system not in DISCOVERY_SYSTEMS:
         raise ValueError(f"discover works on {', '.join(DISCOVERY_SYSTEMS)}; got {system!r}")
     say = Stages(progress, 6)
     sysm = get_system(system)
     paper_n_steps = sysm.n_steps
-    sysm = replace(sysm, n_steps=int(n_steps or sysm.discover_n_steps))
+    sysm = replace(sysm, n_steps=int(s.n_steps or sysm.discover_n_steps))
     t0 = time.perf_counter()
     say("λ-sweep with a free LNN")
-    plan, sw = _detection_sweep(sysm, sweep_steps, seed, standardize, sweep_lambdas, dtype)
-    say(f"constrained Lagrangian + UAN at λ = {lam:g}")
+    plan, sw = _detection_sweep(sysm, s)
+    say(f"constrained Lagrangian + UAN at λ = {s.lam:g}")
     d, cfg = plan.train, plan.cfg  # the trajectory; ModelConfig(n) standardised on it (when standardize)
     fl = FEATURE_SETS[sysm.feature_set]
-    cf = _constrained_fit(d, fl, lam, steps, seed, cfg)
+    cf = _constrained_fit(d, fl, s.lam, s.steps, s.seed, cfg)
     say("the law: candidates fitted jointly with the constrained Lagrangian")
-    table = joint_laws(sysm, d, fl, cf, seed)
+    table = joint_laws(sysm, d, fl, cf, s.seed)
     hyp = next(r for r in table.rows if r.key == sysm.law_family)
     say("parametric explanation (post hoc, of the UAN's output)")
     fit = _parametric(sysm, d, cf.fn)
     rows = _table2_rows(sysm, PAPER_TABLE2[system], hyp, fit)
-    blind = _blind_explanations(sysm, d, cf.fn, seed, sr_time, say)
+    blind = _blind_explanations(sysm, d, cf.fn, s.seed, s.sr_time, say)
     return {
         "system": system,
         "description": sysm.description,
@@ -167,25 +169,24 @@ def discover(
         "law_winner": table.law.key if table.law else None,
         "law_hypothesis": sysm.law_family,
         "blind": blind,
-        "settings": _settings(sysm, paper_n_steps, sw, steps, sweep_steps, lam, seed, standardize, dtype, sr_time),
+        "settings": _settings(s, sysm, paper_n_steps, sw),
         "wall_time_s": time.perf_counter() - t0,
     }
 
 
-def _detection_sweep(
-    sysm, sweep_steps: int, seed: int, standardize: bool, sweep_lambdas, dtype: str
-) -> tuple[SweepPlan, SweepResult]:
+def _detection_sweep(sysm, settings: DiscoverSettings) -> tuple[SweepPlan, SweepResult]:
     """The λ-sweep with a free LNN and its verdict. Returns (the sweep's plan, whose trajectory and standardised
     configuration the later stages reuse, and the sweep's result)."""
     # the trajectory and its standardisation are made once, for the sweep and the constrained fit
-    plan = plan_sweep(
-        sysm,
-        steps=sweep_steps,
-        seed=seed,
-        standardize=standardize,
-        lambdas=sweep_lambdas,
-        model_cfg=ModelConfig(n=sysm.n, dtype=dtype),
+    s = settings
+    sweep = SweepSettings(
+        steps=s.sweep_steps,
+        seed=s.seed,
+        standardize=s.standardize,
+        lambdas=s.sweep_lambdas,
+        model_cfg=ModelConfig(n=sysm.n, dtype=s.dtype),
     )
+    plan = plan_sweep(sysm, sweep)
     return plan, run_sweep(sysm, plan=plan)
 
 
@@ -196,17 +197,18 @@ def _constrained_fit(d, fl, lam: float, steps: int, seed: int, cfg):
     return replace(cf, **{k: np.asarray(getattr(cf, k), np.float64) for k in ("coefs", "fc", "fn")})
 
 
-def _settings(sysm, paper_n_steps, sw, steps, sweep_steps, lam, seed, standardize, dtype, sr_time) -> dict:
+def _settings(settings: DiscoverSettings, sysm, paper_n_steps: int, sw: SweepResult) -> dict:
     """The "settings" entry of the result: everything the run depended on."""
+    s = settings
     return {
-        "steps": steps,
-        "sweep_steps": sweep_steps,
+        "steps": s.steps,
+        "sweep_steps": s.sweep_steps,
         "sweep_lambdas": sorted(sw.settings["lambdas"]),
-        "lambda": lam,
-        "seed": seed,
-        "standardize": standardize,
-        "dtype": dtype,
-        "sr_time_per_component_s": sr_time,
+        "lambda": s.lam,
+        "seed": s.seed,
+        "standardize": s.standardize,
+        "dtype": s.dtype,
+        "sr_time_per_component_s": s.sr_time,
         "trajectory": {"x0": list(sysm.x0), "dt": sysm.dt, "n_steps": sysm.n_steps, "paper_n_steps": paper_n_steps},
     }
 
@@ -250,7 +252,9 @@ def _blind_explanations(sysm, d, fn, seed: int, sr_time: float, say) -> dict:
     }
     if sr_time > 0:
         say("blind explanation (genetic symbolic regression)")
-        blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_hint_dict()
+        blind["genetic"] = genetic_formula(
+            inputs, fn, comps, seed=seed, search=GeneticSearch(max_time=sr_time)
+        ).to_hint_dict()
     return blind
 
 

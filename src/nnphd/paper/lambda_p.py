@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import jax
@@ -70,7 +71,7 @@ from nnphd.paper.study_results import (
     LambdaPVerdict,
     LearnedForces,
 )
-from nnphd.paper.sweep import plan_sweep
+from nnphd.paper.sweep import SweepSettings, plan_sweep
 from nnphd.parallel import Unit, UnitsFailed, run_units, runs_here
 
 __all__ = [
@@ -83,6 +84,7 @@ __all__ = [
     "ALIGN_TOL",
     "p_label",
     "transition_sharpness",
+    "LambdaPSettings",
     "lambda_p_study",
 ]
 
@@ -98,6 +100,23 @@ ALIGN_TOL = 0.05  # "aligned": m_c, m_n ≤ 0.05 = 10% of the rms of the true f_
 NEAR_ZERO_FRACTION = 0.1  # "nearly zero" L_e: ≤ 10% of the rms/L1 size of the non-conservative force on the data
 
 RESULT_FORMAT = 1  # version of the cached sub-run files (bump when their content changes)
+
+
+@dataclass(frozen=True)
+class LambdaPSettings:
+    """What a λ/p study (:func:`lambda_p_study`) runs: training ``steps`` per λ, the ``seed``, the λ grid
+    ``lambdas`` (values below and above 1), the losses ``ps`` (p-norms and "mse"), the toy ``systems``, the Gaussian
+    sample sizes ``n_train``, ``n_test``, and the ``force_lambdas`` at which HO+LD's learned forces are kept. Checked
+    (and normalised: sorted distinct λ, parsed losses) when the study starts."""
+
+    steps: int = 2000
+    seed: int = 0
+    lambdas: Sequence[float] = PAPER_LAMBDAS
+    ps: Sequence = LOSSES
+    systems: Sequence[str] = TOY_SYSTEMS
+    n_train: int = 1000
+    n_test: int = 1000
+    force_lambdas: Sequence[float] = FORCE_LAMBDAS
 
 
 def p_label(p) -> str:
@@ -171,28 +190,20 @@ def _rms(a) -> float:
 
 
 def lambda_p_subrun(
-    system: str,
-    p,
-    steps: int,
-    seed: int,
-    lambdas,
-    subdir: Path | None,
-    force_lams,
-    n_train: int,
-    n_test: int,
-    progress: Progress | None,
+    system: str, sweep: SweepSettings, subdir: Path | None, force_lams, progress: Progress | None
 ) -> dict:
-    """One λ-sweep of :func:`nnphd.paper.sweep.system_sweep` (warm mode, standardised inputs), cached in ``subdir``
-    with the learned forces of the test set at ``force_lams``."""
+    """One λ-sweep of :func:`nnphd.paper.sweep.plan_sweep` (``sweep``: warm mode, standardised inputs), cached in
+    ``subdir`` with the learned forces of the test set at ``force_lams``."""
+    lambdas = sweep.lambdas
     force_lams = sorted(x for x in force_lams if x in lambdas) if system == FORCE_SYSTEM else []
     extra = {
-        "n_train": n_train,
-        "n_test": n_test,
+        "n_train": sweep.n_train,
+        "n_test": sweep.n_test,
         "force_lambdas": force_lams,
         "n_force_points": N_FORCE_POINTS if force_lams else 0,
         "format": RESULT_FORMAT,
     }
-    plan = plan_sweep(system, p, steps, seed, lambdas, "warm", None, n_train, n_test, True, subdir, extra)
+    plan = plan_sweep(system, sweep, subdir, extra)
     cached = plan.cache.load()
     if cached is not None:
         cached["cached"] = True
@@ -248,8 +259,10 @@ def lambda_p_subrun(
     return res
 
 
-def _validated(systems, ps, steps, seed, lambdas) -> tuple:
-    """(systems, losses, steps, seed, λ grid) of a λ/p study, checked and normalised."""
+def _validated(settings: LambdaPSettings) -> LambdaPSettings:
+    """The settings of a λ/p study, checked and normalised (sorted distinct λ, parsed losses, integer steps and
+    seed, systems as a tuple)."""
+    systems, ps, steps, seed, lambdas = settings.systems, settings.ps, settings.steps, settings.seed, settings.lambdas
     lams = tuple(sorted(set(validate_lambdas(lambdas))))
     if not any(x < 1 for x in lams) or not any(x > 1 for x in lams):
         raise ValueError("lambdas must contain values both below and above 1 (the transition is read across λ=1)")
@@ -269,54 +282,56 @@ def _validated(systems, ps, steps, seed, lambdas) -> tuple:
     if not systems or len(set(systems)) != len(systems):
         raise ValueError(f"systems must be distinct, got {list(systems)!r}")
 
-    return systems, pvals, steps, seed, lams
+    return replace(settings, systems=systems, ps=tuple(pvals), steps=steps, seed=seed, lambdas=lams)
 
 
-def study_units(
-    seed: int,
-    out: str | Path,
-    steps: int = 2000,
-    lambdas: Sequence[float] = PAPER_LAMBDAS,
-    ps: Sequence = LOSSES,
-    systems: Sequence[str] = TOY_SYSTEMS,
-    n_train: int = 1000,
-    n_test: int = 1000,
-    force_lambdas: Sequence[float] = FORCE_LAMBDAS,
-) -> list[Unit]:
-    """The sweeps of ``lambda_p_study(seed=seed, out=out, ...)`` as units (``nnphd reproduce`` runs them beside its
-    other units; the study then loads them from ``out``'s cache)."""
-    systems, pvals, steps, seed, lams = _validated(systems, ps, steps, seed, lambdas)
-    return lambda_p_units(systems, pvals, steps, seed, lams, Path(out), force_lambdas, n_train, n_test)
+def study_units(settings: LambdaPSettings, out: str | Path) -> list[Unit]:
+    """The sweeps of ``lambda_p_study(settings, out=out)`` as units (``nnphd reproduce`` runs them beside its other
+    units; the study then loads them from ``out``'s cache)."""
+    return lambda_p_units(_validated(settings), Path(out))
 
 
-def lambda_p_units(
-    systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress=None
-) -> list[Unit]:
-    """One :class:`nnphd.parallel.Unit` per (system, p) sweep, keyed ``"<system>/p=<p>"``; ``progress`` (for
-    in-process runs) follows every λ of every sweep."""
-    total = len(systems) * len(pvals) * len(lams)
+def lambda_p_units(settings: LambdaPSettings, outdir: Path | None, progress: Progress | None = None) -> list[Unit]:
+    """One :class:`nnphd.parallel.Unit` per (system, p) sweep of the checked ``settings``, keyed
+    ``"<system>/p=<p>"``; ``progress`` (for in-process runs) follows every λ of every sweep."""
+    st = settings
+    total = len(st.systems) * len(st.ps) * len(st.lambdas)
     units = []
-    for s in systems:
-        for p in pvals:
+    for s in st.systems:
+        for p in st.ps:
             l = p_label(p)
-            base = len(units) * len(lams)
+            base = len(units) * len(st.lambdas)
             sub = outdir / "runs" / f"{s}_p{l}" if outdir is not None else None
+            sweep = SweepSettings(
+                p=p,
+                steps=st.steps,
+                seed=st.seed,
+                lambdas=st.lambdas,
+                mode="warm",
+                n_train=st.n_train,
+                n_test=st.n_test,
+                standardize=True,
+            )
             kw = dict(
-                system=s, p=p, steps=steps, seed=seed, lambdas=lams, subdir=sub, force_lams=force_lambdas,
-                n_train=n_train, n_test=n_test, progress=nested(progress, f"{s} p={l}: done ", base, total),
+                system=s, sweep=sweep, subdir=sub, force_lams=st.force_lambdas,
+                progress=nested(progress, f"{s} p={l}: done ", base, total),
             )  # fmt: skip
             units.append(Unit(f"{s}/p={l}", lambda_p_subrun, kw))
     return units
 
 
 def run_lambda_p_sweeps(
-    systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress, workers, scheduler
+    settings: LambdaPSettings,
+    outdir: Path | None,
+    progress: Progress | None,
+    workers: int | None,
+    scheduler: str | None,
 ) -> dict[str, dict[str, dict]]:
-    """Every (system, p) sweep (trained, or loaded from ``outdir``'s cache): {system: {p label: sub-run}}."""
-    here = runs_here(workers, scheduler, len(systems) * len(pvals))
-    units = lambda_p_units(
-        systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress if here else None
-    )
+    """Every (system, p) sweep of the checked ``settings`` (trained, or loaded from ``outdir``'s cache):
+    {system: {p label: sub-run}}."""
+    systems = settings.systems
+    here = runs_here(workers, scheduler, len(systems) * len(settings.ps))
+    units = lambda_p_units(settings, outdir, progress if here else None)
     outs = run_units(units, workers, scheduler, progress=None if here else progress)
     failed = [o for o in outs.values() if not o.ok]
     if failed:
@@ -491,16 +506,9 @@ def _lambda_p_claims(runs: dict, systems, labels, lambdas) -> list[dict]:
 
 
 def lambda_p_study(
-    steps: int = 2000,
-    seed: int = 0,
-    lambdas: Sequence[float] = PAPER_LAMBDAS,
-    ps: Sequence = LOSSES,
-    systems: Sequence[str] = TOY_SYSTEMS,
+    settings: LambdaPSettings = LambdaPSettings(),
     out: str | Path | None = None,
     progress: Progress | None = None,
-    n_train: int = 1000,
-    n_test: int = 1000,
-    force_lambdas: Sequence[float] = FORCE_LAMBDAS,
     workers: int | None = 1,
     scheduler: str | None = None,
 ) -> LambdaPResult:
@@ -512,23 +520,22 @@ def lambda_p_study(
     (claim, ours, met), ``cached`` (the sub-runs loaded from ``out`` instead of trained), ``settings`` and
     ``wall_time_s``; ``to_dict()`` is results.json's content. With ``out``: writes results.json, fig5.png (a–d
     L_e(λ) per loss; e, f learned vs true forces of HO+LD, p=1; g, h m_c, m_n vs λ) and fig5_forces.png (learned
-    forces for every loss), and caches each sweep in out/runs/<system>_p<p>/.
+    forces for every loss), and caches each sweep in out/runs/<system>_p<p>/. ``settings``: :class:`LambdaPSettings`.
 
     The (system, p) sweeps are independent units of :func:`nnphd.parallel.run_units`: ``workers`` local worker
     processes (1: here, in this process; None: one per core) or an existing Dask ``scheduler``. The numbers do not
     depend on the number of workers. A sweep that fails is reported after the others have finished (and been cached).
     """
     t0 = time.perf_counter()
-    systems, pvals, steps, seed, lams = _validated(systems, ps, steps, seed, lambdas)
-    labels = [p_label(p) for p in pvals]
+    st = _validated(settings)
+    systems, lams = st.systems, st.lambdas
+    labels = [p_label(p) for p in st.ps]
     outdir = ensure_writable_dir(out) if out is not None else None
 
-    runs = run_lambda_p_sweeps(
-        systems, pvals, steps, seed, lams, outdir, force_lambdas, n_train, n_test, progress, workers, scheduler
-    )
+    runs = run_lambda_p_sweeps(st, outdir, progress, workers, scheduler)
     _add_transitions(runs, systems, labels)
     result = LambdaPResult(
-        settings=_study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas),
+        settings=_study_settings(st, labels),
         evaluated_on="test set (L_e, L_b, m_c, m_n, forces)",
         curves={s: {l: _curve(runs[s][l]["table"], s, l) for l in labels} for s in systems},
         verdicts=_verdict_rows(runs, systems, labels),
@@ -606,23 +613,23 @@ def _alignment(runs: dict, labels) -> Alignment:
     )
 
 
-def _study_settings(systems, labels, lams, steps, seed, n_train, n_test, force_lambdas) -> dict:
-    """The "settings" entry of the study's result: everything the sweeps depended on."""
+def _study_settings(settings: LambdaPSettings, labels) -> dict:
+    """The "settings" entry of the study's result: everything the sweeps depended on (``settings``: checked)."""
     return {
-        "systems": list(systems),
+        "systems": list(settings.systems),
         "ps": labels,
-        "lambdas": list(lams),
-        "steps_per_lambda": steps,
-        "seed": seed,
+        "lambdas": list(settings.lambdas),
+        "steps_per_lambda": settings.steps,
+        "seed": settings.seed,
         "mode": "warm (paper appendix B: increasing λ, each from the previous λ's parameters)",
-        "n_train": n_train,
-        "n_test": n_test,
+        "n_train": settings.n_train,
+        "n_test": settings.n_test,
         "data": "iid N(0,1) q, q̇, t (paper III.C)",
         "standardize": True,
         "learning_rates": list(TrainConfig().lrs),
         "batch_size": TrainConfig().batch_size,
         "force_system": FORCE_SYSTEM,
-        "force_lambdas": [x for x in force_lambdas if x in lams],
+        "force_lambdas": [x for x in settings.force_lambdas if x in settings.lambdas],
         "jump_sharpness": JUMP_SHARPNESS,
         "smooth_sharpness": SMOOTH_SHARPNESS,
         "align_tol": ALIGN_TOL,

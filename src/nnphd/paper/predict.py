@@ -34,6 +34,7 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import jax
@@ -59,6 +60,26 @@ from nnphd.paper.study_results import (
 )
 
 LABELS = {"nnphd": "NNPhD", "lnn": "LNN", "blackbox": "black box"}
+
+
+@dataclass(frozen=True)
+class PredictionSettings:
+    """What the prediction experiment (:func:`run_prediction`) runs: the ``seed`` (initialisation and
+    minibatches), training ``steps`` of each model, NNPhD's ``lam``, the hidden ``widths`` of every network, the
+    trajectory (``n_traj`` RK4 steps of ``dt``; training on t ≤ ``t_split``), whether the UAN sees t
+    (``uan_time``), ``standardize``-d inputs and the loss ``p``. Checked (and normalised: integer widths and
+    ``n_traj``, float λ) when the experiment starts."""
+
+    seed: int = 0
+    steps: int = 2000
+    lam: float = 0.2
+    widths: tuple[int, ...] = (200, 200)
+    n_traj: int = 2000
+    dt: float = 0.1
+    t_split: float = 30.0
+    uan_time: bool = False
+    standardize: bool = True
+    p: float | str = 1.0
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -197,49 +218,38 @@ def learned_power(lnn, q, qd, fn, cfg: ModelConfig):
 
 
 def run_prediction(
-    seed: int = 0,
-    steps: int = 2000,
+    settings: PredictionSettings = PredictionSettings(),
     out: str | Path | None = None,
     progress: Progress | None = None,
-    lam: float = 0.2,
-    widths: tuple[int, ...] = (200, 200),
-    n_traj: int = 2000,
-    dt: float = 0.1,
-    t_split: float = 30.0,
-    uan_time: bool = False,
-    standardize: bool = True,
-    p: float | str = 1.0,
 ) -> PredictionResult:
     """Train NNPhD, an LNN and a black box on t ≤ t_split of the damped double pendulum and extrapolate each with RK4.
 
-    Returns a :class:`nnphd.paper.study_results.PredictionResult` (settings, metrics per model, energy balance,
-    claims, wall time; ``to_dict()`` is results.json's content); with ``out`` also writes results.json,
-    prediction.png (θ1(t) and E(t)) and energy_balance.png there.
+    ``settings``: :class:`PredictionSettings`. Returns a :class:`nnphd.paper.study_results.PredictionResult`
+    (settings, metrics per model, energy balance, claims, wall time; ``to_dict()`` is results.json's content); with
+    ``out`` also writes results.json, prediction.png (θ1(t) and E(t)) and energy_balance.png there.
     """
     say = Stages(progress, 2 + 2 * len(MODELS))
-    widths, lam, n_traj, i_split = _checked_settings(widths, lam, n_traj, dt, t_split)
-    tcfg = TrainConfig(steps=steps, p=p)  # validates steps and p
+    s, i_split = _checked_settings(settings)
+    tcfg = TrainConfig(steps=s.steps, p=s.p)  # validates steps and p
     outdir = ensure_writable_dir(out) if out is not None else None
     t_start = time.perf_counter()
 
     sysm = get_system("double-pendulum")
-    say(f"data: RK4 trajectory, {n_traj} steps of {dt:g}")
-    data, train, test, cfg = _split_data(sysm, n_traj, dt, i_split, widths, standardize)
-    params, train_metrics, train_times = _train_models(train, cfg, tcfg, uan_time, seed, lam, steps, say)
-    e_true, rolls, metrics = _roll_out(
-        sysm, cfg, params, test, train_metrics, uan_time, dt, t_split, n_traj, i_split, say
-    )
+    say(f"data: RK4 trajectory, {s.n_traj} steps of {s.dt:g}")
+    data, train, test, cfg = _split_data(sysm, s, i_split)
+    params, train_metrics, train_times = _train_models(train, cfg, tcfg, s, say)
+    e_true, rolls, metrics = _roll_out(s, i_split, sysm, cfg, params, test, train_metrics, say)
 
     say("energy balance")
-    balance, series = _energy_balance(sysm, cfg, params, rolls, test, uan_time, dt)
+    balance, series = _energy_balance(sysm, cfg, params, rolls, test, s.uan_time, s.dt)
     lnn_const = _lnn_energy_constancy(cfg, params["lnn"], rolls["lnn"], test, e_true)
-    decomposition = _decomposition(cfg, params["nnphd"], train, test, uan_time)
+    decomposition = _decomposition(cfg, params["nnphd"], train, test, s.uan_time)
     claims = prediction_claims(metrics, lnn_const, e_true)
 
     results = PredictionResult(
-        experiment=f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {t_split:g}, "
-        f"extrapolate to t = {n_traj * dt:g} with RK4",
-        settings=_settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_traj, t_split, train),
+        experiment=f"prediction (paper section III.B, Fig. 4): damped double pendulum, train t ≤ {s.t_split:g}, "
+        f"extrapolate to t = {s.n_traj * s.dt:g} with RK4",
+        settings=_settings(s, tcfg, cfg, sysm, len(train)),
         metrics={k: ModelMetrics.from_dict(m, f"metrics.{k}", "prediction") for k, m in metrics.items()},
         truth=EnergyTruth(
             energy_t_split=float(e_true[0]),
@@ -261,13 +271,15 @@ def run_prediction(
     )
     if outdir is not None:
         write_json(outdir / "results.json", results.to_dict())
-        save_figure(plot_prediction(data, rolls, t_split), outdir / "prediction.png")
+        save_figure(plot_prediction(data, rolls, s.t_split), outdir / "prediction.png")
         save_figure(plot_energy_balance(series), outdir / "energy_balance.png")
     return results
 
 
-def _checked_settings(widths, lam, n_traj, dt: float, t_split: float) -> tuple[tuple[int, ...], float, int, int]:
-    """Check and normalise the settings of :func:`run_prediction`; returns (widths, λ, n_traj, index of t_split)."""
+def _checked_settings(settings: PredictionSettings) -> tuple[PredictionSettings, int]:
+    """Check and normalise the settings of :func:`run_prediction` (integer widths and ``n_traj``, float λ); returns
+    (the settings, the index of t_split)."""
+    widths, lam, n_traj, dt, t_split = settings.widths, settings.lam, settings.n_traj, settings.dt, settings.t_split
     widths = tuple(int(w) for w in widths)
     if not widths or any(w < 1 for w in widths):
         raise ValueError(f"widths must be positive integers, got {widths}")
@@ -283,31 +295,33 @@ def _checked_settings(widths, lam, n_traj, dt: float, t_split: float) -> tuple[t
             f"t_split must be a positive multiple of dt = {dt:g} inside the trajectory "
             f"(0, {n_traj * dt:g}), got {t_split:g}"
         )
-    return widths, lam, n_traj, i_split
+    return replace(settings, widths=widths, lam=lam, n_traj=n_traj), i_split
 
 
-def _split_data(sysm, n_traj: int, dt: float, i_split: int, widths, standardize: bool) -> tuple:
+def _split_data(sysm, settings: PredictionSettings, i_split: int) -> tuple:
     """The true trajectory, split at ``i_split`` into training and test parts, and the models' configuration
     (standardised on the training part). Returns (data, train, test, cfg)."""
-    data = trajectory_dataset(sysm, n_steps=n_traj, dt=dt)
+    s = settings
+    data = trajectory_dataset(sysm, n_steps=s.n_traj, dt=s.dt)
     train = data.subset(slice(0, i_split + 1))  # 0 ≤ t ≤ t_split
     test = data.subset(slice(i_split, None))  # t_split ≤ t ≤ t_end (starts with the state the rollouts start from)
-    cfg = ModelConfig(n=sysm.n, lnn_widths=widths, uan_widths=widths)
-    if standardize:
+    cfg = ModelConfig(n=sysm.n, lnn_widths=s.widths, uan_widths=s.widths)
+    if s.standardize:
         cfg = cfg.standardized(train.q, train.qd, train.t)
     return data, train, test, cfg
 
 
-def _train_models(train: Dataset, cfg, tcfg, uan_time: bool, seed: int, lam: float, steps, say) -> tuple:
-    """Train the three models on the training part, from the same keys (NNPhD at ``lam``, the others with λ = 0).
-    Returns (parameters, training metrics, training times), each by model."""
+def _train_models(train: Dataset, cfg, tcfg, settings: PredictionSettings, say) -> tuple:
+    """Train the three models on the training part, from the same keys (NNPhD at ``settings.lam``, the others with
+    λ = 0). Returns (parameters, training metrics, training times), each by model."""
+    uan_time = settings.uan_time
     arrays = tuple(jnp.asarray(a, jnp.float64) for a in (train.q, train.qd, train.t, train.qdd))
-    k_init, k_train = jax.random.split(jax.random.PRNGKey(seed))
-    lams = {"nnphd": lam, "lnn": 0.0, "blackbox": 0.0}
+    k_init, k_train = jax.random.split(jax.random.PRNGKey(settings.seed))
+    lams = {"nnphd": settings.lam, "lnn": 0.0, "blackbox": 0.0}
 
     params, train_metrics, train_times = {}, {}, {}
     for kind in MODELS:
-        say(f"training {LABELS[kind]} ({steps} steps)")
+        say(f"training {LABELS[kind]} ({settings.steps} steps)")
         tm = time.perf_counter()
         p0 = init_model(kind, k_init, cfg, uan_time)
         params[kind], _ = _trainer(kind, cfg, tcfg, uan_time)(p0, arrays, jnp.float64(lams[kind]), k_train)
@@ -321,9 +335,12 @@ def _train_models(train: Dataset, cfg, tcfg, uan_time: bool, seed: int, lam: flo
     return params, train_metrics, train_times
 
 
-def _roll_out(sysm, cfg, params, test: Dataset, train_metrics, uan_time, dt, t_split, n_traj, i_split, say) -> tuple:
+def _roll_out(
+    settings: PredictionSettings, i_split: int, sysm, cfg, params, test: Dataset, train_metrics, say
+) -> tuple:
     """Integrate each trained model with RK4 from the true state at ``t_split`` and compare with the truth.
     Returns (the true energy on the test part, the rollouts by model, the metrics by model)."""
+    uan_time, dt, t_split, n_traj = settings.uan_time, settings.dt, settings.t_split, settings.n_traj
     energy = _energy_fn(sysm)
     n_roll = n_traj - i_split
     e_true = np.asarray(energy(jnp.asarray(test.q), jnp.asarray(test.qd)))
@@ -360,12 +377,14 @@ def _decomposition(cfg, nnphd_params, train: Dataset, test: Dataset, uan_time: b
     return decomposition
 
 
-def _settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_traj, t_split, train) -> dict:
-    """The "settings" entry of the results: everything the run depended on."""
+def _settings(settings: PredictionSettings, tcfg, cfg, sysm, n_train: int) -> dict:
+    """The "settings" entry of the results: everything the run depended on (``settings``: checked)."""
+    s = settings
+    widths = s.widths
     return {
-        "seed": seed,
+        "seed": s.seed,
         "steps": tcfg.steps,
-        "lambda": lam,
+        "lambda": s.lam,
         "p": tcfg.p,
         "learning_rates": list(tcfg.lrs),
         "batch_size": tcfg.batch_size,
@@ -374,18 +393,18 @@ def _settings(seed, lam, widths, tcfg, cfg, uan_time, standardize, sysm, dt, n_t
         "split_mass": cfg.split_mass,
         "uan_activation": f"{cfg.uan_activation}({cfg.leaky_slope:g})",
         "blackbox": f"MLP (q, q̇) → q̈, widths {list(widths)}, {cfg.uan_activation}({cfg.leaky_slope:g})",
-        "uan_inputs": "(q, q̇, t)" if uan_time else "(q, q̇)",
-        "uan_time": uan_time,
-        "standardize": standardize,
+        "uan_inputs": "(q, q̇, t)" if s.uan_time else "(q, q̇)",
+        "uan_time": s.uan_time,
+        "standardize": s.standardize,
         "system": sysm.name,
         "system_params": dict(sysm.params),
         "x0": list(sysm.x0),
-        "dt": dt,
-        "n_traj": n_traj,
-        "t_split": t_split,
-        "t_end": n_traj * dt,
-        "n_train": len(train),
-        "rollout": f"RK4, dt = {dt:g}, from the true state at t = {t_split:g}",
+        "dt": s.dt,
+        "n_traj": s.n_traj,
+        "t_split": s.t_split,
+        "t_end": s.n_traj * s.dt,
+        "n_train": n_train,
+        "rollout": f"RK4, dt = {s.dt:g}, from the true state at t = {s.t_split:g}",
         "theta_tolerance": THETA_TOL,
     }
 

@@ -123,22 +123,22 @@ def _run_experiment(exp: str, name: str | None, d: Path, seed: int, kw: dict, pr
     """Run one experiment (``name``: the discovery system) into ``d``; returns its results as a dict (results.json's
     content, as a cached unit reads it back)."""
     if exp == "discover":
-        from nnphd.paper.discover import discover, write_discovery
+        from nnphd.paper.discover import DiscoverSettings, discover, write_discovery
 
-        r = discover(name, seed=seed, progress=progress, **kw)
+        r = discover(name, DiscoverSettings(seed=seed, **kw), progress=progress)
         write_discovery(r, d)
         return r
     if exp == "predict":
-        from nnphd.paper.predict import run_prediction
+        from nnphd.paper.predict import PredictionSettings, run_prediction
 
-        return run_prediction(seed=seed, out=d, progress=progress, **kw).to_dict()
+        return run_prediction(PredictionSettings(seed=seed, **kw), out=d, progress=progress).to_dict()
     if exp == "lambda-p":
-        from nnphd.paper.lambda_p import lambda_p_study
+        from nnphd.paper.lambda_p import LambdaPSettings, lambda_p_study
 
-        return lambda_p_study(seed=seed, out=d, progress=progress, **kw).to_dict()
-    from nnphd.paper.data_quality import data_quality_study
+        return lambda_p_study(LambdaPSettings(seed=seed, **kw), out=d, progress=progress).to_dict()
+    from nnphd.paper.data_quality import DataQualitySettings, data_quality_study
 
-    return data_quality_study(seed=seed, out=d, progress=progress, **kw).to_dict()
+    return data_quality_study(DataQualitySettings(seed=seed, **kw), out=d, progress=progress).to_dict()
 
 
 def experiment_unit(
@@ -163,12 +163,15 @@ def _part(progress: Progress | None, i: int, n: int, label: str) -> Progress | N
 def _spread(units: list[Unit], outdir: Path, seed: int, lp_kw: dict) -> list[Unit]:
     """For workers: the λ/p study (most of the time) as its 20 sweeps, unless its results are cached already; the
     longest units first (the discovery systems, then the sweeps, then predict and data quality)."""
-    from nnphd.paper.lambda_p import study_units
+    from nnphd.paper.lambda_p import LambdaPSettings, study_units
 
     lp = next(u for u in units if u.key == "lambda-p")
     if Cache(outdir / "lambda-p", lp.kwargs["settings"]).load(MARKER) is not None:
         return units
-    sweeps = [Unit(f"lambda-p/{u.key}", u.fn, u.kwargs) for u in study_units(seed, outdir / "lambda-p", **lp_kw)]
+    sweeps = [
+        Unit(f"lambda-p/{u.key}", u.fn, u.kwargs)
+        for u in study_units(LambdaPSettings(seed=seed, **lp_kw), outdir / "lambda-p")
+    ]
     disc = [u for u in units if u.key.startswith("discover/")]
     return disc + sweeps + [u for u in units if u.key != "lambda-p" and not u.key.startswith("discover/")]
 

@@ -18,7 +18,15 @@ from nnphd.engine.adaptive import ALL_MODES, fast_sweep
 from nnphd.engine.data import Dataset, train_test
 from nnphd.engine.models import ModelConfig, init_nnphd
 from nnphd.engine.systems import System, get_system
-from nnphd.engine.train import PAPER_LAMBDAS, SweepPoint, TrainConfig, sweep, validate_lambdas
+from nnphd.engine.train import (
+    PAPER_LAMBDAS,
+    SweepHooks,
+    SweepPoint,
+    SweepSchedule,
+    TrainConfig,
+    sweep,
+    validate_lambdas,
+)
 from nnphd.engine.verdict import PhaseTransition, force_norm, verdict
 from nnphd.io.cache import Cache
 from nnphd.io.progress import Progress
@@ -65,13 +73,15 @@ class SweepPlan:
             _save_checkpoint(self.cache, done)
 
         t0 = time.perf_counter()
-        common = dict(seed=self.seed, test_data=self.test, progress=progress, resume=done, on_point=on_point)
+        common = dict(
+            seed=self.seed, test_data=self.test, hooks=SweepHooks(resume=done, on_point=on_point, progress=progress)
+        )
         protocol = None
         if self.mode == "fast":
             points, info = fast_sweep(self.train, self.cfg, self.tcfg, self.lambdas, **common)
             protocol = info.to_dict()
         else:
-            points = sweep(self.train, self.cfg, self.tcfg, self.lambdas, mode=self.mode, **common)
+            points = sweep(self.train, self.cfg, self.tcfg, SweepSchedule(self.lambdas, self.mode), **common)
         wall = time.perf_counter() - t0
         ev = self.test if self.test is not None else self.train
         return SystemSweep(self, points, verdict(points, force_norm(ev.qdd, self.tcfg.p)), wall, resumed, protocol)
@@ -89,48 +99,60 @@ class SystemSweep:
     protocol: dict | None = None  # mode "fast": what it trained (FastInfo.to_dict)
 
 
+@dataclass(frozen=True)
+class SweepSettings:
+    """How a λ-sweep of a catalogue system is run (:func:`plan_sweep`, :func:`run_sweep`): the loss ``p``, training
+    ``steps`` per λ, the ``seed`` (data and initialisation), the λ grid ``lambdas``, the sweep ``mode`` (one of
+    :data:`nnphd.engine.adaptive.ALL_MODES`), the networks' ``model_cfg`` (None: ``ModelConfig(n=system.n)``), the
+    Gaussian sample sizes ``n_train``, ``n_test`` (ignored for trajectory systems) and whether the networks see
+    ``standardize``-d inputs. Checked when the sweep is planned."""
+
+    p: float | str = 1.0
+    steps: int = 2000
+    seed: int = 0
+    lambdas: Sequence[float] = PAPER_LAMBDAS
+    mode: str = "warm"
+    model_cfg: ModelConfig | None = None
+    n_train: int = 1000
+    n_test: int = 1000
+    standardize: bool = True
+
+
 def plan_sweep(
     system: System | str,
-    p: float | str = 1.0,
-    steps: int = 2000,
-    seed: int = 0,
-    lambdas: Sequence[float] = PAPER_LAMBDAS,
-    mode: str = "warm",
-    model_cfg: ModelConfig | None = None,
-    n_train: int = 1000,
-    n_test: int = 1000,
-    standardize: bool = True,
+    settings: SweepSettings = SweepSettings(),
     out: Path | None = None,
     extra_settings: dict | None = None,
 ) -> SweepPlan:
     """Data of a catalogue system, the model and the settings of its λ-sweep (plus ``extra_settings``, for callers
     that store more under the same key); the checkpoint lives in ``out``."""
+    s = settings
     sysm = get_system(system) if isinstance(system, str) else system
-    if mode not in ALL_MODES:
-        raise ValueError(f"mode must be one of {', '.join(ALL_MODES)}, got {mode!r}")
-    tcfg = TrainConfig(steps=steps, p=p)
-    lams = validate_lambdas(lambdas)
-    train, test = train_test(sysm, seed=seed, n_train=n_train, n_test=n_test)
-    cfg = model_cfg or ModelConfig(n=sysm.n)
-    if standardize:  # the networks see order-one inputs whatever the units (t runs to 100 on the Neptune orbit)
+    if s.mode not in ALL_MODES:
+        raise ValueError(f"mode must be one of {', '.join(ALL_MODES)}, got {s.mode!r}")
+    tcfg = TrainConfig(steps=s.steps, p=s.p)
+    lams = validate_lambdas(s.lambdas)
+    train, test = train_test(sysm, seed=s.seed, n_train=s.n_train, n_test=s.n_test)
+    cfg = s.model_cfg or ModelConfig(n=sysm.n)
+    if s.standardize:  # the networks see order-one inputs whatever the units (t runs to 100 on the Neptune orbit)
         cfg = cfg.standardized(train.q, train.qd, train.t)
-    settings = {
+    recorded = {
         "system": sysm.name,
         "system_params": dict(sysm.params),
         "p": tcfg.p,
         "steps_per_lambda": tcfg.steps,
         "learning_rates": list(tcfg.lrs),
         "batch_size": tcfg.batch_size,
-        "seed": seed,
+        "seed": s.seed,
         "lambdas": sorted(lams),
-        "mode": mode,
+        "mode": s.mode,
         "data": sysm.data,
-        "n_train": n_train if sysm.data == "gaussian" else None,
-        "n_test": n_test if sysm.data == "gaussian" else None,
+        "n_train": s.n_train if sysm.data == "gaussian" else None,
+        "n_test": s.n_test if sysm.data == "gaussian" else None,
         "model": asdict(cfg),
         **(extra_settings or {}),
     }
-    return SweepPlan(sysm, lams, mode, seed, train, test, cfg, tcfg, settings, Cache(out, settings))
+    return SweepPlan(sysm, lams, s.mode, s.seed, train, test, cfg, tcfg, recorded, Cache(out, recorded))
 
 
 def _save_checkpoint(cache: Cache, done: dict[float, SweepPoint]) -> None:
@@ -139,25 +161,25 @@ def _save_checkpoint(cache: Cache, done: dict[float, SweepPoint]) -> None:
 
 def run_sweep(
     system: System | str,
+    settings: SweepSettings | None = None,
     *,
     out: str | Path | None = None,
     progress: Progress | None = None,
     resume: bool = True,
     plan: SweepPlan | None = None,
-    **plan_kw,
 ) -> SweepResult:
     """Run a λ-sweep on a catalogue system and return its :class:`SweepResult` (``.to_dict()``, results.json's
     content, is also written to ``out`` if given, with the L_e(λ) plot).
 
-    ``plan_kw`` (p, steps, seed, lambdas, mode, model_cfg, n_train, n_test, standardize) as :func:`plan_sweep`, or
-    ``plan``: one made already (a caller that also needs its data and model settings makes them once). With
-    ``out``, every finished λ is checkpointed there (``resume=False`` starts afresh)."""
+    ``settings`` (:class:`SweepSettings`; None: the defaults) as :func:`plan_sweep`, or ``plan``: one made already (a
+    caller that also needs its data and model settings makes them once). With ``out``, every finished λ is
+    checkpointed there (``resume=False`` starts afresh)."""
     outdir = ensure_writable_dir(out) if out is not None else None
     if outdir is not None and not resume:
         Cache(outdir, {}).clear_checkpoint()
     if plan is None:
-        plan = plan_sweep(system, out=outdir, **plan_kw)
-    elif plan_kw or outdir is not None:
+        plan = plan_sweep(system, settings or SweepSettings(), out=outdir)
+    elif settings is not None or outdir is not None:
         raise ValueError("run_sweep: give either plan or the plan's settings (and out), not both")
     r = plan.run(progress)
     res = SweepResult(

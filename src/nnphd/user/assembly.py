@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from nnphd.explain.law import TableStatus
 from nnphd.explain.search import field_force
 from nnphd.parallel import runs_in_this_process
 from nnphd.user.rules import RECONCILED_BASIS
@@ -136,7 +137,7 @@ def law_formula(law: dict) -> dict | None:
     w = law.get("law")
     if not w:
         return None
-    if law.get("status") == "tie":
+    if law.get("status") == TableStatus.TIE:
         titles = " or ".join([w["title"], *(r["title"] for r in law.get("ties", []))])
         method = f"tie ({w['method']} fit): {titles} — the record cannot tell them apart; the first is shown"
     else:

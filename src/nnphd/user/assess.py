@@ -81,7 +81,7 @@ from nnphd.user.checks import (
     data_quality,
     motion_time_scale,
 )
-from nnphd.user.result import ConservativeModel
+from nnphd.user.result import ConservativeModel, Status
 from nnphd.user.rounds import (
     lnn_accel_fn,
     one_seed,
@@ -94,7 +94,7 @@ from nnphd.user.scaling import (
     time_features,
 )
 
-__all__ = ["Assessment", "assess", "conservative_fn"]
+__all__ = ["AssessSettings", "Assessment", "RecordFacts", "assess", "conservative_fn"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,36 +162,52 @@ def motion_period(data: Dataset, traj=None, angles: Sequence[bool] | None = None
     return float(period * sc.s_t)
 
 
+@dataclass(frozen=True)
+class AssessSettings:
+    """How :func:`assess` trains and checks: ``seed`` (the seeds are seed, seed+1, …, each with its own held-out
+    trajectories), training ``steps`` per λ and per extra round of the conservative and free models, the λ grid
+    ``lambdas``, ``n_seeds``, the hidden units ``width`` of every network (two layers), the held-out share
+    ``holdout_frac``, ``long_factor`` extra rounds for the conservative model, and where the seeds train:
+    ``workers`` / ``scheduler`` (:func:`nnphd.parallel.run_units`: 1, one after another here; None, side by side on
+    one thread per core of this process, sharing their compiled programs; N, N local Dask worker processes; or an
+    existing Dask scheduler — the same numbers either way)."""
+
+    seed: int = 0
+    steps: int = 1000
+    lambdas: Sequence[float] = DEFAULT_LAMBDAS
+    n_seeds: int = 2
+    width: int = 64
+    holdout_frac: float = 0.25
+    long_factor: int = 3
+    workers: int | None = 1
+    scheduler: str | None = None
+
+
+@dataclass(frozen=True)
+class RecordFacts:
+    """What the record's reading and derivative stage know, per coordinate: which are ``angles`` (they enter every
+    network as sin, cos; whole turns are fine), the ``position_noise`` σ (None: estimated), and the
+    ``derivative_error``, the relative RMS error of the estimated q̈ (from :func:`nnphd.user.derivatives.to_dataset`;
+    None: q̈ assumed exact)."""
+
+    angles: Sequence[bool] | None = None
+    position_noise: Sequence[float] | None = None
+    derivative_error: Sequence[float] | None = None
+
+
 def assess(
     data: Dataset,
     traj: np.ndarray | None = None,
-    seed: int = 0,
-    steps: int = 1000,
-    lambdas: Sequence[float] = DEFAULT_LAMBDAS,
-    n_seeds: int = 2,
+    settings: AssessSettings = AssessSettings(),
+    record: RecordFacts = RecordFacts(),
     progress: Progress | None = None,
-    width: int = 64,
-    holdout_frac: float = 0.25,
-    long_factor: int = 3,
-    angles: Sequence[bool] | None = None,
-    position_noise: Sequence[float] | None = None,
-    derivative_error: Sequence[float] | None = None,
-    workers: int | None = 1,
-    scheduler: str | None = None,
 ) -> Assessment:
     """Is there new physics in trajectory data (q, q̇, t, q̈), with checks against under-fitting?
 
     ``data``: a :class:`~nnphd.engine.data.Dataset` (its fc/fn, if any, are ignored); ``traj``: a trajectory id per row
-    (None: a single trajectory); ``steps``: training steps per λ and per extra round of the conservative and free
-    models; ``n_seeds``: seeds seed, seed+1, … (each with its own held-out trajectories); ``width``: hidden units of
-    every network (two layers); ``long_factor``: extra rounds for the conservative model;
-    ``angles``: (n,) bools, coordinates that are angles (enter every network as sin, cos; whole turns are fine);
-    ``position_noise``: (n,) σ of the positions (default: estimated); ``derivative_error``: (n,) relative RMS
-    error of the estimated q̈ (from :func:`nnphd.user.derivatives.to_dataset`; None: q̈ assumed exact);
+    (None: a single trajectory); ``settings``: :class:`AssessSettings` (seed, steps, λ grid, seeds, widths, where the
+    seeds train); ``record``: :class:`RecordFacts` (angles, position noise, q̈ error per coordinate);
     ``progress(done, total, message)``: called after every training round. The method: module docstring.
-    ``workers`` / ``scheduler``: the seeds are independent units of :func:`nnphd.parallel.run_units` (1: one after
-    another here; None: side by side on one thread per core of this process, sharing their compiled programs; N: N
-    local Dask worker processes; or an existing Dask scheduler) — the same numbers either way.
 
     Returns an :class:`Assessment`, whose ``report`` holds:
 
@@ -210,6 +226,9 @@ def assess(
     * ``lambda_forces``: the λ of the forces ``f_c``, ``f_n`` on every row of ``data`` (original units; the
       Assessment's) — the grid value below 1 nearest 0.2, first seed.
     """
+    seed, steps, lambdas, n_seeds = settings.seed, settings.steps, settings.lambdas, settings.n_seeds
+    width, long_factor, workers = settings.width, settings.long_factor, settings.workers
+    angles, position_noise, derivative_error = record.angles, record.position_noise, record.derivative_error
     _validate(data, traj, steps, lambdas, n_seeds)
     t_start = time.perf_counter()
     n = data.n
@@ -240,7 +259,7 @@ def assess(
         "lambdas": tuple(lambdas),
         "width": width,
         "long_factor": long_factor,
-        "holdout_frac": holdout_frac,
+        "holdout_frac": settings.holdout_frac,
         # t enters the UAN only where a clock can be told from a trajectory label; along one trajectory (or at
         # disjoint times) it only lets the UAN fit the training times and extrapolate wildly to held-out ones
         "feats": time_features(tp, float(tp.max() - tp.min())) if clock[0] else np.zeros((len(tp), 0)),
@@ -263,6 +282,7 @@ def assess(
                 progress(done[0], total, "training")
 
     # default: the seeds on threads of this process, which trace and compile their programs once for all seeds
+    scheduler = settings.scheduler
     threads = workers is None and scheduler is None
     if threads and os.environ.get("NNPHD_WORKER"):  # a Dask worker of nnphd owns one core: one seed after another
         workers = 1
@@ -302,7 +322,7 @@ def _unusable(quality: dict, sc: Scaling, is_angle, clock, wall: float) -> dict:
     checks = {name: {k: [] for k in ks} for name, ks in keys.items()}
     checks.update(naive={"new_physics": [], "ratio": []}, per_seed=[], scaling=sc.to_dict(), wall_time_s=wall)
     return {
-        "status": "inconclusive",
+        "status": Status.INCONCLUSIVE,
         "new_physics": False,
         "statistic": {"name": "z of the energy trend (not computed: the data cannot decide)", "value": None},
         "effect": None,

@@ -27,8 +27,10 @@ import stat
 import sys
 import time
 from collections.abc import Sequence
+from enum import StrEnum
 from pathlib import Path
 
+from nnphd.explain.law import TableStatus
 from nnphd.io.cache import Cache, open_regular, warn_ignored
 from nnphd.io.errors import DataError
 from nnphd.io.escape import csv_cell
@@ -36,11 +38,25 @@ from nnphd.io.html import escape, page, table
 from nnphd.io.progress import Progress
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, write_json
 from nnphd.parallel import Unit, n_workers, run_units
+from nnphd.user.result import Status
 
 __all__ = ["SUFFIXES", "expand_paths", "scan_paths", "detect_batch", "detect_one"]
 
 SUFFIXES = (".csv", ".npz")
-VERDICTS = ("detected", "none", "inconclusive")  # nnphd.api.Status (a test keeps them equal)
+VERDICTS = tuple(Status)  # the verdicts a cached report may hold
+
+
+class FileStatus(StrEnum):
+    """The status of a file of the batch that holds no verdict (a row's ``status`` is otherwise the report's
+    :class:`~nnphd.user.result.Status`). A str, written as the plain word.
+
+    - ``ERROR``: the file was read but its detection failed (the message in ``error``);
+    - ``SKIPPED``: an entry that was not read (summary.csv only; the reason in ``error``)."""
+
+    ERROR = "error"
+    SKIPPED = "skipped"
+
+
 MARKER = "batch.json"
 COLUMNS = (
     "name",
@@ -198,7 +214,7 @@ def _cached_report(rep) -> dict:
 
 def _tie_prefix(law: dict) -> str:
     """ "tie (a or b): " when the record cannot tell the families apart (the formula shown is the first's)."""
-    if law.get("status") != "tie":
+    if law.get("status") != TableStatus.TIE:
         return ""
     return "tie (" + " or ".join(r.get("law", "?") for r in [law.get("law") or {}, *law.get("ties", [])]) + "): "
 
@@ -286,12 +302,12 @@ def detect_batch(
         if o.ok:
             rows.append({**o.value, "where": o.where, "compile_time_s": o.compile_time_s})
         else:
-            rows.append({c: None for c in COLUMNS} | {"name": u.key, "file": u.kwargs["path"], "status": "error", "error": o.error, "cached": False, "where": o.where})  # fmt: skip
+            rows.append({c: None for c in COLUMNS} | {"name": u.key, "file": u.kwargs["path"], "status": FileStatus.ERROR, "error": o.error, "cached": False, "where": o.where})  # fmt: skip
     summary = {
         "rows": rows,
         "n_files": len(rows),
-        "failed": sum(r["status"] == "error" for r in rows),
-        "counts": {s: sum(r["status"] == s for r in rows) for s in ("detected", "none", "inconclusive", "error")},
+        "failed": sum(r["status"] == FileStatus.ERROR for r in rows),
+        "counts": {s: sum(r["status"] == s for r in rows) for s in (*Status, FileStatus.ERROR)},
         "skipped": skipped,
         "workers": scheduler or n_workers(workers, None, len(units)),
         "settings": {"angles": list(angles), "max_rows": max_rows, **settings},
@@ -325,12 +341,12 @@ def _write_summary(outdir: Path, summary: dict) -> None:
     for r in summary["rows"]:
         w.writerow([_csv(r.get(c)) for c in COLUMNS])
     for k in summary.get("skipped", []):  # the entries not read: status "skipped", the reason in "error"
-        w.writerow([_csv(k["file"] if c == "file" else k["reason"] if c == "error" else "skipped" if c == "status" else None) for c in COLUMNS])  # fmt: skip
+        w.writerow([_csv(k["file"] if c == "file" else k["reason"] if c == "error" else FileStatus.SKIPPED if c == "status" else None) for c in COLUMNS])  # fmt: skip
     atomic_write_bytes(outdir / "summary.csv", buf.getvalue().encode())
     write_json(outdir / "summary.json", summary)
     rows = []
     for r in summary["rows"]:
-        link = f'<a href="{escape(r["name"])}/report.html">{escape(r["name"])}</a>' if r["status"] != "error" else escape(r["name"])  # fmt: skip
+        link = f'<a href="{escape(r["name"])}/report.html">{escape(r["name"])}</a>' if r["status"] != FileStatus.ERROR else escape(r["name"])  # fmt: skip
         st = escape(r["status"])
         rows.append(
             [
@@ -352,8 +368,9 @@ def _write_summary(outdir: Path, summary: dict) -> None:
     c = summary["counts"]
     body = (
         "<h1>nnphd detect — batch summary</h1>"
-        f"<p>{summary['n_files']} files: {c['detected']} detected, {c['none']} none, {c['inconclusive']} "
-        f"inconclusive, {c['error']} errors; workers: {escape(summary['workers'])}; wall time "
+        f"<p>{summary['n_files']} files: {c[Status.DETECTED]} detected, {c[Status.NONE]} none, "
+        f"{c[Status.INCONCLUSIVE]} inconclusive, {c[FileStatus.ERROR]} errors; workers: {escape(summary['workers'])}; "
+        "wall time "
         f"{summary['wall_time_s']:.0f} s (compute time of the files {summary['compute_time_s']:.0f} s, of which "
         f"{summary['compile_time_s']:.0f} s JAX compilation).</p>"
         + "".join(

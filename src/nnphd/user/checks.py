@@ -103,6 +103,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from nnphd.engine.evidence import percent_per_period, velocity_time_scale
+from nnphd.user.result import Status
 
 __all__ = [
     "net_power_fraction",
@@ -489,7 +490,7 @@ def effect_text(traj: dict, trend: dict, shoot: dict) -> str:
     return "; ".join(parts) if parts else "no trajectory-level statistic could be computed"
 
 
-def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tuple[str, str, float]:
+def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tuple[Status, str, float]:
     """(status, reason, agreement of the bootstrap with the status) of one seed.
 
     Order: (1) explicit time dependence (only where the clock is testable); (2) trajectory-level evidence (energy
@@ -501,19 +502,23 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
     quality = quality or {"pointwise_ok": True, "usable": True, "reason": ""}
     eff = traj.get("effect", "")
     if not quality["usable"]:
-        return ("inconclusive", f"the data cannot decide: {quality['reason']}", 1.0)
+        return (Status.INCONCLUSIVE, f"the data cannot decide: {quality['reason']}", 1.0)
     if not quality.get("oscillating", True):
         return _status_not_oscillating(tchk, traj, n_traj)
     if tchk["significant"] and tchk["valid"]:
         return (
-            "detected",
+            Status.DETECTED,
             f"the force depends on t explicitly: time features cut the out-of-trajectory error of a "
             f"regression of the conservative residual x{tchk['gain']:.2f} ({100 * tchk['abs_gain']:.1f}% of the "
             f"force; better on {100 * tchk['improved_fraction']:.0f}% of {tchk['n_trajectories']} trajectories)",
             1.0,
         )
     if traj["significant"]:
-        return ("detected", f"non-conservation accumulates along the record: {eff}", traj["bootstrap_fraction"] or 1.0)
+        return (
+            Status.DETECTED,
+            f"non-conservation accumulates along the record: {eff}",
+            traj["bootstrap_fraction"] or 1.0,
+        )
     boot = drift["bootstrap_fraction"]
     work = (
         f"median |∫P dt|/∫|P| dt = {drift['rho_median']:.2f} over {n_traj} trajector"
@@ -521,7 +526,7 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
     )
     multi_ok = n_traj >= 3 and quality["pointwise_ok"]
     if drift["significant"] and multi_ok and (drift["valid"] or gap["large"]):
-        return ("detected", f"the residual of the conservative fit does net work ({work})", boot)
+        return (Status.DETECTED, f"the residual of the conservative fit does net work ({work})", boot)
     clock = f"t untested ({tchk['testable']})" if not tchk["valid"] else f"t does not help (x{tchk['gain']:.2f})"
     no_traj = (
         f"no trend along the record ({eff})"
@@ -530,19 +535,19 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
     )
     if not quality["pointwise_ok"]:
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             f"derivatives too noisy for a pointwise test ({quality['reason']}) and the "
             f"trajectory-level evidence is weak: {no_traj}",
             traj["bootstrap_fraction"] or 1.0,
         )
     if drift["significant"] and not multi_ok:
-        return ("inconclusive", f"the pointwise residual does net work ({work}) but {no_traj}", boot)
+        return (Status.INCONCLUSIVE, f"the pointwise residual does net work ({work}) but {no_traj}", boot)
     if gap["large"]:
         fall = (
             "still falling with training (x" if cap["still_falling"] else "flat with training (x"
         ) + f"{1 - cap['relative_drop']:.2f} over the extra rounds)"
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             f"the conservative model's training error is x{gap['gap_train']:.1f} the free "
             f"model's: under-fitting, or a non-conservative force without net power (e.g. on a limit cycle); "
             f"{no_traj}; {clock}; conservative held-out error {fall}",
@@ -550,14 +555,14 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
         )
     if not traj["valid"]:
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}) "
             f"but {no_traj}, so a slow loss of energy cannot be excluded; {clock}",
             1.0,
         )
     if n_traj < 3 and drift["slow_ratio_median"] >= Z_MIN:
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             f"no trend of the energy along the record ({eff}), but the learned energy swings "
             f"slowly from one oscillation to the next (slow ratio Z = {drift['slow_ratio_median']:.1f} ≥ "
             f"{Z_MIN:g}): a force without net power (a drive, beats) or a Lagrangian that does not fit this "
@@ -568,7 +573,7 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
     weak = _weak_evidence(traj)
     if weak:
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}), but {weak} — "
             f'below the rule for a detection (both ≥ {Z_BOTH:g}, or one ≥ {Z_ONE:g}) yet too strong for a "none" '
             f"({eff}); a longer record would decide; {clock}",
@@ -578,13 +583,13 @@ def seed_status(drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> tup
     lim = f"; energy change below {bound:.2g} per time unit (95% bound)" if bound is not None else ""
     agree = traj["bootstrap_fraction"]
     return (
-        "none",
+        Status.NONE,
         f"a Lagrangian fits the data as well as a free model (gap x{gap['gap_train']:.2f}); {no_traj}{lim}; {clock}",
         1.0 - agree if agree is not None else 1.0,
     )
 
 
-def by_learned_power(status: str, drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> bool:
+def by_learned_power(status: Status, drift, tchk, gap, cap, traj=None, quality=None, n_traj=1) -> bool:
     """Is this seed's "inconclusive" owed only to the pointwise net power of the learned Lagrangian's residual — the
     slow swing of its energy (Z ≥ Z_MIN) or a net power that the record-level evidence does not confirm — on fewer
     than 3 trajectories? True when :func:`seed_status` with those statistics silenced (ρ, Z and significance of the
@@ -593,10 +598,10 @@ def by_learned_power(status: str, drift, tchk, gap, cap, traj=None, quality=None
     (measured: the Earth–Moon barycentre in a frame turning with Jupiter, DE405, Z = 2.2–3.4; a J2 satellite in the
     Earth-fixed frame, Z = 2.4) as a drive off resonance does (Z = 2.1–2.2 on one trajectory), so a fit of the
     positions decides (:func:`nnphd.user.rules.reconcile`)."""
-    if status != "inconclusive" or n_traj >= 3:
+    if status != Status.INCONCLUSIVE or n_traj >= 3:
         return False
     quiet = drift | {"rho_median": 0.0, "slow_ratio_median": 0.0, "significant": False}
-    return seed_status(quiet, tchk, gap, cap, traj, quality, n_traj)[0] == "none"
+    return seed_status(quiet, tchk, gap, cap, traj, quality, n_traj)[0] == Status.NONE
 
 
 def _weak_evidence(traj: dict) -> str:
@@ -612,7 +617,7 @@ def _weak_evidence(traj: dict) -> str:
     return " and ".join(parts)
 
 
-def _status_not_oscillating(tchk, traj, n_traj) -> tuple[str, str, float]:
+def _status_not_oscillating(tchk, traj, n_traj) -> tuple[Status, str, float]:
     """The status of one seed when the motion does not oscillate (a throw, a fall, a coast-down, an arc of an orbit).
 
     Such a path never returns to a state it has visited, so a conservative Lagrangian can shape its potential to
@@ -626,7 +631,11 @@ def _status_not_oscillating(tchk, traj, n_traj) -> tuple[str, str, float]:
     (:func:`_both_agree`), else "inconclusive"."""
     eff = traj.get("effect", "")
     if traj["significant"] and _both_agree(traj):
-        return ("detected", f"non-conservation accumulates along the record: {eff}", traj["bootstrap_fraction"] or 1.0)
+        return (
+            Status.DETECTED,
+            f"non-conservation accumulates along the record: {eff}",
+            traj["bootstrap_fraction"] or 1.0,
+        )
     many = f"{n_traj} trajector{'y' if n_traj == 1 else 'ies'}"
     clock = ""
     if tchk.get("significant") and tchk.get("valid"):
@@ -635,7 +644,7 @@ def _status_not_oscillating(tchk, traj, n_traj) -> tuple[str, str, float]:
             "state on motion that does not return, so that is no evidence of a clock either"
         )
     return (
-        "inconclusive",
+        Status.INCONCLUSIVE,
         f"the motion does not oscillate ({many}): it never returns to a state it has visited, so a conservative "
         f"Lagrangian can shape its potential to follow it whatever force acts (in 1-D V(q) = E − ½q̇(q)² reproduces "
         f"any monotonic motion exactly) and a drag can hide in the fitted potential; record-level evidence: "

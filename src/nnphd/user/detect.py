@@ -24,7 +24,7 @@ from nnphd.io.timing import StageTimer
 from nnphd.user.assembly import declared_forces, field_entry, report_of, with_workers
 from nnphd.user.derivatives import dense_thinned
 from nnphd.user.report import write_report
-from nnphd.user.result import DetectResult, FittedModel
+from nnphd.user.result import DetectResult, FittedModel, Status
 from nnphd.user.rules import (
     declared_field_decides,
     declared_field_effect,
@@ -84,23 +84,17 @@ class _Say:
 def _assessed(data, run: LawRun, s: DetectSettings, training):
     """:func:`nnphd.user.assess.assess` on the data set, with the file's angles and the position noise and q̈ errors
     of its derivative estimates; ``training``: the progress of the training rounds."""
-    from nnphd.user.assess import assess
+    from nnphd.user.assess import AssessSettings, RecordFacts, assess
 
     pc = run.info["per_coordinate"]
-    return assess(
-        data,
-        run.traj,
-        seed=s.seed,
-        steps=s.steps,
-        n_seeds=s.n_seeds,
-        progress=training,
+    settings = AssessSettings(seed=s.seed, steps=s.steps, n_seeds=s.n_seeds, workers=s.workers, scheduler=s.scheduler,
+                              **s.assess)  # fmt: skip
+    record = RecordFacts(
         angles=list(run.is_angle),
         position_noise=[pc[c]["noise"] for c in run.coords],
         derivative_error=[pc[c]["qdd"]["relative_error"] for c in run.coords],
-        workers=s.workers,
-        scheduler=s.scheduler,
-        **s.assess,
     )
+    return assess(data, run.traj, settings, record, progress=training)
 
 
 def detect_data(
@@ -150,13 +144,13 @@ def detect_data(
             if library is not None:
                 library[1].set()
         effect = declared_field_effect(law) if declared_field_decides(res, field) else None
-        status, new_physics, confidence, reasons = reconcile(res, law, field)
-        unclaim_against_evidence(res, law)
-        unclaim_active(res, law)
-        unclaim_unidentifiable(law)
+        status, new_physics, confidence, reasons, law = reconcile(res, law, field)
+        law = unclaim_against_evidence(res, law).law
+        law = unclaim_active(res, law).law
+        law = unclaim_unidentifiable(law).law
         fitted, fc, fn = declared_forces(law, declared, data, ud, fc, fn)
         blind = {}
-        if status == "detected" and law.get("law") is None:  # fallback: no candidate family fits
+        if status == Status.DETECTED and law.get("law") is None:  # fallback: no candidate family fits
             with timer.stage("blind formula"):
                 blind = _blind(data, coords, fn, s.sr_time, s.seed, say, reasons)
         verdict = (status, new_physics, confidence, reasons, effect)
@@ -167,13 +161,13 @@ def detect_data(
             report["timings"] = with_workers(timer.to_dict(), list(assessed.timings_per_seed))
             report["wall_time_s"] = report["timings"]["total_s"]
 
+        angles = tuple(bool(a) for a in ud.is_angle)
+        law_row = law_row if law.get("law") else None
+        model = FittedModel(assessed.conservative, law_row, data, traj, tuple(coords), angles, fc, fn, fitted)
         if out is not None:
-            write_report(out, report, data, traj, coords, fc, fn, timer=timer, before_writing=stamp, made=figures)
+            write_report(out, report, model, timer=timer, before_writing=stamp, made=figures)
         else:
             stamp()
-    angles = tuple(bool(a) for a in ud.is_angle)
-    law_row = law_row if law.get("law") else None
-    model = FittedModel(assessed.conservative, law_row, data, traj, tuple(coords), angles, fc, fn, fitted)
     return DetectResult.from_dict(report), model
 
 
@@ -246,7 +240,7 @@ def _blind(data, coords, fn, sr_time, seed, say, reasons) -> dict:
     genetic symbolic regression — hints, never the law; a missing optional extra is said in ``reasons``."""
     from nnphd._extras import MissingExtra
     from nnphd.explain.sparse import sparse_formula
-    from nnphd.explain.symbolic import genetic_formula
+    from nnphd.explain.symbolic import GeneticSearch, genetic_formula
 
     blind = {}
     names = coords + [f"{c}_dot" for c in coords]
@@ -260,7 +254,9 @@ def _blind(data, coords, fn, sr_time, seed, say, reasons) -> dict:
         ).to_hint_dict()
         if sr_time > 0:
             say("blind explanation (genetic symbolic regression)")
-            blind["genetic"] = genetic_formula(inputs, fn, comps, seed=seed, max_time=sr_time).to_hint_dict()
+            blind["genetic"] = genetic_formula(
+                inputs, fn, comps, seed=seed, search=GeneticSearch(max_time=sr_time)
+            ).to_hint_dict()
     except MissingExtra as e:  # the fallback is optional: say why it is missing
         reasons.append(f"no blind explanation: {e}")
     return blind

@@ -237,11 +237,20 @@ def _stencil(tg: np.ndarray, y: np.ndarray, m: int, p: int, dt: float | None, ro
     return _Stencil(rows, *local_fit(tg, y, m, rows, p))
 
 
-def _taylor_pair(
-    sa: _Stencil, sb: _Stencil, a: int, b: int, d: int, sigma: float, r_lead: float, n: int, p: int = POLYORDER
-):
+@dataclass(frozen=True, eq=False)
+class _WindowPair:
+    """Two neighbouring windows a < b of one polynomial order and their results ``sa``, ``sb`` at the same rows."""
+
+    a: int
+    b: int
+    sa: _Stencil
+    sb: _Stencil
+
+
+def _taylor_pair(pair: _WindowPair, d: int, sigma: float, r_lead: float, n: int, p: int = POLYORDER):
     """Richardson measurement of the bias of the order-p estimates (leading order k = p+1 for d=1, p+2 for d=2) from
-    windows a < b: (a, b, excess, ⟨M_a²⟩, ⟨M_b²⟩, ⟨M_a M_b⟩) of the leading moments when significant, else None.
+    the windows a < b of ``pair``: (a, b, excess, ⟨M_a²⟩, ⟨M_b²⟩, ⟨M_a M_b⟩) of the leading moments when significant,
+    else None.
 
     Over the rows interior to both windows, E[Δ²] = R² ⟨ΔMₖ²⟩ + σ² ⟨‖w_a‖² − ‖w_b‖²⟩ (the least-squares estimate of
     the larger window is uncorrelated with its difference to any other unbiased estimate, so ‖w_b − w_a‖² =
@@ -252,6 +261,7 @@ def _taylor_pair(
     underestimate of σ by up to 30 %.  Also returns whether the bias dominates clearly (excess > 10 × noise term), i.e.
     longer windows can only be worse.  sa and sb hold the same rows (of a trajectory of n samples).
     """
+    a, b, sa, sb = pair.a, pair.b, pair.sa, pair.sb
     hb = b // 2
     n_int = n - 2 * hb
     if n_int < 5:
@@ -343,7 +353,7 @@ def _grow_windows(tg, y, sigma, dt, p, rows) -> _OrderFits:
             a = used[-1]
             r_lead = max((_pair_r(rec) for rec in pairs[0]), default=0.0)
             for d in (1, 2):
-                rec, s = _taylor_pair(stencils[a], stencils[m], a, m, d, sigma, r_lead, n, p)
+                rec, s = _taylor_pair(_WindowPair(a, m, stencils[a], stencils[m]), d, sigma, r_lead, n, p)
                 if rec is not None:
                     pairs[d - 1].append(rec)
                 strong[d - 1] |= s
@@ -395,8 +405,9 @@ def poly_coordinate(
         err_rows.append(_mse_rows(st, d, sigma, f.r))
     if ends and not trim:
         r34 = _low_order_sizes(tg, y, sigma, fits[0])
+        samples = _Samples(tg, y, sigma)
         for d in (1, 2):
-            _end_rows(tg, y, sigma, d, windows[d - 1], fits, r34, out[d - 1], err_rows[d - 1])
+            _end_rows(samples, d, windows[d - 1], fits, r34, out[d - 1], err_rows[d - 1])
     return out[0], out[1], tuple(windows), tuple(orders), np.sqrt(np.array(err_rows))
 
 
@@ -432,7 +443,16 @@ def _low_order_sizes(tg: np.ndarray, y: np.ndarray, sigma: float, fit: _OrderFit
     return out
 
 
-def _end_rows(tg, y, sigma, d, m_star, fits, r34, est, mse):
+@dataclass(frozen=True, eq=False)
+class _Samples:
+    """One coordinate of a trajectory: the sample times ``t``, the values ``y`` and their noise level ``sigma``."""
+
+    t: np.ndarray
+    y: np.ndarray
+    sigma: float
+
+
+def _end_rows(samples: _Samples, d, m_star, fits, r34, est, mse):
     """Re-choose order and window in those of the first and last m_star//2 rows whose estimated squared error is
     more than twice the median (modified in place: est, mse).
 
@@ -441,6 +461,7 @@ def _end_rows(tg, y, sigma, d, m_star, fits, r34, est, mse):
     3·m_star), the candidate of least estimated squared error σ²‖w_i‖² + Σ (R_k M_k(w_i))² over its two leading
     Taylor orders k = p+1, p+2 (R₃, R₄: ``r34``; R₅…R₈ from the fits of orders 4 and 6 at that window).
     """
+    tg, y, sigma = samples.t, samples.y, samples.sigma
     n = y.shape[0]
     e = m_star // 2
     if e == 0:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import json
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +16,10 @@ from nnphd.io.html import bullets, details, figure, figures, page, section, tabl
 from nnphd.io.html import escape as _e
 from nnphd.io.results import atomic_write_bytes, ensure_writable_dir, subplots, write_json
 from nnphd.user.checks import TIME_SCALES
+from nnphd.user.result import Status
+
+if TYPE_CHECKING:
+    from nnphd.user.result import FittedModel
 
 __all__ = [
     "fig_data",
@@ -183,8 +188,9 @@ def plot_forces(data, traj, coords, fc, fn, lam=None, declared: bool = False) ->
 
 
 # ---------------------------------------------------------------------------------------------------- output
-def write_report(out, report: dict, data, traj, coords, fc, fn, timer=None, before_writing=None, made=None) -> None:
-    """report.json, the figures and a self-contained report.html (each atomic). ``timer``: the figures are timed on
+def write_report(out, report: dict, model: FittedModel, timer=None, before_writing=None, made=None) -> None:
+    """report.json, the figures and a self-contained report.html (each atomic). The figures draw the ``model``'s data
+    set, trajectories, coordinates and forces f_c, f_n (:class:`nnphd.user.result.FittedModel`). ``timer``: the figures are timed on
     it (:class:`nnphd.io.timing.StageTimer`); ``before_writing()`` is called after them, before any file is written
     (to put the timings into the report). ``made``: a future of :func:`training_figures` made already (on another
     thread, while the law was fitted); its wait counts in the figures stage."""
@@ -192,7 +198,8 @@ def write_report(out, report: dict, data, traj, coords, fc, fn, timer=None, befo
 
     outdir = ensure_writable_dir(out)
     with timer.stage("figures") if timer is not None else nullcontext():
-        figs = _figures(report, data, traj, coords, fc, fn, None if made is None else made.result())
+        drawn = (model.data, model.traj, list(model.coords), model.fc, model.fn)
+        figs = _figures(report, *drawn, None if made is None else made.result())
     if before_writing is not None:
         before_writing()
     for name, png in figs.items():
@@ -414,7 +421,7 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
     body = (
         f"<h1>nnphd detect: {_e(report['file'])}</h1>"
         f"<p class='status st-{_e(status)}'><b>{_e(status.upper())}</b>"
-        f"{' — new physics' if status == 'detected' else ''}</p>"
+        f"{' — new physics' if status == Status.DETECTED else ''}</p>"
         f"<p><b>Effect:</b> {_e(report.get('effect') or '—')}</p>"
         f"<p><b>Confidence</b> {_e(_fmt(report['confidence']))} <small>({_e(report.get('confidence_basis', ''))})"
         "</small></p>"

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nnphd.explain.law import Law
+from nnphd.explain.law import Law, TableStatus
 
 __all__ = ["MAX_REPORT_BYTES", "ConservativeModel", "DetectResult", "FittedModel", "Status", "Verdict", "read_report"]
 
@@ -71,19 +71,28 @@ def _verdict_of(report: dict, where: str = "report") -> Verdict:
     return Verdict(status, bool(report.get("new_physics")), float(conf), tuple(reasons), stat)
 
 
+def _table_status_of(table: dict, where: str) -> TableStatus:
+    """How the report's law table ended (its ``status``; "none" when absent), checked."""
+    try:
+        return TableStatus(table.get("status", TableStatus.NONE))
+    except ValueError:
+        allowed = ", ".join(repr(s.value) for s in TableStatus)
+        raise _report_error(where, f"law.status must be one of {allowed}, got {table.get('status')!r:.60}") from None
+
+
 @dataclass(frozen=True)
 class DetectResult:
     """What ``nnphd detect`` / :meth:`NNPhD.fit` found, typed: the :class:`Verdict`, the effect size in words, the
-    evidence, the claimed :class:`Law` (None unless "detected" with a law), how the law table ended (``law_status``
-    "claimed" / "tie" / "none", ``law_reason``), the per-stage ``timings``, data ``warnings``, the conservative
-    ``field`` and the ``settings``. ``report`` is the JSON as written (report.json); :meth:`to_dict` returns it
-    and :meth:`from_dict` / :func:`read_report` check it back."""
+    evidence, the claimed :class:`Law` (None unless "detected" with a law), how the law table ended (``law_status``,
+    a :class:`~nnphd.explain.law.TableStatus`: "claimed" / "tie" / "none", ``law_reason``), the per-stage
+    ``timings``, data ``warnings``, the conservative ``field`` and the ``settings``. ``report`` is the JSON as
+    written (report.json); :meth:`to_dict` returns it and :meth:`from_dict` / :func:`read_report` check it back."""
 
     verdict: Verdict
     effect: str | None
     evidence: dict
     law: Law | None
-    law_status: str
+    law_status: TableStatus
     law_reason: str
     timings: dict
     warnings: tuple[str, ...]
@@ -117,7 +126,7 @@ class DetectResult:
             effect,
             parts["evidence"],
             law,
-            str(table.get("status", "none")),
+            _table_status_of(table, where),
             str(table.get("reason", "")),
             parts["timings"],
             tuple(warnings),

@@ -25,8 +25,16 @@ from nnphd.engine.models import (
     lnn_derivatives,
     lnn_energy,
 )
-from nnphd.engine.shooting import shooting_fit
-from nnphd.engine.train import SweepPoint, TrainConfig, lambda_sweep, make_trainer, pnorm
+from nnphd.engine.shooting import ShootingData, ShootingOptions, shooting_fit
+from nnphd.engine.train import (
+    SweepHooks,
+    SweepPoint,
+    SweepSchedule,
+    TrainConfig,
+    lambda_sweep,
+    make_trainer,
+    pnorm,
+)
 from nnphd.engine.verdict import verdict as naive_verdict
 from nnphd.user.checks import (
     by_learned_power,
@@ -41,7 +49,7 @@ from nnphd.user.checks import (
     time_design,
     trajectory_evidence,
 )
-from nnphd.user.result import ConservativeModel
+from nnphd.user.result import ConservativeModel, Status
 from nnphd.user.scaling import (
     holdout,
     oscillations,
@@ -131,12 +139,15 @@ def _seg_mean(x, segs):
     return np.asarray([float(np.mean(x[s])) for s in segs])
 
 
-def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te, fnorm_te, tick, per_lambda=None):
-    """The warm-started λ-sweep; then the optimisation check: the training error below λ = 1 (where the UAN is free)
-    must not exceed the one above it. Where it does (beyond 10 %), the λ < 1 points are retrained in decreasing
-    order, warm-started from the largest-λ solution (the UAN then only has to add to a fitted LNN), and the better
-    objective is kept. ``per_lambda``: a dict given the wall seconds of each λ's training (compilation included)."""
-    lams = sorted(lambdas)
+def _sweep(ctx: dict, d: _Split, train, params, k_sweep, back, tick, per_lambda=None):
+    """The warm-started λ-sweep of ``train`` from ``params`` over ``ctx["lambdas"]`` on the training rows of ``d``;
+    then the optimisation check: the training error below λ = 1 (where the UAN is free) must not exceed the one above
+    it. Where it does (beyond 10 %), the λ < 1 points are retrained in decreasing order, warm-started from the
+    largest-λ solution (the UAN then only has to add to a fitted LNN), and the better objective is kept.
+    ``per_lambda``: a dict given the wall seconds of each λ's training (compilation included)."""
+    cfg, qdd = ctx["cfg"], ctx["qdd"]
+    arrays, A_tr, tr, te, fnorm_te = d.arrays, d.A_tr, d.tr, d.te, d.fnorm_te
+    lams = sorted(ctx["lambdas"])
     last = [time.perf_counter()]
 
     def point(lam, p):  # each λ's training, finished (JAX dispatches asynchronously) and timed
@@ -146,7 +157,14 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
             per_lambda[float(lam)] = per_lambda.get(float(lam), 0.0) + now - last[0]
             last[0] = now
 
-    pts = lambda_sweep(train, params, A_tr, lams, k_sweep, "warm", progress=lambda *_: tick(), on_point=point)
+    pts = lambda_sweep(
+        train,
+        params,
+        A_tr,
+        SweepSchedule(lams, "warm"),
+        k_sweep,
+        SweepHooks(on_point=point, progress=lambda *_: tick()),
+    )
 
     def evaluate(p):
         fc, fn, power, kin = by_rows(_nnphd_eval, p, *arrays[:3], cfg=cfg)
@@ -176,12 +194,10 @@ def _sweep(params, train, arrays, A_tr, lambdas, k_sweep, cfg, back, qdd, tr, te
             train,
             pts[lams[-1]],
             A_tr,
-            below,
+            SweepSchedule(below, "warm", descending=True),
             jax.random.fold_in(k_sweep, 1),
-            "warm",
-            descending=True,
+            SweepHooks(on_point=point),
             accept=keep_better,
-            on_point=point,
         )
         check["L_e_train_below_after"] = med_train(below)
     table = []
@@ -261,32 +277,27 @@ def _naive(table: list[dict], fnorm_te: float) -> dict:
     return naive
 
 
-def _lambda_stage(ctx: dict, tcfg: TrainConfig, d: _Split, k_lnn, k_uan, k_sweep, back, tick, per_lambda):
+class _SeedKeys(NamedTuple):
+    """The PRNG keys of one seed's stages, split from the seed's key in this order."""
+
+    lnn: jax.Array  # the LNN's initialisation
+    uan: jax.Array  # the UAN's initialisation
+    sweep: jax.Array  # the λ-sweep's minibatches
+    long: jax.Array  # the conservative rounds
+    free: jax.Array  # the free model
+
+
+def _lambda_stage(ctx: dict, tcfg: TrainConfig, d: _Split, keys: _SeedKeys, back, tick, per_lambda):
     """(a) NNPhD's λ-sweep with warm starts and the optimisation check (:func:`_sweep`). Returns (the largest λ's
     parameters, the representative λ's (λ, f_c in original units, f_n, power, kinetic term), the sweep's table,
     the optimisation check, the naive verdict)."""
     cfg, width, lambdas = ctx["cfg"], ctx["width"], ctx["lambdas"]
     params = {
-        "lnn": init_lnn(k_lnn, cfg),
-        "uan": init_free(k_uan, cfg, n_time=ctx["feats"].shape[1], widths=(width, width)),
+        "lnn": init_lnn(keys.lnn, cfg),
+        "uan": init_free(keys.uan, cfg, n_time=ctx["feats"].shape[1], widths=(width, width)),
     }
     train = _trainer("nnphd", cfg, tcfg)
-    pts, evals, table, opt_check = _sweep(
-        params,
-        train,
-        d.arrays,
-        d.A_tr,
-        lambdas,
-        k_sweep,
-        cfg,
-        back,
-        ctx["qdd"],
-        d.tr,
-        d.te,
-        d.fnorm_te,
-        tick,
-        per_lambda,
-    )
+    pts, evals, table, opt_check = _sweep(ctx, d, train, params, keys.sweep, back, tick, per_lambda)
     lams = sorted(lambdas)
     lam_rep = min((x for x in lams if x < 1), key=lambda x: abs(x - REPRESENTATIVE_LAMBDA))
     fc_rep, _, power_rep, kin_rep, _, fn_rep = evals[lam_rep]
@@ -408,13 +419,8 @@ def _shooting_probe(ctx: dict, seed: int, cons: _Rounds, block) -> dict:
         return shooting_fit(
             lnn_accel_fn(ctx["cfg"]),
             cons.lnn,
-            ctx["q_pos"],
-            ctx["qd"],
-            ctx["tp"],
-            ctx["segs"],
-            ctx["sigma"],
-            block,
-            seed=seed,
+            ShootingData(ctx["q_pos"], ctx["qd"], ctx["tp"], ctx["segs"], ctx["sigma"], block),
+            ShootingOptions(seed=seed),
         )
     return {"valid": False, "reason": "the conservative model diverged"}
 
@@ -478,7 +484,7 @@ def _seed_status(ctx: dict, cons: _Rounds, chk: dict) -> tuple[str, str, float, 
         status, reason, agree = seed_status(chk["drift"], *args)
         return status, reason, agree, by_learned_power(status, chk["drift"], *args)
     return (
-        "inconclusive",
+        Status.INCONCLUSIVE,
         "the conservative model diverged (non-finite forces): "
         "lower the learning rates or standardise the data differently",
         1.0,
@@ -498,20 +504,20 @@ def one_seed(ctx: dict, seed: int, tick=None) -> dict:
     back = lambda r: sc.force_back(r)  # noqa: E731
     d = _holdout_split(ctx, seed, back)
     key = jax.random.PRNGKey(seed)
-    k_lnn, k_uan, k_sweep, k_long, k_free = jax.random.split(key, 5)
+    keys = _SeedKeys(*jax.random.split(key, 5))
     per_lambda: dict[float, float] = {}
     watch = _Stopwatch()
 
     # (a) NNPhD λ-sweep with warm starts (and the optimisation check)
-    params, rep, table, opt_check, naive = _lambda_stage(ctx, tcfg, d, k_lnn, k_uan, k_sweep, back, tick, per_lambda)
+    params, rep, table, opt_check, naive = _lambda_stage(ctx, tcfg, d, keys, back, tick, per_lambda)
     watch.done("lambda_sweep_s")
 
     # (b) the LNN alone, continued from the largest λ: the conservative model
-    cons = _conservative_rounds(ctx, tcfg, d, params["lnn"], k_long, back, tick)
+    cons = _conservative_rounds(ctx, tcfg, d, params["lnn"], keys.long, back, tick)
     watch.done("conservative_rounds_s")
 
     # (c) the free model of (q, q̇)
-    free_err = _free_model(ctx, tcfg, d, k_free, back, tick)
+    free_err = _free_model(ctx, tcfg, d, keys.free, back, tick)
     watch.done("free_model_s")
 
     # (d) time dependence of the conservative residual

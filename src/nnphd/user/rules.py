@@ -44,12 +44,15 @@ is :mod:`nnphd.engine.verdict`.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from nnphd.engine.verdict import MIN_RELATIVE_SIZE
+from nnphd.explain.law import TableStatus
 from nnphd.explain.search import LIBRARY_BASE
 from nnphd.user.checks import Z_BOTH, Z_CONTRA
+from nnphd.user.result import Status
 
 LAW_CONFLICT_DIC = -10.0  # a candidate law this much better than none (held out) contradicts a verdict of "none"
 # ... and only when it lowers the held-out error by at least this much: a sparse polynomial that lowered a gyroscopic
@@ -73,7 +76,7 @@ def underfit_against(seed: dict, seeds: list[dict]) -> str | None:
     reaches ≤ 1/UNDERFIT_RATIO of its training error while fitting as well as a free model."""
     gap = seed.get("gap") or {}
     traj = seed.get("trajectory_evidence") or {}
-    if seed["status"] != "inconclusive" or not gap.get("large"):
+    if seed["status"] != Status.INCONCLUSIVE or not gap.get("large"):
         return None
     if any(z is not None and abs(z) >= Z_BOTH for z in (traj.get("z_energy"), traj.get("z_shooting"))):
         return None
@@ -103,7 +106,7 @@ def corroborates(seed: dict, detecting: dict) -> str | None:
     seed 1's at z = 7.4 (probe 0.7), "detected" — the same loss seen more or less sharply, not two verdicts."""
     det = detecting.get("trajectory_evidence") or {}
     mine = seed.get("trajectory_evidence") or {}
-    if seed["status"] != "inconclusive" or detecting["status"] != "detected" or not det.get("significant"):
+    if seed["status"] != Status.INCONCLUSIVE or detecting["status"] != Status.DETECTED or not det.get("significant"):
         return None
     sign = {"loses energy": 1.0, "gains energy": -1.0}.get(det.get("direction"))
     zs = [z for z in (mine.get("z_energy"), mine.get("z_shooting")) if z is not None]
@@ -117,7 +120,7 @@ def corroborates(seed: dict, detecting: dict) -> str | None:
     )
 
 
-def combine_seeds(seeds: list[dict]) -> tuple[str, bool, float, list[str]]:
+def combine_seeds(seeds: list[dict]) -> tuple[Status, bool, float, list[str]]:
     """(status, new_physics, confidence, reasons) from the seeds' own statuses.
 
     - All seeds agree: their status. ``confidence`` = mean over seeds of the share of bootstrap replicas of the
@@ -133,14 +136,16 @@ def combine_seeds(seeds: list[dict]) -> tuple[str, bool, float, list[str]]:
     statuses = [s["status"] for s in seeds]
     per_seed = [f"seed {s['seed']}: {s['reason']}" for s in seeds]
     status, notes = (statuses[0], []) if len(set(statuses)) == 1 else _settle(seeds)
-    det = float(np.mean([s["status"] == "detected" for s in seeds]))
-    opposite = opposite_signs(seeds) if status == "detected" else None
+    det = float(np.mean([s["status"] == Status.DETECTED for s in seeds]))
+    opposite = opposite_signs(seeds) if status == Status.DETECTED else None
     if opposite is not None:
-        return "inconclusive", False, 1.0 - det if det < 1 else 0.5, [opposite, *per_seed]
+        return Status.INCONCLUSIVE, False, 1.0 - det if det < 1 else 0.5, [opposite, *per_seed]
     if status is None:
-        return "inconclusive", det > 0.5, max(det, 1 - det), [f"seeds disagree ({', '.join(statuses)})", *per_seed]
+        disagree = f"seeds disagree ({', '.join(statuses)})"
+        return Status.INCONCLUSIVE, det > 0.5, max(det, 1 - det), [disagree, *per_seed]
     conf = float(np.mean([(s["status"] == status) * s["agreement"] for s in seeds]))
-    return status, {"detected": True, "none": False}.get(status, det > 0.5), conf, notes + per_seed
+    new = {Status.DETECTED: True, Status.NONE: False}.get(status, det > 0.5)
+    return Status(status), new, conf, notes + per_seed
 
 
 def opposite_signs(seeds: list[dict]) -> str | None:
@@ -153,7 +158,7 @@ def opposite_signs(seeds: list[dict]) -> str | None:
     for s in seeds:
         te = s.get("trajectory_evidence") or {}
         if (
-            s["status"] == "detected"
+            s["status"] == Status.DETECTED
             and te.get("significant")
             and te.get("direction") in ("loses energy", "gains energy")
         ):
@@ -169,14 +174,14 @@ def opposite_signs(seeds: list[dict]) -> str | None:
     )
 
 
-def _settle(seeds: list[dict]) -> tuple[str | None, list[str]]:
+def _settle(seeds: list[dict]) -> tuple[Status | None, list[str]]:
     """(the status, why) when the seeds' differing statuses settle — under-fitted seeds set aside
     (:func:`underfit_against`), "inconclusive" seeds that back a detection (:func:`corroborates`) — else (None, [])."""
     notes = [(s, why) for s in seeds if (why := underfit_against(s, seeds))]
     kept = [s for s in seeds if all(s is not d for d, _ in notes)]
     left = {s["status"] for s in kept}
-    if left == {"detected", "inconclusive"} and (backing := _corroborated(kept)):
-        notes, left = notes + backing, {"detected"}
+    if left == {Status.DETECTED, Status.INCONCLUSIVE} and (backing := _corroborated(kept)):
+        notes, left = notes + backing, {Status.DETECTED}
     if notes and len(left) == 1:
         return left.pop(), [why for _, why in notes]
     return None, []
@@ -185,9 +190,9 @@ def _settle(seeds: list[dict]) -> tuple[str | None, list[str]]:
 def _corroborated(kept: list[dict]) -> list[tuple[dict, str]] | None:
     """[(seed, why)] when every "inconclusive" seed of ``kept`` backs a detecting seed (:func:`corroborates`), else
     None."""
-    detecting = [s for s in kept if s["status"] == "detected"]
+    detecting = [s for s in kept if s["status"] == Status.DETECTED]
     out = []
-    for s in (s for s in kept if s["status"] == "inconclusive"):
+    for s in (s for s in kept if s["status"] == Status.INCONCLUSIVE):
         why = next((w for d in detecting if (w := corroborates(s, d))), None)
         if why is None:
             return None
@@ -239,9 +244,30 @@ def does_work(
     return by_position is None or (by_position < POSITION_MAX and balanced)
 
 
-def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, float, list[str]]:
-    """The verdict after the law table (which ``law``, the table as a dict, is made to agree with: no law is claimed
-    unless the final status is "detected").
+class Reconciled(NamedTuple):
+    """The verdict after the law table (:func:`reconcile`): ``status``, ``new_physics`` (the best call),
+    ``confidence``, ``reasons`` (a new list), and ``law`` — the law table as a new dict, made to agree with the
+    status (no law is claimed unless it is "detected"); the table handed to :func:`reconcile` is left as it was."""
+
+    status: Status
+    new_physics: bool
+    confidence: float
+    reasons: list[str]
+    law: dict
+
+
+class LawRuling(NamedTuple):
+    """The law table after one of the rules that withdraw a claimed law (:func:`unclaim_against_evidence`,
+    :func:`unclaim_active`, :func:`unclaim_unidentifiable`): ``law``, a new dict (the table handed to the rule is
+    left as it was), and ``why`` the rule withdrew the law (None: the law stands)."""
+
+    law: dict
+    why: str | None
+
+
+def reconcile(res: dict, law: dict, field: str = "learned") -> Reconciled:
+    """The verdict after the law table (``law``, the table as a dict; the returned :class:`Reconciled` holds a new
+    table made to agree with the verdict: no law is claimed unless the final status is "detected").
 
     - "detected" by the learned-energy trend alone — the shooting probe pointing the other way, no strong candidate
       law — is "inconclusive", confidence 0.5 (:func:`trend_unsupported`).
@@ -263,38 +289,42 @@ def reconcile(res: dict, law: dict, field: str = "learned") -> tuple[str, bool, 
       the drive the law (:func:`drive_evidence`; checked first).
     - a declared uniform field: the fit of the positions beside it decides (:func:`declared_field_verdict`).
     """
-    status, new, conf, reasons = res["status"], bool(res["new_physics"]), float(res["confidence"]), list(res["reasons"])
+    status, new, conf = Status(res["status"]), bool(res["new_physics"]), float(res["confidence"])
+    reasons = list(res["reasons"])
     if declared_field_decides(res, field):
         status, conf, why = declared_field_verdict(law)
-        withhold(law, status, None if status == "detected" else why)
-        return status, status != "none", conf, [why, *reasons]
+        kept = withhold(law, status, None if status == Status.DETECTED else why)
+        return Reconciled(status, status != Status.NONE, conf, [why, *reasons], kept)
     cand = law.get("law") or law.get("candidate_law")
-    if status == "detected" and (alone := trend_unsupported(res, law)):
-        withhold(law, "inconclusive", alone + " — no law is claimed")
-        return "inconclusive", True, 0.5, [alone, *reasons]
-    drive = drive_evidence(res, law) if status != "detected" else None
+    if status == Status.DETECTED and (alone := trend_unsupported(res, law)):
+        kept = withhold(law, Status.INCONCLUSIVE, alone + " — no law is claimed")
+        return Reconciled(Status.INCONCLUSIVE, True, 0.5, [alone, *reasons], kept)
+    drive = drive_evidence(res, law) if status != Status.DETECTED else None
     if drive is not None:
-        return "detected", True, DRIVE_CONFIDENCE, [drive, *reasons]
-    if status == "inconclusive" and not contradicts_none(cand, law) and (quiet := learned_power_unconfirmed(res, law)):
-        withhold(law, "none")
-        return "none", False, LEARNED_SWING_CONFIDENCE, [quiet, *reasons]
-    if status == "none" and contradicts_none(cand, law):
+        return Reconciled(Status.DETECTED, True, DRIVE_CONFIDENCE, [drive, *reasons], dict(law))
+    if (
+        status == Status.INCONCLUSIVE
+        and not contradicts_none(cand, law)
+        and (quiet := learned_power_unconfirmed(res, law))
+    ):
+        return Reconciled(Status.NONE, False, LEARNED_SWING_CONFIDENCE, [quiet, *reasons], withhold(law, Status.NONE))
+    if status == Status.NONE and contradicts_none(cand, law):
         balanced = balanced_force_evidence(res, law)
         if balanced is not None:
-            return "detected", True, LAW_DETECT_CONFIDENCE, [balanced, *reasons]
+            return Reconciled(Status.DETECTED, True, LAW_DETECT_CONFIDENCE, [balanced, *reasons], dict(law))
         why = (
             f"conflicting evidence: the checks find no non-conservation, but a candidate law, {cand['title']}, "
             f"lowers the held-out error by {100 * (1 - cand['heldout_ratio']):.1f}% (ΔIC = {cand['delta_ic']:.1f} "
             f"against no law)"
         )
-        withhold(law, "inconclusive", why + " — no law is claimed")
-        return "inconclusive", True, 0.5, [why, *reasons]
-    free = seed_free_evidence(res, law) if status == "inconclusive" else None
+        kept = withhold(law, Status.INCONCLUSIVE, why + " — no law is claimed")
+        return Reconciled(Status.INCONCLUSIVE, True, 0.5, [why, *reasons], kept)
+    free = seed_free_evidence(res, law) if status == Status.INCONCLUSIVE else None
     if free is not None:
-        return "detected", True, LAW_DETECT_CONFIDENCE, [free, *reasons]
-    withhold(law, status)
-    hint = uniform_field_hint(res, law) if status == "inconclusive" else None
-    return status, new, conf, reasons + ([hint] if hint else [])
+        return Reconciled(Status.DETECTED, True, LAW_DETECT_CONFIDENCE, [free, *reasons], dict(law))
+    kept = withhold(law, status)
+    hint = uniform_field_hint(res, kept) if status == Status.INCONCLUSIVE else None
+    return Reconciled(status, new, conf, reasons + ([hint] if hint else []), kept)
 
 
 def contradicts_none(cand: dict | None, law: dict) -> bool:
@@ -343,7 +373,7 @@ def trend_unsupported(res: dict, law: dict) -> str | None:
     learned energy decayed 0.099 %/period at z = 6.2, 3.9× its fit error, while the probe found d = −4.3·10⁻⁴ ±
     4.1·10⁻⁴ and every candidate law cost more than it gained (ΔIC ≥ +2.1) — "detected" (confidence 0.29) before."""
     seeds = (res.get("checks") or {}).get("per_seed") or []
-    detecting = [s for s in seeds if s.get("status") == "detected"]
+    detecting = [s for s in seeds if s.get("status") == Status.DETECTED]
     if not detecting:
         return None
     for s in detecting:
@@ -391,7 +421,7 @@ def learned_power_unconfirmed(res: dict, law: dict) -> str | None:
         return None
     seeds = (res.get("checks") or {}).get("per_seed") or []
     swinging = [s for s in seeds if s.get("by_learned_power")]
-    if not swinging or any(s["status"] != "none" and not s.get("by_learned_power") for s in seeds):
+    if not swinging or any(s["status"] != Status.NONE and not s.get("by_learned_power") for s in seeds):
         return None
     cands = {c.get("law"): c for c in law.get("candidates") or []}
     if "drive" not in cands or _any_strong(law):
@@ -465,7 +495,7 @@ def drive_evidence(res: dict, law: dict) -> str | None:
     """The reason for "detected" from a drive the law table claims, or None (see DRIVE_EFFECT_MIN)."""
     w = law.get("law")
     clock = res.get("clock") or {}
-    if not w or w["law"] != "drive" or law.get("status") != "claimed" or not clock.get("testable"):
+    if not w or w["law"] != "drive" or law.get("status") != TableStatus.CLAIMED or not clock.get("testable"):
         return None
     cut = 1 - w["heldout_ratio"]
     if w["delta_ic"] > LAW_CONFLICT_DIC or cut < DRIVE_EFFECT_MIN:
@@ -489,7 +519,7 @@ def seed_free_evidence(res: dict, law: dict, allow_none: bool = False) -> str | 
     quality = res.get("quality") or {}
     if not quality.get("usable", True) or not quality.get("oscillating", True):
         return None
-    if not allow_none and any(s.get("status") == "none" for s in (res.get("checks") or {}).get("per_seed", [])):
+    if not allow_none and any(s.get("status") == Status.NONE for s in (res.get("checks") or {}).get("per_seed", [])):
         return None
     bases = (law.get("settings") or {}).get("bases") or []
     if len(bases) < 2:
@@ -497,7 +527,8 @@ def seed_free_evidence(res: dict, law: dict, allow_none: bool = False) -> str | 
     views = []
     for b in bases:
         w = b.get("law")
-        if b.get("status") not in ("claimed", "tie") or not w or "drive" in [w["law"], *b.get("families", [])]:
+        ruled = b.get("status") not in (TableStatus.CLAIMED, TableStatus.TIE)
+        if ruled or not w or "drive" in [w["law"], *b.get("families", [])]:
             return None
         cut = 1 - w["heldout_ratio"]
         if w["delta_ic"] > LAW_DETECT_DIC or cut < LAW_DETECT_EFFECT:
@@ -517,7 +548,7 @@ def balanced_force_evidence(res: dict, law: dict) -> str | None:
     the held-out error by 85 % (ΔIC −2013) — was "inconclusive" (conflicting evidence)."""
     w = law.get("law")
     share, pos = law.get("against_velocity"), law.get("by_position")
-    if not w or law.get("status") != "claimed" or share is None or pos is None:
+    if not w or law.get("status") != TableStatus.CLAIMED or share is None or pos is None:
         return None
     if abs(share) >= LAW_WORK_MIN or pos >= POSITION_MAX:
         return None
@@ -571,7 +602,7 @@ def declared_field_effect(law: dict) -> str | None:
     )
 
 
-def declared_field_verdict(law: dict) -> tuple[str, float, str]:
+def declared_field_verdict(law: dict) -> tuple[Status, float, str]:
     """(status, confidence, reason) when the conservative force is declared uniform: the law table (the uniform
     field as its only base, each trajectory one window, in-sample IC) decides, as a single line of evidence
     (confidence LAW_DETECT_CONFIDENCE).
@@ -585,7 +616,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
     zero = next((r for r in rows if r["law"] == "none"), None)
     if zero is None or not rows or rows[0].get("method") != "trajectory":
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             1.0,
             (
                 "the field was declared uniform, but no fit of the positions beside it could be made "
@@ -619,7 +650,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
         decisive = w["delta_ic"] <= LAW_DETECT_DIC and cut >= LAW_EFFECT_MIN and w["heldout_mse"] <= FIELD_FIT_MSE
         if decisive and along is not None and along < DRAG_ALONG_MIN:
             return (
-                "inconclusive",
+                Status.INCONCLUSIVE,
                 1.0,
                 (
                     f"beside the declared uniform field {say}, but that force is no drag: only {100 * along:.0f}% of it "
@@ -630,7 +661,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
             )
         if decisive:
             return (
-                "detected",
+                Status.DETECTED,
                 LAW_DETECT_CONFIDENCE,
                 (
                     f"beside the declared uniform field the motion needs a non-conservative force: {say}, where {base}"
@@ -639,7 +670,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
             )
         if w["heldout_mse"] > FIELD_FIT_MSE:
             return (
-                "inconclusive",
+                Status.INCONCLUSIVE,
                 1.0,
                 (
                     f"the declared uniform field does not explain the record even with the best law ({say}, above "
@@ -648,14 +679,14 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
             )
         if w["delta_ic"] <= LAW_DETECT_DIC / 2 or z_mse > FIELD_FIT_MSE:
             return (
-                "inconclusive",
+                Status.INCONCLUSIVE,
                 1.0,
                 f"beside the declared uniform field a law helps, but not decisively: {say}, where {base}",
             )
     best = min((r["delta_ic"] for r in rows if r["law"] != "none"), default=float("nan"))
     if w is None and best <= LAW_DETECT_DIC:
         return (
-            "inconclusive",
+            Status.INCONCLUSIVE,
             1.0,
             (
                 f"beside the declared uniform field a candidate law beats the field alone (ΔIC = {best:.1f}) but none has "
@@ -664,7 +695,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
         )
     if z_mse <= FIELD_FIT_MSE:
         return (
-            "none",
+            Status.NONE,
             LAW_DETECT_CONFIDENCE,
             (
                 f"the declared uniform field alone explains the motion: {base}, and no candidate law beats it "
@@ -673,7 +704,7 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
             ),
         )
     return (
-        "inconclusive",
+        Status.INCONCLUSIVE,
         1.0,
         (
             f"the declared uniform field does not explain the record ({base}, above {FIELD_FIT_MSE:g}) and no candidate "
@@ -689,49 +720,55 @@ def declared_field_verdict(law: dict) -> tuple[str, float, str]:
 LAW_AGAINST_EVIDENCE = 0.5
 
 
-def unclaim_against_evidence(res: dict, law: dict) -> str | None:
+def _withdrawn(law: dict, why: str) -> dict:
+    """A new law table whose law is withdrawn: it becomes ``candidate_law``, no family is claimed (status "none", no
+    ties), ``why`` the reason. The keys keep their places; those the table lacked follow in that order."""
+    return {**law, "candidate_law": law["law"], "law": None, "status": TableStatus.NONE, "ties": [], "reason": why}
+
+
+def unclaim_against_evidence(res: dict, law: dict) -> LawRuling:
     """Withdraw the claimed law when its force works against the verdict's record-level evidence: the share of its
     force against the velocity (:func:`nnphd.explain.work.against_velocity`) ≤ −LAW_AGAINST_EVIDENCE while the record loses energy
-    (≥ LAW_AGAINST_EVIDENCE while it gains it). The law becomes ``candidate_law`` with the reason; returns it (None
-    when the law stands). ``law["against_velocity"]`` is moved after the table's own entries (None when absent)."""
-    share = law.pop("against_velocity", None)
-    law["against_velocity"] = share
+    (≥ LAW_AGAINST_EVIDENCE while it gains it). The law becomes ``candidate_law`` with the reason (``why``; None
+    when the law stands). In the new table ``against_velocity`` follows the table's own entries (None when absent);
+    ``law`` is left as it was."""
+    share = law.get("against_velocity")
+    moved = {k: v for k, v in law.items() if k != "against_velocity"} | {"against_velocity": share}
     comb = (res.get("evidence") or {}).get("combined") or {}
     sign = {"loses energy": 1.0, "gains energy": -1.0}.get(comb.get("direction"))
-    if not law.get("law") or share is None or sign is None or not comb.get("significant"):
-        return None
+    if not moved.get("law") or share is None or sign is None or not comb.get("significant"):
+        return LawRuling(moved, None)
     if sign * share > -LAW_AGAINST_EVIDENCE:
-        return None
+        return LawRuling(moved, None)
     why = (
-        f"no law is claimed: the best candidate, {law['law']['title']}, {'adds' if share < 0 else 'takes'} energy "
+        f"no law is claimed: the best candidate, {moved['law']['title']}, {'adds' if share < 0 else 'takes'} energy "
         f"({100 * share:.0f}% of its force against the velocity) where the record {comb['direction']} along its whole "
         "length — it fits the record's positions, not its physics"
     )
-    law["candidate_law"] = law["law"]
-    law["law"], law["status"], law["ties"], law["reason"] = None, "none", [], why
-    return why
+    return LawRuling(_withdrawn(moved, why), why)
 
 
-def unclaim_active(res: dict, law: dict) -> str | None:
+def unclaim_active(res: dict, law: dict) -> LawRuling:
     """Withdraw a claimed law that adds energy on a sizeable part of the visited states (f·q̇ > 0 on ≥
     ACTIVE_SHARE_MAX of the rows, :func:`nnphd.explain.wholerecord.passivity`) on a record that loses energy (the
     verdict's record-level evidence), unless a fit over the whole record puts it ≥ PASSIVE_MARGIN_IC ahead of every
     eligible passive candidate. A pump (van der Pol, a drive) stays claimable where the record supports it: on a
     limit cycle or a driven record the energy is not lost. Measured: an encoder pendulum released from 157°
     with viscous-like damping was claimed 0.53 θ²θ̇ − 0.70 θ̇, anti-damping wherever |θ| > 1.15 rad. The law
-    becomes ``candidate_law`` with the reason; returns it (None when the law stands). ``law["passivity"]`` keeps
-    the numbers."""
+    becomes ``candidate_law`` with the reason (``why``; None when the law stands); ``passivity`` keeps the numbers,
+    after the table's own entries in the new table (dropped when it holds None); ``law`` is left as it was."""
     from nnphd.explain.wholerecord import PASSIVE_MARGIN_IC
 
-    info = law.pop("passivity", None)
+    info = law.get("passivity")
+    moved = {k: v for k, v in law.items() if k != "passivity"}
     if info is not None:  # after the share against the velocity in the report, as the two checks run
-        law["passivity"] = info
+        moved["passivity"] = info
     comb = (res.get("evidence") or {}).get("combined") or {}
-    if not law.get("law") or not info or not info.get("active") or comb.get("direction") != "loses energy":
-        return None
+    if not moved.get("law") or not info or not info.get("active") or comb.get("direction") != "loses energy":
+        return LawRuling(moved, None)
     margin = info.get("margin")
     if margin is not None and margin >= PASSIVE_MARGIN_IC:
-        return None
+        return LawRuling(moved, None)
     share = 100 * info["active_share"]
     if margin is not None:
         against = (
@@ -741,45 +778,43 @@ def unclaim_active(res: dict, law: dict) -> str | None:
     else:
         against = f"no fit over the whole record could prefer it ({info.get('why', 'not computed')})"
     why = (
-        f"no law is claimed: the best candidate, {law['law']['title']}, adds energy on {share:.0f}% of the visited "
+        f"no law is claimed: the best candidate, {moved['law']['title']}, adds energy on {share:.0f}% of the visited "
         f"states while the record loses energy, and {against}"
     )
-    law["candidate_law"] = law["law"]
-    law["law"], law["status"], law["ties"], law["reason"] = None, "none", [], why
-    return why
+    return LawRuling(_withdrawn(moved, why), why)
 
 
-def unclaim_unidentifiable(law: dict) -> str | None:
+def unclaim_unidentifiable(law: dict) -> LawRuling:
     """Withdraw a claimed law of the state that does no net work on the record and whose force is a function of
     position along it (:func:`does_work` false): a learned potential can stand in for it, so the record does not
     show it is non-conservative (measured: a LAGEOS-like satellite under J2, one day, was claimed a sparse polynomial
     of 108 terms at 10⁻⁵ of the force, 0.8 of it a function of position). Call after :func:`unclaim_against_evidence`
-    (the share against the velocity is ``law["against_velocity"]``)."""
+    (the share against the velocity is ``law["against_velocity"]``). A new table (``why``: None when the law
+    stands); ``law`` is left as it was."""
     w = law.get("law")
     if not w or does_work(w, law.get("against_velocity"), law.get("by_position")):
-        return None
+        return LawRuling(dict(law), None)
     why = (
         f"no law is claimed: the best candidate, {w['title']}, does no net work on the record "
         f"({100 * law['against_velocity']:.0f}% of its force against the velocity) and "
         f"{100 * law['by_position']:.0f}% of its force is a function of position along it — a learned potential "
         "can stand in for it, so the record does not show that it is non-conservative"
     )
-    law["candidate_law"] = w
-    law["law"], law["status"], law["ties"], law["reason"] = None, "none", [], why
-    return why
+    return LawRuling(_withdrawn(law, why), why)
 
 
-def withhold(law: dict, status: str, why: str | None = None) -> None:
-    """No law is claimed unless the verdict is "detected": the table's law becomes ``candidate_law``."""
-    if status == "detected":
-        return
+def withhold(law: dict, status: Status, why: str | None = None) -> dict:
+    """No law is claimed unless the verdict is "detected": a new law table whose law (if any) becomes
+    ``candidate_law``, with ``why`` (or a reason naming the verdict) as its reason; ``law`` is left as it was."""
+    if status == Status.DETECTED:
+        return dict(law)
     if law.get("law") is None:
-        if why:
-            law["reason"] = why
-        return
-    law["candidate_law"] = law["law"]
-    law["law"], law["status"], law["ties"] = None, "none", []
-    law["reason"] = why or (
-        f"the verdict is {status!r}, so no law is claimed (the best candidate, {law['candidate_law']['title']}, "
-        f"would beat zero: {law.get('reason', '')})"
+        return {**law, "reason": why} if why else dict(law)
+    return _withdrawn(
+        law,
+        why
+        or (
+            f"the verdict is {str(status)!r}, so no law is claimed (the best candidate, {law['law']['title']}, "
+            f"would beat zero: {law.get('reason', '')})"
+        ),
     )

@@ -25,8 +25,8 @@ class DetectSettings:
     regression per component ``sr_time``, ``n_seeds``, the derivative ``trim`` and ``derivative_method`` (a name,
     a DerivativeEstimator or a :class:`nnphd.user.derivatives.Derivatives`), ``thin``, your own ``laws``, the law
     ranking ``law_fit``, the conservative ``field``, the law ``families`` (keys and Family objects; None: all),
-    where the seeds train (``workers``, ``scheduler``: :func:`nnphd.parallel.run_units`), and ``assess``:
-    :func:`nnphd.user.assess.assess`'s own keywords (``width``, ``lambdas``, …)."""
+    where the seeds train (``workers``, ``scheduler``: :func:`nnphd.parallel.run_units`), and ``assess``: the other
+    fields of :class:`nnphd.user.assess.AssessSettings` (``width``, ``lambdas``, …)."""
 
     seed: int = 0
     steps: int = 1000
@@ -45,7 +45,7 @@ class DetectSettings:
 
     @classmethod
     def of(cls, **settings) -> DetectSettings:
-        """From keywords: this class's fields, and any other keyword one of :func:`nnphd.user.assess.assess`'s."""
+        """From keywords: this class's fields, and any other keyword a field of :class:`nnphd.user.assess.AssessSettings`."""
         own = {f.name for f in fields(cls)} - {"assess"}
         return cls(**{k: v for k, v in settings.items() if k in own},
                    assess={k: v for k, v in settings.items() if k not in own})  # fmt: skip

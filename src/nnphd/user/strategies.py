@@ -148,6 +148,9 @@ class LawLibrary:
             raise ValueError(f"LawLibrary: fit must be one of {', '.join(map(repr, LAW_FITS))}, got {self.fit!r:.60}")
 
 
+OLD_KEYWORDS = ("trim", "laws", "law_fit")  # NNPhD's older keywords for the strategy objects' fields
+
+
 def with_old_keywords(
     derivatives: Derivatives | None,
     library: LawLibrary | None,

@@ -104,11 +104,8 @@ def _ibm(run: int, path: str) -> tuple[str, list[str], int]:
     d = np.genfromtxt(os.path.join(REAL, "ibm_double_pendulum_runs5-20.csv"), delimiter=",", names=True)
     m = d["traj"] == run
     t, a1, a2 = d["t"][m][::4], d["theta1"][m][::4], d["theta2"][m][::4]
-    t = t - t[0]
-    keep = np.ones(t.size, bool)
-    np.savetxt(path, np.c_[t[keep], a1[keep], a2[keep]], delimiter=",", header="t,theta1,theta2", comments="",
-               fmt="%.6f")  # fmt: skip
-    return path, ["theta1", "theta2"], int(keep.sum())
+    np.savetxt(path, np.c_[t - t[0], a1, a2], delimiter=",", header="t,theta1,theta2", comments="", fmt="%.6f")
+    return path, ["theta1", "theta2"], int(t.size)
 
 
 def record(spec: str, work: str, seed: int) -> tuple[str, str, list[str], int, list[str]]:
@@ -119,8 +116,8 @@ def record(spec: str, work: str, seed: int) -> tuple[str, str, list[str], int, l
     extra = ["--field", "vertical"] if spec == "friction:throw-2d" else []
     path = os.path.join(work, f"{kind}-{name}.csv")
     if kind in ("friction", "laws", "recordings"):
-        mod = {"friction": sys.modules[__name__], "laws": laws, "recordings": recordings}[kind]
-        maker, names = (make, NAMES) if kind == "friction" else (mod.make, mod.NAMES)
+        maker, names = {"friction": (make, NAMES), "laws": (laws.make, laws.NAMES),
+                        "recordings": (recordings.make, recordings.NAMES)}[kind]  # fmt: skip
         if name not in names:
             raise SystemExit(f"error: unknown {kind} case {name!r}; expected one of {', '.join(names)}")
         rec = maker(name, seed)
@@ -185,7 +182,7 @@ def main() -> None:
     ap.add_argument("--cases", default="viscous-dry,heavy-damping,jitter-clock,linear-quadratic")
     ap.add_argument("--real", default="servo_sts3250_drop,seismometer_blow")
     ap.add_argument("--records", default=None,
-                    help=f"kind:name,... (replaces --cases/--real); 'held-out': issue 57's ten ({HELD_OUT})")  # fmt: skip
+                    help=f"kind:name,... (replaces --cases/--real); 'held-out': issue 57's eleven ({HELD_OUT})")  # fmt: skip
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--other-length", type=float, default=0.0,
                     help="also run, with the cache the file's runs filled, a copy holding this share of its rows "

@@ -356,7 +356,7 @@ def _simulate(s, theta, aux, windows: ShootingWindows, model: Integrator):
 
 
 @functools.partial(jax.jit, static_argnames=("model",))
-def model_residuals(s, theta, aux, windows: ShootingWindows, model: Integrator):
+def _model_residuals(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """The residuals of :func:`model_residuals_and_jac` alone: what a trial step of :func:`lm_windows` needs (one
     simulation instead of one per direction)."""
     return _simulate(s, theta, aux, windows, model)
@@ -382,7 +382,7 @@ def _jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
 
 
 @functools.partial(jax.jit, static_argnames=("model",))
-def model_residuals_and_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
+def _model_residuals_and_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """Like :func:`_residuals_and_jac` for any model q̈ = rhs(theta, q, v, t, aux) (batched over windows; t the
     absolute time: window start ``windows.t0w`` plus the window clock ``windows.tw``; ``aux`` any data the model
     needs, not differentiated — so one compiled function serves many models that differ only in data)."""
@@ -391,10 +391,99 @@ def model_residuals_and_jac(s, theta, aux, windows: ShootingWindows, model: Inte
 
 
 @functools.partial(jax.jit, static_argnames=("model",))
-def model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
+def _model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """The forward derivatives of :func:`model_residuals_and_jac` alone: where :func:`lm_windows` has just computed
     the residuals at the point (:func:`model_residuals`, the same numbers), the simulation is not run again."""
     return _jac(s, theta, aux, windows, model)
+
+
+# Shape classes of the windows: one compiled program serves every record whose windows fall in the same class, so a
+# second file of another length finds the programs of the first in the persistent compilation cache. Windows: one
+# stays one (a whole record); 2–16 are padded to 16 (small windows cost little more together than alone); then to the
+# next power of two up to WINDOW_CHUNK; beyond it they run WINDOW_CHUNK at a time and the rest in its own class (one
+# program for any number). Steps: windows of the grid (at most MAX_WINDOW steps, set by the period and the clock, so
+# the same in every file of one kind) padded to a multiple of 8; a single window or a longer one (whole records) to
+# the next of 2^k, 1.5·2^k, at least 128. A padded window is at rest (dt = 0, masked), a padded step repeats the last
+# time (dt = 0, masked): both are cut off before the results are returned, and every real window's numbers are its
+# own (windows are independent), so the padding is inert (tests/test_shape_classes.py).
+WINDOW_CHUNK = 64
+_SMALL_WINDOWS = 16
+_LONG_STEPS = 128
+
+
+def _windows_bucket(W: int) -> int:
+    if W <= 1:
+        return 1
+    return max(_SMALL_WINDOWS, 1 << (W - 1).bit_length())
+
+
+def _steps_bucket(L: int, W: int) -> int:
+    if L <= MAX_WINDOW and W > 1:
+        return -(-L // 8) * 8
+    k = 1 << (max(L, _LONG_STEPS) - 1).bit_length()  # the power of two ≥ L; 3/4 of it where that is enough
+    return 3 * k // 4 if 3 * k // 4 >= max(L, _LONG_STEPS) else k
+
+
+def window_shape_class(W: int, L: int) -> tuple[tuple[int, ...], int]:
+    """The shape the shooting programs are compiled for, for ``W`` windows of ``L`` steps: (the windows of each
+    compiled call, the steps per window) — see the comment above."""
+    full, rest = divmod(W, WINDOW_CHUNK) if W > WINDOW_CHUNK else (0, W)
+    return (WINDOW_CHUNK,) * full + ((_windows_bucket(rest),) if rest else ()), _steps_bucket(L, W)
+
+
+def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator, jac_axis: bool):
+    """``fn`` (a compiled shooting program) over ``windows`` padded to their shape class and called once per chunk
+    of it; the outputs cut back to the real windows and steps (residuals (W, L, n), or with ``jac_axis`` the
+    derivatives (P, W, L, n), or both)."""
+    tw, t0w, qw, mask, inv_sigma = windows
+    W, L = int(tw.shape[0]), int(tw.shape[1])
+    chunks, Lb = window_shape_class(W, L)
+    Wb = sum(chunks)
+    if (Wb, Lb) == (W, L) and len(chunks) == 1:
+        return fn(s, theta, aux, windows, model)
+    tw, t0w, qw, mask, s = (np.asarray(a) for a in (tw, t0w, qw, mask, s))
+    tw_p = np.empty((Wb, Lb), tw.dtype)
+    tw_p[:W, :L] = tw
+    tw_p[:W, L:] = tw[:, -1:]  # a padded step: dt = 0, the state stays put
+    tw_p[W:] = tw[-1, -1]  # a padded window: at rest
+    t0_p = np.concatenate([t0w, np.repeat(t0w[-1:], Wb - W)])
+    qw_p = np.zeros((Wb, Lb, qw.shape[2]), qw.dtype)
+    qw_p[:W, :L] = qw
+    mask_p = np.zeros((Wb, Lb), mask.dtype)
+    mask_p[:W, :L] = mask
+    s_p = np.concatenate([s, np.repeat(s[-1:], Wb - W, axis=0)])
+    parts, i = [], 0
+    for c in chunks:
+        win = ShootingWindows(tw_p[i : i + c], t0_p[i : i + c], qw_p[i : i + c], mask_p[i : i + c], inv_sigma)
+        parts.append(fn(s_p[i : i + c], theta, aux, win, model))
+        i += c
+
+    def cut(arrays, ax):
+        whole = np.concatenate([np.asarray(a) for a in arrays], axis=ax) if len(arrays) > 1 else np.asarray(arrays[0])
+        return whole[:, :W, :L] if ax == 1 else whole[:W, :L]
+
+    if isinstance(parts[0], tuple):
+        return cut([p[0] for p in parts], 0), cut([p[1] for p in parts], 1)
+    return cut(parts, 1 if jac_axis else 0)
+
+
+def model_residuals(s, theta, aux, windows: ShootingWindows, model: Integrator):
+    """The residuals of :func:`model_residuals_and_jac` alone: what a trial step of :func:`lm_windows` needs (one
+    simulation instead of one per direction). Compiled per shape class of the windows (:func:`window_shape_class`)."""
+    return _padded_calls(_model_residuals, s, theta, aux, windows, model, False)
+
+
+def model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
+    """The forward derivatives of :func:`model_residuals_and_jac` alone: where :func:`lm_windows` has just computed
+    the residuals at the point (:func:`model_residuals`, the same numbers), the simulation is not run again."""
+    return _padded_calls(_model_jac, s, theta, aux, windows, model, True)
+
+
+def model_residuals_and_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
+    """Residuals (W, L, n) and their forward derivatives (P_loc + P_glob, W, L, n) for any model
+    q̈ = rhs(theta, q, v, t, aux), batched over windows (see :func:`_model_residuals_and_jac`); compiled per shape
+    class of the windows (:func:`window_shape_class`), the padding cut off."""
+    return _padded_calls(_model_residuals_and_jac, s, theta, aux, windows, model, False)
 
 
 def pad_windows(wins, t, q, x0):

@@ -77,16 +77,39 @@ def _sym_diag(n, per):
     return [[per[i] if i == j else sp.Integer(0) for j in range(n)] for i in range(n)]
 
 
+def _traced(x) -> bool:
+    import sys
+
+    jax = sys.modules.get("jax")  # a tracer exists only where jax is already in use
+    return jax is not None and isinstance(x, jax.core.Tracer)
+
+
 def families(n: int, names: Sequence[str], v_rms: np.ndarray, sign: str = "tanh") -> list[Family]:
     """The built-in candidate families for n coordinates (names for the parameters; v_rms (n,) the rms speeds;
-    ``sign`` the form of the smoothed sign(q̇), :func:`smooth_sign`)."""
+    ``sign`` the form of the smoothed sign(q̇), :func:`smooth_sign`). ``v_rms`` may be traced (inside a compiled
+    program, so that the speeds are its data and not its constants): the same bases then, without ``spec``."""
     if sign not in SIGN_FORMS:
         raise ValueError(f"unknown smoothed sign {sign!r}; expected one of {', '.join(SIGN_FORMS)}")
+    nm = list(names)
+    if _traced(v_rms):  # speeds that are data of a compiled program (the trajectory-level fits' right-hand side)
+        import jax.numpy as jnp
+
+        eps = jnp.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)
+        v_all = jnp.sqrt(jnp.sum(jnp.square(v_rms)))
+        eps_all = jnp.where(v_all > 0, COULOMB_EPS * v_all, 1.0)
+        return [
+            *_linear_families(n, nm),
+            *_quadratic_families(n, nm),
+            *_coulomb_families(n, nm, eps, eps_all, sign),
+            *_mixed_families(n, nm, eps, sign),
+            _power_family(n),
+            *_rayleigh_vdp_families(n, nm),
+            _drive_family(n, nm),
+        ]
     v_rms = np.asarray(v_rms, float)
     eps = np.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)  # relative to the speeds: units must not matter
     v_all = float(np.sqrt(np.sum(np.square(v_rms))))
     eps_all = COULOMB_EPS * v_all if v_all > 0 else 1.0
-    nm = list(names)
     out: list[Family] = [
         *_linear_families(n, nm),
         *_quadratic_families(n, nm),

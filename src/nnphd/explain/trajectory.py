@@ -5,7 +5,6 @@ noisy or biased for the law (a Coulomb force's jumps are smeared, cubic terms bi
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -14,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
-from nnphd.explain.families import Family
+from nnphd.explain.families import Family, families
 from nnphd.explain.jointfit import N_BOOT, ridge_regularised, solve_or_lstsq, trajectory_segments
 from nnphd.explain.table import (
     LawTable,
@@ -126,13 +125,16 @@ class _Ranking:
     rhs: Callable
     windows: _Windows
     settings: TrajectorySettings
+    centre: np.ndarray | None = None  # the centre of the potential's library (:func:`_universal_rhs`'s aux)
+    speeds: list | None = None  # the built-in families' rms speeds (:func:`builtin_speeds`, the same aux)
 
 
-def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center, library: bool = True):
+def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library: bool = True):
     """q̈ = f_c + gate_f · g_f as one function of θ = (α, [β_f, θ_f, gate_f]…) and the candidate's number f (0: no
     law, i: the i-th of ``fams``): one compiled shooting function for all of them, which evaluates only the chosen
     family (``lax.switch`` on a number that is data, not a traced derivative). The parameters actually fitted are u,
-    with θ = base + u·D (``aux`` = (base, D, f))."""
+    with θ = base + u·D (``aux`` = (base, D, f, the centre of the potential's library, the built-in families'
+    speeds)))."""
     import jax
     import jax.numpy as jnp
 
@@ -143,8 +145,10 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
     # the conservative part Σ α_k column_k — the LNN's f_c among the columns — is differentiated once per row (2n
     # directions), not once per fitted parameter: a shooting Jacobian pushes 2n + P directions through it (53 on a
     # double pendulum), each a (W, n) tangent
-    def columns(_, q, v):
-        return conservative_basis(jnp, q, v, angles, None if fc_fn is None else fc_fn(q, v), center, library)
+    # the centre of the potential's library is data (in aux), not a constant of the program: one compiled program
+    # serves every record with the same families
+    def columns(centre, q, v):
+        return conservative_basis(jnp, q, v, angles, None if fc_fn is None else fc_fn(q, v), centre, library)
 
     conservative = rowwise_combination(columns)
 
@@ -158,17 +162,39 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, center
 
         return term
 
-    branches, off = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc
-    for f, (K, m) in zip(fams, sizes):
-        branches.append(family_term(f, off, K, m))
-        off += K + m + 1
+    # the built-in families' speeds (their smoothed signs' ε) are data too: the families are built again inside the
+    # program from the speeds in aux — the same bases, with the speeds as arguments and not as constants
+    v_rms, sign = builtin_speeds(fams)
 
     def rhs(u, q, v, t, aux):
-        base, D, which = aux
+        base, D, which, centre, speeds = aux
         theta = base + u @ D
-        return conservative(None, theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
+        own = {}
+        if v_rms is not None:
+            own = {f.key: f for f in families(q.shape[-1], [f"q{i}" for i in range(q.shape[-1])], speeds, sign)}
+        branches, off = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc
+        for f, (K, m) in zip(fams, sizes):
+            builtin = v_rms is not None and _builtin_of(f, v_rms, sign)
+            branches.append(family_term(own[f.key] if builtin else f, off, K, m))
+            off += K + m + 1
+        return conservative(centre, theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs
+
+
+def _builtin_of(f: Family, v_rms, sign) -> bool:
+    spec = f.spec or {}
+    return spec.get("kind") == "builtin" and spec.get("v_rms") == v_rms and spec.get("sign") == sign
+
+
+def builtin_speeds(fams: Sequence[Family]):
+    """(v_rms, sign) of the built-in families among ``fams`` (:func:`nnphd.explain.families.families`; those of the
+    first where several differ), or (None, None) where there is none."""
+    for f in fams:
+        spec = f.spec or {}
+        if spec.get("kind") == "builtin":
+            return spec["v_rms"], spec["sign"]
+    return None, None
 
 
 MU_WARM = 1e-5  # LM's first damping from a start at (or next to) the zero law's optimum: its quadratic model holds
@@ -434,7 +460,7 @@ def _trajectory_rows(results, settings: dict, y_rms: float, q_pos, qd, t, n_res:
 
 
 def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
-    """The ranking entry of ``row`` (the ``ci``-th of the zero law and ``ranking.cands``;
+    """The ranking entry of ``row`` (branch ``ci`` of the universal right-hand side, 0 the zero law;
     :func:`_candidate_statistics`): its joint fit by multiple shooting, or None when no fit is finite or it is not at
     an optimum; and the fit's window states and conservative α (the candidates' ``warm`` start), or None (no fit, or
     LM did not converge). ``ranking``: the universal θ's layout, the right-hand side, the windows and the settings.
@@ -453,7 +479,9 @@ def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
     s0, in_sample = ranking.windows.s0, ranking.windows.in_sample
     fam = row.family
     base, D, u0, n_fit = _candidate_start(row, ci, slots, nl_defaults, alpha0, Kc, P_dir)
-    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32))  # branch ci: this row's family
+    centre = None if ranking.centre is None else jnp.asarray(ranking.centre)
+    speeds = None if ranking.speeds is None else jnp.asarray(np.asarray(ranking.speeds, float))
+    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32), centre, speeds)  # branch ci: its family
 
     def res(s_, u_):
         return model_residuals(s_, u_, aux, args, Integrator(rhs, nsub))
@@ -577,17 +605,26 @@ def rank_trajectory(
     zero = next(r for r in table.rows if r.key == "none")
     cands = [r for r in table.rows if r.key != "none"][: settings.shortlist]  # the table holds one row per family
     alpha0 = table.base.alphas
-    fams = [r.family for r in cands]
+    # the universal right-hand side holds every family of the table in one fixed order (by key), not the shortlist in
+    # the order of this record's pointwise ranking: one compiled program for every record with the same families
+    library = sorted((r for r in table.rows if r.key != "none"), key=lambda r: r.key)
+    branch = {id(r): i for i, r in enumerate(library, 1)}
+    fams = [r.family for r in library]
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
-    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.base.center, table.settings.get("library", True))
+    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings.get("library", True))
     ranking = _Ranking(
         cands,
         _Layout(slots, P_dir, nl_defaults, alpha0, Kc),
         rhs,
         _Windows(args, s0, nsub, n, W, groups, n_res, in_sample),
         settings,
+        table.base.center,
+        builtin_speeds(fams)[0],
     )
-    fit = functools.partial(_fit_row, ranking=ranking)
+
+    def fit(ci, row, warm=None):  # the row's branch of the universal right-hand side (0: the zero law)
+        return _fit_row(branch[id(row)] if ci else 0, row, ranking=ranking, warm=warm)
+
     results = fit_rows(fit, zero, cands, settings.threads)
     if results is None or len(results) < 2:  # no zero law, or nothing beside it: the table stands
         return table

@@ -22,16 +22,16 @@ from nnphd.engine.shooting import (
 from nnphd.engine.train import TrainConfig, make_trainer, pnorm
 
 
-def test_the_classes_are_powers_of_two_and_steps_multiples_of_eight():
+def test_the_classes_of_rows_windows_and_steps():
     assert [bucket(n) for n in (1, 44, 1024, 1025, 4565, 16384)] == [1024, 1024, 1024, 2048, 8192, 16384]
     assert bucket(5, minimum=1) == 8 and bucket(1, minimum=1) == 1
-    assert window_shape_class(7, 10) == ((16,), 16)
+    assert window_shape_class(7, 10) == ((8,), 10)
     assert window_shape_class(1, 58) == ((1,), 128)  # a whole record: one window
-    assert window_shape_class(33, 80) == ((64,), 80)
-    assert window_shape_class(150, 80) == ((64, 64, 32), 80)  # beyond 64 windows: 64 at a time, the rest its own
-    assert window_shape_class(1, 300) == ((1,), 384) and window_shape_class(2, 400) == ((16,), 512)
-    # files of one kind and other lengths share a class: 80 % of the windows, the same steps (the merged remainder)
-    assert window_shape_class(40, 21) == window_shape_class(33, 19)
+    assert window_shape_class(33, 80) == ((40,), 80)
+    assert window_shape_class(300, 80) == ((128, 128, 48), 80)  # beyond 128 windows: 128 at a time, the rest its own
+    assert window_shape_class(1, 300) == ((1,), 384) and window_shape_class(2, 400) == ((8,), 512)
+    # files of one kind and other lengths share a class: a few windows fewer, the same steps
+    assert window_shape_class(40, 21) == window_shape_class(34, 21)
 
 
 def test_rows_padded_by_repeating_the_last_one():
@@ -98,7 +98,8 @@ def _pendulum_windows(n_rows, periods=0.75):
     t = np.cumsum(rng.uniform(0.05, 0.12, n_rows))  # an uneven clock
     q = (0.6 * np.exp(-0.05 * t) * np.cos(2.0 * t))[:, None]
     qd = np.gradient(q[:, 0], t)[:, None]
-    tw, qw, mask, s0 = pad_windows(shooting_windows([np.arange(t.size)], t, np.pi, periods=periods), t, q, (q, qd))
+    wins = [np.arange(t.size)] if periods is None else shooting_windows([np.arange(t.size)], t, np.pi, periods=periods)
+    tw, qw, mask, s0 = pad_windows(wins, t, q, (q, qd))
     t0w, tw = tw[:, 0].copy(), tw - tw[:, :1]
     windows = ShootingWindows(jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray([1.0]))
     return windows, tw, qw, mask, s0
@@ -108,11 +109,12 @@ def _rhs(theta, q_, v_, tt, aux):
     return -aux * jnp.sin(q_) - theta[0] * v_
 
 
-@pytest.mark.parametrize("n_rows", [120, 2600])  # 7 windows of 19 steps (padded to 16 × 24); 70+ (64 at a time)
-def test_shooting_residuals_on_padded_windows_are_those_written_out(n_rows):
-    windows, tw, qw, mask, s0 = _pendulum_windows(n_rows)
+@pytest.mark.parametrize("n_rows, periods", [(120, 0.75), (5000, 0.75), (120, None)])
+def test_shooting_residuals_on_padded_windows_are_those_written_out(n_rows, periods):
+    """7 windows (padded to 8); 130+ (128 at a time, the rest padded); one whole record of 120 steps (to 128)."""
+    windows, tw, qw, mask, s0 = _pendulum_windows(n_rows, periods)
     W, L = tw.shape
-    assert window_shape_class(W, L) != (W, L) and (n_rows < 1000 or W > 64)
+    assert window_shape_class(W, L) != ((W,), L) and (n_rows < 1000 or W > 128)
     r = model_residuals(s0, jnp.asarray([0.07]), jnp.asarray(4.0), windows, Integrator(_rhs, 2))
     assert np.shape(r) == (W, L, 1)
     want = _rk4_written_out(s0, tw, qw, 0.07, 4.0, 2) * mask[..., None]
@@ -121,15 +123,15 @@ def test_shooting_residuals_on_padded_windows_are_those_written_out(n_rows):
 
 
 def test_shooting_derivatives_do_not_depend_on_the_padding_or_the_chunks():
-    """The derivatives of 70+ windows (64 at a time, the rest padded) are, window for window, those of the same
-    windows fitted in other classes (the first 8 alone: padded steps only; windows 3–5: padded windows and steps),
+    """The derivatives of 130+ windows (128 at a time, the rest padded) are, window for window, those of the same
+    windows fitted in other classes (the first 8 alone; windows 3–5: padded windows),
     and match finite differences."""
-    windows, tw, qw, mask, s0 = _pendulum_windows(2600)
+    windows, tw, qw, mask, s0 = _pendulum_windows(5000)
     model, th, aux = Integrator(_rhs, 2), jnp.asarray([0.07]), jnp.asarray(4.0)
     r, jac = model_residuals_and_jac(s0, th, aux, windows, model)
     assert np.array_equal(np.asarray(model_jac(s0, th, aux, windows, model)), np.asarray(jac))
     assert np.array_equal(np.asarray(model_residuals(s0, th, aux, windows, model)), np.asarray(r))
-    for sl in (slice(0, 8), slice(3, 6), slice(66, 70)):
+    for sl in (slice(0, 8), slice(3, 6), slice(126, 131)):
         sub = ShootingWindows(*(a[sl] for a in windows[:4]), windows.inv_sigma)
         r_s, j_s = model_residuals_and_jac(s0[sl], th, aux, sub, model)
         np.testing.assert_allclose(np.asarray(r_s), np.asarray(r)[sl], rtol=0, atol=1e-10)

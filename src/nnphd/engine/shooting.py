@@ -398,28 +398,26 @@ def _model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
 
 
 # Shape classes of the windows: one compiled program serves every record whose windows fall in the same class, so a
-# second file of another length finds the programs of the first in the persistent compilation cache. Windows: one
-# stays one (a whole record); 2–16 are padded to 16 (small windows cost little more together than alone); then to the
-# next power of two up to WINDOW_CHUNK; beyond it they run WINDOW_CHUNK at a time and the rest in its own class (one
-# program for any number). Steps: windows of the grid (at most MAX_WINDOW steps, set by the period and the clock, so
-# the same in every file of one kind) padded to a multiple of 8; a single window or a longer one (whole records) to
-# the next of 2^k, 1.5·2^k, at least 128. A padded window is at rest (dt = 0, masked), a padded step repeats the last
+# second file of another length finds the programs of the first in the persistent compilation cache. Windows: to a
+# multiple of 8 up to WINDOW_CHUNK (a padded window costs as much as a real one: powers of two made the damping
+# probe and the law fits a third slower on a 2-D drag); beyond it they run WINDOW_CHUNK at a time and the rest in its
+# own class. One window stays one (a whole record). Steps: windows of the grid (at most MAX_WINDOW steps, set by the
+# period and the clock, so the same in every file of one kind but for a merged remainder) keep their length (padded
+# to a multiple of 8 they cost a fifth more); a single window or a longer one (whole records) to the next of 2^k,
+# 1.5·2^k, at least 128. A padded window is at rest (dt = 0, masked), a padded step repeats the last
 # time (dt = 0, masked): both are cut off before the results are returned, and every real window's numbers are its
 # own (windows are independent), so the padding is inert (tests/test_shape_classes.py).
-WINDOW_CHUNK = 64
-_SMALL_WINDOWS = 16
+WINDOW_CHUNK = 128
 _LONG_STEPS = 128
 
 
 def _windows_bucket(W: int) -> int:
-    if W <= 1:
-        return 1
-    return max(_SMALL_WINDOWS, 1 << (W - 1).bit_length())
+    return 1 if W <= 1 else -(-W // 8) * 8
 
 
 def _steps_bucket(L: int, W: int) -> int:
     if L <= MAX_WINDOW and W > 1:
-        return -(-L // 8) * 8
+        return L
     k = 1 << (max(L, _LONG_STEPS) - 1).bit_length()  # the power of two ≥ L; 3/4 of it where that is enough
     return 3 * k // 4 if 3 * k // 4 >= max(L, _LONG_STEPS) else k
 

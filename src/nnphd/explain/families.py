@@ -476,15 +476,31 @@ def _monomial_sym(mons, Q, V):
     return [sp.Mul(*[x**e for x, e in zip(Q, eq)], *[x**e for x, e in zip(V, ev)]) for eq, ev in mons]
 
 
+def sparse_index(support) -> tuple[np.ndarray, np.ndarray]:
+    """(component, monomial) of each coefficient of the sparse law on ``support`` (n × M boolean over
+    :func:`odd_monomials`), in the order of its coefficients."""
+    support = np.asarray(support, bool)
+    i, m = np.nonzero(support)  # row-major: component by component, monomials in order
+    return i.astype(np.int32), m.astype(np.int32)
+
+
+def sparse_basis(xp, q, v, comp, mono):
+    """(N, n, K) basis of the sparse law whose coefficient k is monomial ``mono[k]`` of :func:`odd_monomials` in
+    component ``comp[k]`` (:func:`sparse_index`); the indices may be data of a compiled program."""
+    n = q.shape[1]
+    cols = _monomial_cols(xp, odd_monomials(n), q, v)  # (N, M)
+    onehot = xp.asarray(xp.arange(n)[:, None] == xp.asarray(comp)[None, :], dtype=q.dtype)  # (n, K)
+    return cols[:, xp.asarray(mono)][:, None, :] * onehot[None]
+
+
 def sparse_family(n: int, names: Sequence[str], support: np.ndarray) -> Family:
     """The sparse polynomial law restricted to ``support`` (n × M boolean over :func:`odd_monomials`)."""
     mons = odd_monomials(n)
-    idx = [(i, m) for i in range(n) for m in range(len(mons)) if support[i, m]]
+    comp, mono = sparse_index(support)
+    idx = list(zip(comp.tolist(), mono.tolist()))
 
     def basis(xp, th, q, v, t):
-        cols = _monomial_cols(xp, mons, q, v)  # (N, M)
-        out = [cols[:, m][:, None] * xp.eye(n, dtype=q.dtype)[i][None] for i, m in idx]
-        return xp.stack(out, axis=2) if out else xp.zeros((q.shape[0], n, 0), q.dtype)
+        return sparse_basis(xp, q, v, comp, mono)
 
     def symbols(th, Q, V, T):
         ms = _monomial_sym(mons, Q, V)

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
-from nnphd.explain.families import Family, families
+from nnphd.explain.families import Family, families, sparse_basis, sparse_index
 from nnphd.explain.jointfit import N_BOOT, ridge_regularised, solve_or_lstsq, trajectory_segments
 from nnphd.explain.table import (
     LawTable,
@@ -127,6 +127,7 @@ class _Ranking:
     settings: TrajectorySettings
     centre: np.ndarray | None = None  # the centre of the potential's library (:func:`_universal_rhs`'s aux)
     speeds: list | None = None  # the built-in families' rms speeds (:func:`builtin_speeds`, the same aux)
+    supports: tuple = ()  # the sparse laws' indices (:func:`sparse_supports`, the same aux)
 
 
 def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library: bool = True):
@@ -134,7 +135,7 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
     law, i: the i-th of ``fams``): one compiled shooting function for all of them, which evaluates only the chosen
     family (``lax.switch`` on a number that is data, not a traced derivative). The parameters actually fitted are u,
     with θ = base + u·D (``aux`` = (base, D, f, the centre of the potential's library, the built-in families'
-    speeds)))."""
+    speeds, the sparse laws' supports))."""
     import jax
     import jax.numpy as jnp
 
@@ -166,16 +167,23 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
     # program from the speeds in aux — the same bases, with the speeds as arguments and not as constants
     v_rms, sign = builtin_speeds(fams)
 
+    # and so are the sparse laws' supports (which monomial in which component), given as indices in aux
+    def sparse_view(f, index):
+        return replace(f, basis=lambda xp, th, q, v, t: sparse_basis(xp, q, v, *index))
+
     def rhs(u, q, v, t, aux):
-        base, D, which, centre, speeds = aux
+        base, D, which, centre, speeds, supports = aux
         theta = base + u @ D
         own = {}
         if v_rms is not None:
             own = {f.key: f for f in families(q.shape[-1], [f"q{i}" for i in range(q.shape[-1])], speeds, sign)}
-        branches, off = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc
+        branches, off, supports = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc, list(supports)
         for f, (K, m) in zip(fams, sizes):
-            builtin = v_rms is not None and _builtin_of(f, v_rms, sign)
-            branches.append(family_term(own[f.key] if builtin else f, off, K, m))
+            if v_rms is not None and _builtin_of(f, v_rms, sign):
+                f = own[f.key]
+            elif _is_sparse(f):
+                f = sparse_view(f, supports.pop(0))
+            branches.append(family_term(f, off, K, m))
             off += K + m + 1
         return conservative(centre, theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
 
@@ -185,6 +193,16 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
 def _builtin_of(f: Family, v_rms, sign) -> bool:
     spec = f.spec or {}
     return spec.get("kind") == "builtin" and spec.get("v_rms") == v_rms and spec.get("sign") == sign
+
+
+def _is_sparse(f: Family) -> bool:
+    return (f.spec or {}).get("kind") == "sparse" and f.fixed is None
+
+
+def sparse_supports(fams: Sequence[Family]) -> tuple:
+    """The (component, monomial) indices (:func:`nnphd.explain.families.sparse_index`) of the sparse laws among
+    ``fams``, in their order: data of the universal right-hand side."""
+    return tuple(sparse_index(f.spec["support"]) for f in fams if _is_sparse(f))
 
 
 def builtin_speeds(fams: Sequence[Family]):
@@ -481,7 +499,8 @@ def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
     base, D, u0, n_fit = _candidate_start(row, ci, slots, nl_defaults, alpha0, Kc, P_dir)
     centre = None if ranking.centre is None else jnp.asarray(ranking.centre)
     speeds = None if ranking.speeds is None else jnp.asarray(np.asarray(ranking.speeds, float))
-    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32), centre, speeds)  # branch ci: its family
+    supports = tuple((jnp.asarray(i), jnp.asarray(m)) for i, m in ranking.supports)
+    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32), centre, speeds, supports)  # branch ci
 
     def res(s_, u_):
         return model_residuals(s_, u_, aux, args, Integrator(rhs, nsub))
@@ -607,7 +626,7 @@ def rank_trajectory(
     alpha0 = table.base.alphas
     # the universal right-hand side holds every family of the table in one fixed order (by key), not the shortlist in
     # the order of this record's pointwise ranking: one compiled program for every record with the same families
-    library = sorted((r for r in table.rows if r.key != "none"), key=lambda r: r.key)
+    library = sorted((r for r in table.rows if r.key != "none"), key=lambda r: (r.key, r.family.k))
     branch = {id(r): i for i, r in enumerate(library, 1)}
     fams = [r.family for r in library]
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
@@ -620,6 +639,7 @@ def rank_trajectory(
         settings,
         table.base.center,
         builtin_speeds(fams)[0],
+        sparse_supports(fams),
     )
 
     def fit(ci, row, warm=None):  # the row's branch of the universal right-hand side (0: the zero law)

@@ -74,6 +74,53 @@ def stage_times() -> str:
     return "\n".join(out) + "\n"
 
 
+def stage_times_held_out() -> str:
+    """results/stage_times_held_out.json (benchmarks/stage_times.py --records …, issue 57's held-out set): per record,
+    cold and warm totals, the warm stages that dominate, a second file of another length (the first F of its rows,
+    with the first's cache), and the warm totals of the baseline it replaced."""
+    d = _load("stage_times_held_out.json")
+    rows = sorted(d["records"], key=lambda r: r["warm"]["total_s"])
+    base = d.get("baseline", {}).get("warm_s", {})
+    out = [
+        "| record | rows | verdict | law | cold total | warm total (before) | warm: training | warm: law, trajectory "
+        "level | warm compiling | other length: rows, total, compiling |",
+        "|---" * 10 + "|",
+    ]
+    for r in rows:
+        by = {s["stage"]: s for s in r["warm"]["stages"]}
+
+        def cell(stage, by=by):
+            return f"{by[stage]['s']:.1f} ({by[stage]['compile_s']:.1f})" if stage in by else "—"
+
+        o = r.get("other length")
+        other = f"{o['rows']}, {o['total_s']:.1f}, {o['compile_s']:.1f}" if o else "—"
+        before = f" ({base[r['file']]:.1f})" if r["file"] in base else ""
+        out.append(
+            f"| {r['file']} | {r['rows']} | {r['warm']['status']} | {r['warm']['law']} | {r['cold']['total_s']:.1f} "
+            f"| {r['warm']['total_s']:.1f}{before} | {cell('training and trust checks')} "
+            f"| {cell('law table: trajectory-level fits')} | {r['warm']['compile_s']:.1f} | {other} |"
+        )
+    out.append("")
+    for kind in ("cold", "warm", "other length"):
+        got = [r[kind] for r in rows if kind in r]
+        tot, comp = [x["total_s"] for x in got], [x["compile_s"] for x in got]
+        out.append(
+            f"{kind}: median {_median(tot):.1f} s, max {max(tot):.1f} s per record; compiling median "
+            f"{_median(comp):.1f} s, max {max(comp):.1f} s ({len(got)} records)"
+        )
+        out.append("")
+    if base:
+        out.append(f"before ({d['baseline']['commit']}), warm: median {_median(list(base.values())):.1f} s, max "
+                   f"{max(base.values()):.1f} s")  # fmt: skip
+        out.append("")
+    same = sum(r["same_verdict"] for r in rows)
+    out.append(
+        f"Same verdict and law cold and warm on {same} of {len(rows)}. ({d['what']} Seconds; in brackets, of them "
+        "compiling.)"
+    )
+    return "\n".join(out) + "\n"
+
+
 def cluster_scaling() -> str:
     """results/cluster_scaling.json (benchmarks/cluster_scaling.py): simulated makespan and efficiency."""
     d = _load("cluster_scaling.json")
@@ -1445,6 +1492,7 @@ def conservative_controls() -> str:
 TABLES = {
     "conservative_controls": conservative_controls,
     "stage_times": stage_times,
+    "stage_times_held_out": stage_times_held_out,
     "cluster_scaling": cluster_scaling,
     "declared_field_guard": declared_field_guard,
     "seed_robustness": seed_robustness,

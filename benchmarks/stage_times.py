@@ -217,15 +217,15 @@ def main() -> None:
         runs = {}
         kinds = ("cold", "warm", "other length") if a.other_length else ("cold", "warm")
         for kind in kinds:
-            src = path
+            src, n_rows = path, rows
             if kind == "other length":
-                src, rows = shortened(path, a.other_length, os.path.join(work, f"{name}-short.csv"))
+                src, n_rows = shortened(path, a.other_length, os.path.join(work, f"{name}-short.csv"))
             rep, wall = _run(src, angles, a.seed, cache, os.path.join(work, f"out-{name}-{kind.replace(' ', '-')}"),
                              a.workers, extra, a.sr_time)  # fmt: skip
             tm = rep["timings"]
             by = {s["stage"]: s for s in tm["stages"]}
             cells = " | ".join(f"{by[s]['s']:.1f} ({by[s]['compile_s']:.1f})" if s in by else "—" for s in STAGES)
-            print(f"| {name} | {rows} | {kind} | {rep['status']} | {tm['total_s']:.1f} ({wall:.1f}) | "
+            print(f"| {name} | {n_rows} | {kind} | {rep['status']} | {tm['total_s']:.1f} ({wall:.1f}) | "
                   f"{tm['compile_s']:.1f} | {cells} |", flush=True)  # fmt: skip
             runs[kind] = {
                 "status": rep["status"],
@@ -235,7 +235,7 @@ def main() -> None:
                 "compile_s": tm["compile_s"],
                 "compile_parts_s": tm.get("compile_parts_s"),  # of this process (the seeds' workers: in per_seed)
                 "workers_compile_s": sum(p.get("compile_s") or 0.0 for p in tm["per_seed"] or []),
-                "rows": rows,
+                "rows": n_rows,
                 "stages": tm["stages"],
                 "per_seed": tm["per_seed"],
             }

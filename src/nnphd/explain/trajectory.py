@@ -292,17 +292,21 @@ def _window_arrays(wins, t, q_pos, qd, sigma, period: float):
     return args, s0, mask, nsub
 
 
-def _parameter_layout(fams: Sequence[Family], Kc: int):
+def _parameter_layout(fams: Sequence[Family], Kc: int, fitted: Sequence[Family] | None = None):
     """The universal θ = (α, [β_f, θ_f, gate_f]…) of :func:`_universal_rhs`. Returns (slots, P_dir, nl_defaults):
-    each family's (offset, K, m) in θ, the number of parameters one candidate fits (α and the largest family), and
-    the default θ — each family's nonlinear parameters at 1 (within their bounds), all else 0."""
+    each family's (offset, K, m) in θ, the number of parameters one candidate fits (α and the largest family of
+    ``fitted``, default all: every one of them is a direction of the shooting Jacobian, so a large family that is
+    not fitted — a 2-D sparse law's 30 — would only slow the others), and the default θ — each family's nonlinear
+    parameters at 1 (within their bounds), all else 0."""
     slots, off = [], Kc  # where each family's (β, θ, gate) sit in the universal θ
     for f in fams:
         K, m = len(f.coef_names), len(f.nl_names)
         slots.append((off, K, m))
         off += K + m + 1
     P_glob = off
-    P_dir = Kc + max([K + m for _, K, m in slots], default=0)
+    fitted_ids = None if fitted is None else {id(f) for f in fitted}
+    P_dir = Kc + max([K + m for f, (_, K, m) in zip(fams, slots) if fitted_ids is None or id(f) in fitted_ids],
+                     default=0)  # fmt: skip
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):
         if m:
@@ -629,7 +633,7 @@ def rank_trajectory(
     library = sorted((r for r in table.rows if r.key != "none"), key=lambda r: (r.key, r.family.k))
     branch = {id(r): i for i, r in enumerate(library, 1)}
     fams = [r.family for r in library]
-    slots, P_dir, nl_defaults = _parameter_layout(fams, Kc)
+    slots, P_dir, nl_defaults = _parameter_layout(fams, Kc, [r.family for r in cands])
     rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings.get("library", True))
     ranking = _Ranking(
         cands,

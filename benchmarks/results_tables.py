@@ -110,8 +110,16 @@ def stage_times_held_out() -> str:
         )
         out.append("")
     if base:
-        out.append(f"before ({d['baseline']['commit']}), warm: median {_median(list(base.values())):.1f} s, max "
-                   f"{max(base.values()):.1f} s")  # fmt: skip
+        out.append(f"before ({d['baseline']['commit']}, another day), warm: median {_median(list(base.values())):.1f} s,"
+                   f" max {max(base.values()):.1f} s")  # fmt: skip
+        out.append("")
+    ab = d.get("ab")
+    if ab:
+        b, a = ab["before"], ab["after"]
+        out.append(
+            f"{ab['record']}, before ({b['commit']}) and after ({a['commit']}) one after the other on the same day: "
+            f"cold {b['cold_s']:.1f} → {a['cold_s']:.1f} s, warm {b['warm_s']:.1f} → {a['warm_s']:.1f} s"
+        )
         out.append("")
     same = sum(r["same_verdict"] for r in rows)
     out.append(

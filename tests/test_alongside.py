@@ -217,8 +217,9 @@ def test_the_conservative_columns_differentiated_per_row_are_jaxs_own(n, angles)
 
     rows = rowwise_jvp(cols)
     dq, dv = jnp.asarray(rng.normal(size=(9, W, n))), jnp.asarray(rng.normal(size=(9, W, n)))
-    own = jax.vmap(lambda a, b: jax.jvp(lambda x, y: cols(None, x, y), (q, v), (a, b)))(dq, dv)
-    per_row = jax.vmap(lambda a, b: jax.jvp(lambda x, y: rows(None, x, y), (q, v), (a, b)))(dq, dv)
+    # compiled, as the shooting Jacobian runs them (op by op the two took 15–50 s of the fast tier)
+    own = jax.jit(jax.vmap(lambda a, b: jax.jvp(lambda x, y: cols(None, x, y), (q, v), (a, b))))(dq, dv)
+    per_row = jax.jit(jax.vmap(lambda a, b: jax.jvp(lambda x, y: rows(None, x, y), (q, v), (a, b))))(dq, dv)
     assert own[0].shape == (9, W, n, cols(None, q, v).shape[-1]) and own[0].shape[-1] > 10
     assert np.array_equal(np.asarray(own[0]), np.asarray(per_row[0]))
     scale = float(jnp.max(jnp.abs(own[1])))

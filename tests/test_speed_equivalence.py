@@ -226,3 +226,43 @@ def test_lm_says_whether_it_converged():
     short = lm_windows(None, s0, start, free, LMSettings(iters=2), res=res, jac_fn=jac, info=capped)
     assert done == {"converged": True} and capped == {"converged": False}
     assert short[4] > full[4] * (1 + 1e-6)  # two iterations were not enough: χ² was still falling
+
+
+def test_lm_statistical_stop_ends_within_a_share_of_a_standard_error():
+    """With ``dof`` (LMSettings), LM stops once what χ² has still to fall (a geometric series from its last two
+    falls) is below eps of the reduced χ²: fewer derivative evaluations from a far start, and every parameter within
+    √(2·eps) of its standard error of the optimum that the relative tolerance alone reaches, χ² within eps·s²."""
+    from nnphd.engine.shooting import normal_blocks, schur_complement, settled
+
+    # the rule itself, on numbers: falls 4 then 2 (ρ = ½) leave 2 to fall, not below eps·χ²/dof = 0.01·1000/5 = 2
+    lm = LMSettings(dof=5)
+    assert not settled(2.0, 4.0, 1000.0, lm) and settled(1.9, 3.8, 1000.0, lm)
+    assert not settled(1.0, None, 1000.0, lm) and not settled(1.0, 2.0, 1000.0, LMSettings())  # off without dof
+    assert not settled(1.0, 0.5, 1000.0, LMSettings(dof=100))  # a growing fall: ρ capped at 0.95, 19 to go
+    args, s0 = _windows()
+    model = Integrator(damping_rhs(_accel), 2)
+    calls = {"jac": 0}
+
+    def res(s, th):
+        return model_residuals(s, th, *args, model)
+
+    def jac(s, th):
+        calls["jac"] += 1
+        return model_jac(s, th, *args, model)
+
+    start, free = np.array([-0.5, 1.0]), np.ones(2, bool)
+    s_t, th_t, r_t, j_t, c_t = lm_windows(None, s0, start, free, LMSettings(iters=60, tol=1e-14), res=res, jac_fn=jac)
+    n_tight = calls["jac"]
+    n_res, W = int(np.asarray(args[1].mask).sum()), s0.shape[0]
+    dof = n_res - 2 * W - 2
+    calls["jac"] = 0
+    s_f, th_f, r_f, j_f, c_f = lm_windows(None, s0, start, free, LMSettings(iters=60, tol=1e-14, dof=dof), res=res,
+                                          jac_fn=jac)  # fmt: skip
+    assert calls["jac"] < n_tight
+    s2 = c_t / dof
+    assert c_t <= c_f <= c_t + 0.01 * s2
+    AtA, AtB, BtB, Atr, Btr, _ = normal_blocks(r_t, j_t, 2)
+    S, *_ = schur_complement(AtA, AtB, BtB, Atr, Btr, 0.0, free)
+    se = np.sqrt(np.diag(s2 * np.linalg.inv(S.sum(0))))
+    assert np.all(np.abs(th_f - th_t) <= np.sqrt(2 * 0.01) * se)
+    assert np.max(np.abs(th_f - th_t) / se) > 1e-6  # it did stop short of the tight optimum

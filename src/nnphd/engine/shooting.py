@@ -45,15 +45,27 @@ class Integrator:
     nsub: int
 
 
+STAT_EPS = 0.01  # LM's statistical stop: what χ² has still to fall, against the reduced χ² (one unit of Δχ²/s²)
+
+
 @dataclass(frozen=True)
 class LMSettings:
     """Levenberg–Marquardt's settings (:func:`lm_windows`): at most ``iters`` iterations, stopping once χ² falls by
     less than ``tol`` of itself; ``mu0`` the first damping (relative to the normal matrix's diagonal), smaller where
-    the start is known to be near an optimum."""
+    the start is known to be near an optimum.
+
+    ``dof`` > 0 (the residuals less the fitted parameters) adds the statistical stop: once what χ² has still to
+    fall — estimated from its last two falls as a geometric series, f·ρ/(1 − ρ), ρ = f/f_prev ≤ 0.95 — is below
+    ``eps`` of the reduced χ² (χ²/dof), the fit is where more iterations cannot move anything that is reported:
+    every parameter within √(2·eps) ≈ 0.14 of its standard error of the optimum, an information criterion within
+    eps. (With tol alone, a double pendulum's candidates spent 3–5 of their 9–12 Jacobians moving χ² by 1e-4 of
+    itself — 1e-3 of a standard error.)"""
 
     iters: int = 20
     tol: float = 1e-8
     mu0: float = 1e-3
+    dof: int = 0
+    eps: float = STAT_EPS
 
 
 @dataclass(frozen=True, eq=False)
@@ -274,6 +286,7 @@ def lm_windows(resjac, s, theta, free, settings: LMSettings = LMSettings(), res=
     if not (np.isfinite(cost) and np.all(np.isfinite(jac))):
         return s, theta, r, jac, float("nan")
     converged = False
+    fall = fall_prev = None  # χ²'s last two falls (the statistical stop, :func:`settled`)
     for _ in range(iters):
         AtA, AtB, BtB, Atr, Btr, _ = normal_blocks(r, jac, P_loc)
         improved = False
@@ -299,17 +312,27 @@ def lm_windows(resjac, s, theta, free, settings: LMSettings = LMSettings(), res=
                     with np.errstate(over="ignore", invalid="ignore"):
                         c_new = float(np.sum(r_new * r_new))
                 rel = (cost - c_new) / max(cost, 1e-300)
+                fall_prev, fall = fall, cost - c_new
                 s, theta, r, jac, cost = s_new, th_new, r_new, jac_new, c_new
                 mu = max(mu / 3.0, 1e-9)
                 improved = True
                 break
             mu *= 10.0
-        if not improved or rel < tol:
+        if not improved or rel < tol or settled(fall, fall_prev, cost, settings):
             converged = True
             break
     if info is not None:
         info["converged"] = converged
     return s, theta, r, jac, cost
+
+
+def settled(fall, fall_prev, cost: float, settings: LMSettings) -> bool:
+    """LM's statistical stop (:class:`LMSettings` ``dof``): what χ² has still to fall after its last two falls
+    (a geometric series of ratio ρ = fall/fall_prev, at most 0.95) is below ``eps`` of the reduced χ²."""
+    if settings.dof <= 0 or fall is None or fall_prev is None or fall_prev <= 0:
+        return False
+    rho = min(fall / fall_prev, 0.95)
+    return fall * rho / (1.0 - rho) < settings.eps * cost / settings.dof
 
 
 # RK4's stages as a loop of four (the model is traced once per sub-step, not four times: the trajectory-level law
@@ -595,8 +618,9 @@ def shooting_fit_on_windows(
         windows = _device_windows(tw, qw, mask, inv_sigma)
     free_c = np.array([True] + [False] * n)
     free_all = np.ones(1 + n, dtype=bool)
-    s_c, th_c, _, _, chi2_c = _lm(params, model, s0, theta0, windows, free_c)
-    _s, th, r, jac, chi2 = _lm(params, model, s_c, th_c, windows, free_all)
+    dof = int(mask.sum()) * n - len(wins) * 2 * n  # LM's statistical stop (LMSettings), less the parameters below
+    s_c, th_c, _, _, chi2_c = _lm(params, model, s0, theta0, windows, free_c, LMSettings(dof=max(dof - 1, 1)))
+    _s, th, r, jac, chi2 = _lm(params, model, s_c, th_c, windows, free_all, LMSettings(dof=max(dof - 1 - n, 1)))
     if not (np.isfinite(chi2) and np.all(np.isfinite(jac))):
         out["reason"] = "the conservative model's trajectories leave the finite numbers in some window"
         return out

@@ -14,6 +14,7 @@ by :mod:`nnphd.explain.lawtext`, never evaluated).
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -91,25 +92,16 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray, sign: str = "tanh"
     if sign not in SIGN_FORMS:
         raise ValueError(f"unknown smoothed sign {sign!r}; expected one of {', '.join(SIGN_FORMS)}")
     nm = list(names)
-    if _traced(v_rms):  # speeds that are data of a compiled program (the trajectory-level fits' right-hand side)
-        import jax.numpy as jnp
-
-        eps = jnp.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)
-        v_all = jnp.sqrt(jnp.sum(jnp.square(v_rms)))
-        eps_all = jnp.where(v_all > 0, COULOMB_EPS * v_all, 1.0)
-        return [
-            *_linear_families(n, nm),
-            *_quadratic_families(n, nm),
-            *_coulomb_families(n, nm, eps, eps_all, sign),
-            *_mixed_families(n, nm, eps, sign),
-            _power_family(n),
-            *_rayleigh_vdp_families(n, nm),
-            _drive_family(n, nm),
-        ]
-    v_rms = np.asarray(v_rms, float)
-    eps = np.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)  # relative to the speeds: units must not matter
-    v_all = float(np.sqrt(np.sum(np.square(v_rms))))
-    eps_all = COULOMB_EPS * v_all if v_all > 0 else 1.0
+    traced = _traced(v_rms)  # speeds that are data of a compiled program (the trajectory-level fits' right-hand side)
+    if traced:
+        import jax.numpy as xp
+    else:
+        xp, v_rms = np, np.asarray(v_rms, float)
+    eps = xp.where(v_rms > 0, COULOMB_EPS * v_rms, 1.0)  # relative to the speeds: units must not matter
+    v_all = xp.sqrt(xp.sum(xp.square(v_rms)))
+    eps_all = xp.where(v_all > 0, COULOMB_EPS * v_all, 1.0)
+    if not traced:
+        eps_all = float(eps_all)
     out: list[Family] = [
         *_linear_families(n, nm),
         *_quadratic_families(n, nm),
@@ -119,6 +111,8 @@ def families(n: int, names: Sequence[str], v_rms: np.ndarray, sign: str = "tanh"
         *_rayleigh_vdp_families(n, nm),
         _drive_family(n, nm),
     ]
+    if traced:  # the same bases, without ``spec`` (its speeds would be tracers)
+        return out
     spec = {"kind": "builtin", "v_rms": [float(x) for x in np.asarray(v_rms, float)], "sign": sign}
     return [replace(f, spec={**spec, "key": f.key}) for f in out]
 
@@ -446,8 +440,10 @@ def perturber_family(names: Sequence[str]) -> Family:
     )
 
 
-def odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
-    """Exponent pairs (of q, of q̇) of the monomials of total degree ≤ degree that are odd in q̇."""
+@functools.cache
+def odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> tuple[tuple[tuple[int, ...], tuple[int, ...]], ...]:
+    """Exponent pairs (of q, of q̇) of the monomials of total degree ≤ degree that are odd in q̇ (computed once per
+    (n, degree): the sparse laws' basis asks for them at every evaluation)."""
     import itertools
 
     out = []
@@ -455,7 +451,7 @@ def odd_monomials(n: int, degree: int = SPARSE_DEGREE) -> list[tuple[tuple[int, 
         if 0 < sum(e) <= degree and sum(e[n:]) % 2 == 1:
             out.append((tuple(e[:n]), tuple(e[n:])))
     out.sort(key=lambda m: (sum(m[0]) + sum(m[1]), m[1][::-1], m[0][::-1]))
-    return out
+    return tuple(out)
 
 
 def _monomial_cols(xp, mons, q, v):

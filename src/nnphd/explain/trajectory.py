@@ -335,12 +335,13 @@ def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: i
     return base, D, u0, len(idx)
 
 
-def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: int):
+def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: int, dof: int = 0):
     """Levenberg–Marquardt of the windows from each of ``starts`` ((window states, u, LM's first damping)) until one
     gives a finite χ²; a family's nonlinear parameters out of their bounds are clipped, fixed (in ``free``, in place)
     and the fit repeated. ``model``: the residuals and the derivatives (res, jac_fn) of
-    :func:`nnphd.engine.shooting.lm_windows`. Returns the fit (:class:`_Shot`: s, θ, r, jac, χ², converged: whether
-    LM stopped with χ² no longer falling), or None when no fit is finite."""
+    :func:`nnphd.engine.shooting.lm_windows`; ``dof`` the residuals less the fitted parameters (LM's statistical
+    stop, :class:`nnphd.engine.shooting.LMSettings`; 0: none). Returns the fit (:class:`_Shot`: s, θ, r, jac, χ²,
+    converged: whether LM stopped with χ² no longer falling), or None when no fit is finite."""
     from nnphd.engine.shooting import LMSettings, lm_windows
 
     res, jac_fn = model
@@ -349,7 +350,7 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
     for s_start, u_start, mu0 in starts:
         try:
             s, th, r, jac, chi2 = lm_windows(
-                None, s_start, u_start, free, LMSettings(iters=15, mu0=mu0), res=res, jac_fn=jac_fn, info=info
+                None, s_start, u_start, free, LMSettings(iters=15, mu0=mu0, dof=dof), res=res, jac_fn=jac_fn, info=info
             )
         except (np.linalg.LinAlgError, FloatingPointError, ValueError):
             continue
@@ -366,7 +367,7 @@ def _shoot_candidate(model, starts, free, fam: Family | None, Kc: int, n_fit: in
             th1[Kc + K : n_fit] = np.clip(nl, lo, hi)
             free[Kc + K : n_fit] = False
             s, th, r, jac, chi2 = lm_windows(
-                None, s, th1, free, LMSettings(iters=15), res=res, jac_fn=jac_fn, info=info
+                None, s, th1, free, LMSettings(iters=15, dof=dof), res=res, jac_fn=jac_fn, info=info
             )
             if not np.isfinite(chi2):
                 return None
@@ -526,7 +527,9 @@ def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
         if fam is not None:
             u_z[Kc : Kc + len(fam.coef_names)] = 0.0
         starts = lowest_first(res, [(s_w, u_z, MU_WARM), (s_w, u_w, MU_WARM), *starts])
-    fit = _shoot_candidate((res, jac), starts, free, fam, Kc, n_fit)
+    wins = ranking.windows
+    dof = max(wins.n_res - wins.W * 2 * wins.n - n_fit, 1)
+    fit = _shoot_candidate((res, jac), starts, free, fam, Kc, n_fit, dof)
     if fit is None:
         return None, None
     entry = _candidate_statistics(row, fit, free, n_fit, ranking)

@@ -87,6 +87,25 @@ class Trajectories:
 
         return cls._from_userdata(from_table(df, angles))
 
+    @classmethod
+    def from_markers(cls, source, markers: Sequence[str] | str = "auto", fps: float | None = None) -> Trajectories:
+        """A camera's marker positions — a CSV/NPZ file, or a mapping of columns (``t`` or ``frame``, optional
+        ``traj``, ``<marker>_x``, ``<marker>_y`` [, ``_z``]; NaN where a frame lost a marker) — turned into
+        generalized coordinates: the constraints (fixed points, untracked pivots, rods, rails) found in the tracks
+        and the minimal coordinates chosen from them (:mod:`nnphd.user.markers`; :attr:`markers` says which and
+        why). ``markers``: "auto" or the markers' names; ``fps``: the frame rate where there is a frame column and
+        no t. Invalid input raises :class:`nnphd.user.recording.DataError` with a one-line message."""
+        from nnphd.user.recording import from_marker_columns, load_trajectories
+
+        if isinstance(source, (str, os.PathLike)):
+            return cls._from_userdata(load_trajectories(source, markers=markers, fps=fps))
+        return cls._from_userdata(from_marker_columns(source, markers, fps))
+
+    @property
+    def markers(self) -> dict | None:
+        """A marker recording's constraints, coordinates and what was assumed (None for coordinates as given)."""
+        return None if self._ud.markers is None else self._ud.markers.to_dict()
+
     @property
     def names(self) -> tuple[str, ...]:
         return self._ud.coords

@@ -45,6 +45,17 @@ class DetectOptions:
     )
     out: str = typer.Option("out/detect", "--out", help="output directory (report.json, report.html, figures)")
     angles: str | None = typer.Option(None, "--angles", help="comma-separated angular coordinates (unwrapped)")
+    markers: str | None = typer.Option(
+        None,
+        "--markers",
+        help="a camera's marker positions (<marker>_x, <marker>_y[, _z] columns): nnphd finds the constraints (fixed "
+        "points, rods, rails) and chooses the coordinates — 'auto' (the default when every column is a marker's), "
+        "'none' (read the columns as coordinates) or the markers' names, comma-separated",
+        show_default=False,
+    )
+    fps: float | None = typer.Option(
+        None, "--fps", min=1e-9, max=1e9, help="frames per second of a marker recording with a frame column, no t"
+    )
     seed: int = typer.Option(0, "--seed", min=0, max=MAX_SEED, help="random seed")
     steps: int = typer.Option(
         1000, "--steps", min=4, max=MAX_STEPS, help="training steps per λ (and per extra round of the checks)"
@@ -127,8 +138,9 @@ def detect(o: DetectOptions):
     if not o.thin:
         settings["thin"] = False
     if paths is not None:
+        settings |= {k: v for k, v in (("markers", o.markers), ("fps", o.fps)) if v is not None}
         return _batch(o.files, len(paths), o.out, ang, o.max_rows, o.workers, o.scheduler, settings)
-    ud, t_read = _read_file(o.files[0], ang, o.max_rows, o.law, o.out)
+    ud, t_read = _read_file(o.files[0], ang, o.max_rows, o.law, o.out, (o.markers, o.fps))
     rep = _detect_one(ud, o.out, o.workers, o.scheduler, t_read, settings)
     _print_report(rep)
     console.print(_r(f"wrote {o.out}/report.json and {o.out}/report.html ({rep['wall_time_s']:.0f} s)"))
@@ -202,15 +214,17 @@ def _run_settings(o: DetectOptions, trim_v, extra: dict) -> dict:
     )
 
 
-def _read_file(file, ang, max_rows, law, out):
+def _read_file(file, ang, max_rows, law, out, camera=(None, None)):
     """One file read and checked (its --law texts parsed on its coordinates) before anything is created, then its
-    output folder claimed: (the trajectories, the seconds the read took). A bad file is an :class:`InputError`."""
+    output folder claimed: (the trajectories, the seconds the read took). ``camera``: (--markers, --fps). A bad file
+    is an :class:`InputError`."""
     from nnphd.cli.common import claim_out as claim_out_dir
     from nnphd.user.recording import DataError, load_trajectories
 
     try:
         t_read = time.perf_counter()
-        ud = load_trajectories(file, ang, max_rows=max_rows)  # validate the file before anything is created
+        markers, fps = camera  # validate the file before anything is created
+        ud = load_trajectories(file, ang, max_rows=max_rows, markers=markers, fps=fps)
         t_read = time.perf_counter() - t_read
         from nnphd.explain.families import parse_law
 
@@ -254,6 +268,11 @@ def _print_report(rep: dict) -> None:
             f"  note: {_r(repr(c))} looks like an angle ({_r(why)}); rerun with --angles to treat it as one",
             highlight=False,
         )
+    mk = rep.get("markers")
+    if mk:
+        console.print(f"  markers: {_r(mk['summary'])}", highlight=False)
+        for c in mk["constraints"]:
+            console.print(f"    {_r(c['text'])}", highlight=False)
     for r in rep["reasons"]:
         console.print(f"  • {_r(r)}", highlight=False)
     f = rep["formula"]

@@ -56,6 +56,7 @@ def report_of(ud, res: dict, info: dict, law: dict, verdict, field: dict, blind:
     coords = list(ud.coords)
     return {
         "file": str(ud.path),
+        **({"markers": ud.markers.to_dict()} if getattr(ud, "markers", None) is not None else {}),
         "new_physics": new_physics,
         "status": status,
         "statistic": res["statistic"],

@@ -58,7 +58,8 @@ def detect_file(
     if progress is not None:
         progress(0, 1, "reading the file")
     t0 = time.perf_counter()
-    ud = load_trajectories(path, angles, max_rows=max_rows)
+    markers, fps = settings.pop("markers", None), settings.pop("fps", None)  # how the file is read
+    ud = load_trajectories(path, angles, max_rows=max_rows, markers=markers, fps=fps)
     return detect_data(ud, out, progress=progress, read_s=time.perf_counter() - t0, **settings)[0].report
 
 
@@ -165,7 +166,12 @@ def detect_data(
         law_row = law_row if law.get("law") else None
         model = FittedModel(assessed.conservative, law_row, data, traj, tuple(coords), angles, fc, fn, fitted)
         if out is not None:
-            write_report(out, report, model, timer=timer, before_writing=stamp, made=figures)
+            extra = {}
+            if ud.markers is not None:
+                from nnphd.user.report import plot_markers
+
+                extra["markers.png"] = plot_markers(ud.markers)
+            write_report(out, report, model, timer=timer, before_writing=stamp, made=figures, extra=extra)
         else:
             stamp()
     return DetectResult.from_dict(report), model

@@ -56,7 +56,8 @@ import unicodedata
 import zipfile
 import zlib
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -119,6 +120,7 @@ class UserData:
     given_qd: tuple[bool, ...]
     given_qdd: tuple[bool, ...]
     trajectories: tuple[Trajectory, ...]
+    markers: Any = None  # a marker recording's constraints and coordinates (nnphd.user.markers.MarkerModel)
 
     @property
     def n(self) -> int:
@@ -152,11 +154,19 @@ class _Rows:
         return f"row {i + 1} (line {int(self.lines[i - self.offset])})"
 
 
-def load_trajectories(path, angles: Sequence[str] = (), max_rows: int | None = None) -> UserData:
+def load_trajectories(
+    path, angles: Sequence[str] = (), max_rows: int | None = None, markers=None, fps: float | None = None
+) -> UserData:
     """Read and validate a CSV (header required) or NPZ trajectory file; see the module docstring for the format.
 
     ``angles`` names the angular coordinates.  A file of more than ``max_rows`` data rows (default MAX_ROWS) is
     refused as soon as the reader gets there.  Raises :class:`DataError` on any problem.
+
+    ``markers``: a camera's marker positions (columns ``<marker>_x``, ``<marker>_y`` [, ``_z``], with ``t`` or a
+    ``frame`` column and ``fps``) turned into generalized coordinates by :mod:`nnphd.user.markers` — None (the
+    default): when every column but t, frame and traj is one of at least two markers; "auto": the markers found;
+    "none": never; or the markers' names. Empty cells are lost markers there. The result's ``markers`` holds the
+    constraints and the coordinates chosen.
     """
     max_rows = MAX_ROWS if max_rows is None else int(max_rows)
     max_cells = _max_cells(max_rows)
@@ -170,15 +180,59 @@ def load_trajectories(path, angles: Sequence[str] = (), max_rows: int | None = N
             )
         fd = _open_regular(path)
         if ext == ".csv":
-            columns, rows = _read_csv(path, fd, max_rows, max_cells)
+            columns, rows = _read_csv(path, fd, max_rows, max_cells, markers)
         else:
             columns, rows = _read_npz(path, fd, max_rows, max_cells)
+        if _marker_mode(list(columns), markers):
+            return _from_markers(path, columns, angles, markers, fps)
+        if fps is not None:
+            raise DataError(f"{path}: --fps is the frame rate of a marker recording, and this file is none "
+                            "(expected columns <marker>_x, <marker>_y with a frame column)")  # fmt: skip
         return _validate(path, columns, rows, angles)
     except DataError as e:
         shown = _shown(path)
         if shown != path and str(e).startswith(path):  # a file name with a line break must not break the line
             raise DataError(shown + str(e)[len(path) :]) from None
         raise
+
+
+def _marker_mode(names: list[str], markers) -> bool:
+    """Whether a table is read as marker positions (:func:`load_trajectories`' ``markers``)."""
+    from nnphd.user.markers import looks_like_markers
+
+    if markers is None:
+        return looks_like_markers(names)
+    return not (isinstance(markers, str) and markers == "none")
+
+
+def from_marker_columns(columns, markers="auto", fps: float | None = None) -> UserData:
+    """A mapping of a marker recording's columns (:func:`nnphd.user.markers.from_columns`) → validated
+    :class:`UserData` with its ``markers``; one-line :class:`DataError` on any problem."""
+    w = "<arrays>"
+    try:
+        cols = {
+            str(k): _api_numbers(w, _q(str(k)), v) if str(k) != "traj" else _api_ids(w, v) for k, v in columns.items()
+        }
+    except AttributeError:
+        raise DataError(f"{w}: expected a mapping of column names to arrays") from None
+    return _from_markers(w, cols, (), markers, fps)
+
+
+def _from_markers(path: str, columns: dict, angles, markers, fps) -> UserData:
+    """A marker recording → its generalized coordinates (:func:`nnphd.user.markers.from_columns`), validated as any
+    file's coordinates; ``markers`` in the result. One-line :class:`DataError` naming the file on any problem."""
+    from nnphd.user.markers import MarkerError, from_columns
+
+    if angles:
+        raise DataError(f"{path}: --angles does not apply to a marker recording: nnphd chooses its coordinates "
+                        "(and which are angles) from the markers' constraints")  # fmt: skip
+    try:
+        mm = from_columns(columns, "auto" if markers is None else markers, fps)
+    except MarkerError as e:
+        raise DataError(f"{path}: {e}") from None
+    cols: dict[str, np.ndarray] = {"t": mm.t, "traj": mm.traj.astype(np.int64)}
+    cols |= {c: mm.q[:, j] for j, c in enumerate(mm.names)}
+    return replace(_validate(path, cols, _Rows(None), mm.angles), markers=mm)
 
 
 def _max_cells(max_rows: int) -> int:
@@ -286,7 +340,7 @@ def _bounded_lines(path: str, fh, record: list[int]):
         yield s
 
 
-def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[str, np.ndarray], _Rows]:
+def _read_csv(path: str, fd: int, max_rows: int, max_cells: int, markers=None) -> tuple[dict[str, np.ndarray], _Rows]:
     """Stream the file into float64 columns, CSV_CHUNK rows (at most CSV_CHUNK_CHARS characters) at a time: memory
     is the arrays (8 bytes per cell and one line number per row), never the text of the whole file; lines are read
     with a bound (:func:`_bounded_lines`) and the values are capped (``max_cells``, rows × columns)."""
@@ -295,6 +349,7 @@ def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[s
     pending: list[list[str]] = []
     pending_lines: list[int] = []
     n_done = pending_chars = 0
+    blank_nan = False  # a marker recording: an empty cell is a marker lost in that frame
 
     def flush() -> None:
         nonlocal n_done, pending_chars
@@ -304,6 +359,8 @@ def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[s
         rows = _Rows(pending_lines, offset=n_done)
         for j, name in enumerate(header):
             cells = [rec[j] for rec in pending]
+            if blank_nan and name != "traj":
+                cells = [c if c.strip() else "nan" for c in cells]
             chunks[name].append(_csv_ids(path, cells, rows) if name == "traj" else _csv_floats(path, name, cells, rows))
         lines.append(np.asarray(pending_lines, dtype=np.int64))
         n_done += len(pending)
@@ -323,6 +380,7 @@ def _read_csv(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[s
                     header_line = reader.line_num
                     _check_header(path, header, header_line)
                     chunks = {name: [] for name in header}
+                    blank_nan = _marker_mode(header, markers)
                     continue
                 _check_csv_record(path, rec, header, reader.line_num, n_done + len(pending), max_rows, max_cells)
                 pending.append(rec)

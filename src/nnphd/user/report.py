@@ -58,6 +58,44 @@ def fig_data(data, traj, coords):
     return fig
 
 
+def fig_markers(mm):
+    """The tracked markers (a :class:`nnphd.user.markers.MarkerModel`) in the image plane (the first two axes): each
+    marker's track, the fixed points and untracked pivots, the rods drawn at a few frames and the rails — the
+    constraints the coordinates were chosen from."""
+    fig, ax = subplots(figsize=(6, 6))
+    P = mm.positions
+    step = max(1, len(mm.t) // 4000)
+    for m, p in P.items():
+        ax.plot(p[::step, 0], p[::step, 1], lw=0.4, alpha=0.6, label=_m(m))
+    for name, c in mm.anchors.items():
+        ax.plot(c[0], c[1], "k^" if name not in P else "ko", ms=8)
+        ax.annotate(_m(name), (c[0], c[1]), textcoords="offset points", xytext=(6, 6))
+    frames = np.linspace(0, len(mm.t) - 1, 6).round().astype(int)
+    for con in mm.constraints:
+        if con.kind in ("rod", "pivot"):
+            a, b = con.markers
+            for k in frames:
+                pa = P[a][k] if a in P else mm.anchors[a]
+                ax.plot([pa[0], P[b][k, 0]], [pa[1], P[b][k, 1]], "k-", lw=1.2, alpha=0.5)
+        elif con.kind == "rail":
+            (m,) = con.markers
+            c, u = P[m].mean(0), np.asarray(con.value)
+            s = (P[m] - c) @ u
+            ax.plot([c[0] + s.min() * u[0], c[0] + s.max() * u[0]], [c[1] + s.min() * u[1], c[1] + s.max() * u[1]],
+                    "k--", lw=1.5)  # fmt: skip
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.invert_yaxis()  # image rows grow downwards
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_title("markers: tracks, fixed points (▲ untracked), rods at 6 frames, rails (dashed)")
+    return fig
+
+
+def plot_markers(mm) -> bytes:
+    return _png(fig_markers(mm))
+
+
 def fig_loss(table, naive_ratio=None):
     fig, ax = subplots(figsize=(6, 4))
     lam = [r["lam"] for r in table]
@@ -188,18 +226,19 @@ def plot_forces(data, traj, coords, fc, fn, lam=None, declared: bool = False) ->
 
 
 # ---------------------------------------------------------------------------------------------------- output
-def write_report(out, report: dict, model: FittedModel, timer=None, before_writing=None, made=None) -> None:
+def write_report(out, report: dict, model: FittedModel, timer=None, before_writing=None, made=None, extra=None) -> None:
     """report.json, the figures and a self-contained report.html (each atomic). The figures draw the ``model``'s data
     set, trajectories, coordinates and forces f_c, f_n (:class:`nnphd.user.result.FittedModel`). ``timer``: the figures are timed on
     it (:class:`nnphd.io.timing.StageTimer`); ``before_writing()`` is called after them, before any file is written
     (to put the timings into the report). ``made``: a future of :func:`training_figures` made already (on another
-    thread, while the law was fitted); its wait counts in the figures stage."""
+    thread, while the law was fitted); its wait counts in the figures stage. ``extra``: figures made already (PNG
+    bytes by file name: the markers of a marker recording), first."""
     from contextlib import nullcontext
 
     outdir = ensure_writable_dir(out)
     with timer.stage("figures") if timer is not None else nullcontext():
         drawn = (model.data, model.traj, list(model.coords), model.fc, model.fn)
-        figs = _figures(report, *drawn, None if made is None else made.result())
+        figs = {**(extra or {}), **_figures(report, *drawn, None if made is None else made.result())}
     if before_writing is not None:
         before_writing()
     for name, png in figs.items():
@@ -353,6 +392,21 @@ def _field_html(report: dict) -> str:
     return f"<p><b>Conservative force:</b> {_e(f['text'])}; g = {g or '—'}{beside}{drag}</p>"
 
 
+def _markers_html(mk: dict | None) -> str:
+    """The section of a marker recording: the constraints found, the coordinates chosen and why, what was assumed."""
+    if not mk:
+        return ""
+    rows = [[_e(c["name"]), _e(c["kind"]), _e(c["why"])] for c in mk["coordinates"]]
+    return section(
+        "Markers → coordinates",
+        f"<p>{_e(mk['summary'])}</p>"
+        + bullets(_e(c["text"]) for c in mk["constraints"])
+        + table(["coordinate", "kind", "why"], rows, left=3)
+        + "".join(f"<p><small>{_e(a)}</small></p>" for a in mk["assumed"])
+        + (f"<p>{mk['dropped_rows']} rows left out (a marker lost in that frame)</p>" if mk["dropped_rows"] else ""),
+    )
+
+
 def render_html(report: dict, figs: dict[str, bytes]) -> str:
     """The self-contained report.html: the verdict first, then the evidence, the data, the law, the figures (PNG bytes
     by file name: embedded and linked) and L_e(λ)."""
@@ -430,6 +484,7 @@ def render_html(report: dict, figs: dict[str, bytes]) -> str:
         + sugg_html
         + section("Evidence", table(["test", "value", "result", "note"], _evidence_rows(report), left=4))
         + section("Data", data)
+        + _markers_html(report.get("markers"))
         + section("Law of the non-conservative part", f"<p>{formula}</p>")
         + section("Figures", figures(figure(png, name) for name, png in figs.items()))
         + _timings_html(report.get("timings"))

@@ -129,6 +129,29 @@ def stage_times_held_out() -> str:
     return "\n".join(out) + "\n"
 
 
+def markers_constraints() -> str:
+    """results/markers_constraints.json (benchmarks/markers_constraints.py, issue 58): per camera record, the
+    constraints and coordinates chosen from its markers against the truth."""
+    rows = _load("markers_constraints.json")
+    out = [
+        "| record | constraints found | coordinates chosen | right | rod length error | untracked pivot error "
+        "| coordinate deviation |",
+        "|---" * 7 + "|",
+    ]
+    for r in rows:
+
+        def pct(x):
+            return "—" if x is None else f"{100 * x:.2f} %"
+
+        dev = "—" if r["coordinate_deviation"] is None else ", ".join(f"{x:.2g}" for x in r["coordinate_deviation"])
+        out.append(
+            f"| {r['record']} | {'; '.join(r['constraints']) or 'none'} | {', '.join(r['coordinates'])} | "
+            f"{'yes' if r['right'] else '**no**'} | {pct(r['rod_length_error'])} | {pct(r['pivot_error'])} | {dev} |"
+        )
+    out += ["", f"Right constraints and coordinates: {sum(r['right'] for r in rows)} of {len(rows)}."]
+    return "\n".join(out) + "\n"
+
+
 def cluster_scaling() -> str:
     """results/cluster_scaling.json (benchmarks/cluster_scaling.py): simulated makespan and efficiency."""
     d = _load("cluster_scaling.json")
@@ -1501,6 +1524,7 @@ TABLES = {
     "conservative_controls": conservative_controls,
     "stage_times": stage_times,
     "stage_times_held_out": stage_times_held_out,
+    "markers_constraints": markers_constraints,
     "cluster_scaling": cluster_scaling,
     "declared_field_guard": declared_field_guard,
     "seed_robustness": seed_robustness,

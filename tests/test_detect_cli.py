@@ -48,7 +48,7 @@ BAD = {
     "constant": (lambda p: _csv(p, "t,x,y", [(i, 1, 2) for i in range(20)]), "all coordinates are constant"),
     "unreadable": (lambda p: _write(p.with_suffix(".npz"), b"not a zip file"), "cannot read as .npz"),
     "missing_file": (lambda p: p.with_name("nope.csv"), "file not found"),
-    "wrong_type": (lambda p: _write(p.with_suffix(".txt"), "t,x\n0,1\n"), "unsupported file type"),
+    "wrong_type": (lambda p: _write(p.with_suffix(".dat"), "t,x\n0,1\n"), "unsupported file type"),
 }
 
 

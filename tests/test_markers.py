@@ -102,6 +102,11 @@ def test_a_flexible_rod_is_reported_not_assumed():
     (rough,) = _kinds(mm, "rough")
     assert rough.markers == ("pivot", "bob") and 0.01 < rough.rel < 0.05 and "not assumed" in rough.text()
     assert not _kinds(mm, "rod") and [c.kind for c in mm.coordinates] == ["free", "free"]
+    assert mm.note() == (
+        "no simple constraint set: pivot – bob keep their distance only to 2% (a flexible rod, a "
+        "slipping string?); not assumed: bob left free"
+    )
+    assert from_columns(make("double-pendulum").columns, fps=200).note() is None
 
 
 @pytest.mark.skipif(not os.path.isdir(os.path.join(REAL, "ibm_markers")), reason="../shared/data/real not here")
@@ -237,3 +242,43 @@ def test_law_from_markers_matches_the_law_from_the_true_angle(tmp_path):
     assert abs(ga - gb) <= 2 * np.hypot(la["stderr"]["gamma"], lb["stderr"]["gamma"])
     assert abs(ga - cam.gamma) < 0.05 * cam.gamma
     assert a["markers"]["coordinates"][0]["name"] == "theta_bob" and (tmp_path / "a" / "markers.png").exists()
+
+
+def _tracker(path, cam, multi: bool, delim="\t"):
+    """The look-alike as Tracker exports it: one track per file (its name, then t x y), or #multi: (the tracks'
+    names over their columns, then t x y x y …); an empty cell where a track has no step; velocities beside."""
+    t = cam.columns["frame"] / cam.fps
+    marks = [k[:-2] for k in cam.columns if k.endswith("_x")]
+    cell = lambda v: "" if not np.isfinite(v) else f"{v:.9E}"  # noqa: E731
+    with open(path, "w") as f:
+        if multi:
+            f.write("#multi:\n" + delim + delim.join(f"mass {m}{delim}{delim}" for m in marks) + "\n")
+            f.write("t" + "".join(f"{delim}x{delim}y{delim}v_{{x}}" for _ in marks) + "\n")
+            for i in range(len(t)):
+                f.write(cell(t[i]) + "".join(delim + cell(cam.columns[f"{m}_x"][i]) + delim
+                                             + cell(cam.columns[f"{m}_y"][i]) + delim + "1.0" for m in marks) + "\n")  # fmt: skip
+        else:
+            m = marks[0]
+            f.write(f"mass {m}\nt{delim}x{delim}y\n")
+            for i in range(len(t)):
+                f.write(delim.join([cell(t[i]), cell(cam.columns[f"{m}_x"][i]), cell(cam.columns[f"{m}_y"][i])]) + "\n")
+
+
+def test_tracker_data_tables_one_track_and_several(tmp_path):
+    cam = make("cart-pendulum")
+    p = tmp_path / "cart.txt"
+    _tracker(p, cam, multi=True)
+    ud = load_trajectories(p)
+    assert ud.coords == ("s_mass_cart", "theta_mass_bob") and ud.markers.markers == ("mass cart", "mass bob")
+    ref = from_columns(cam.columns, fps=cam.fps)
+    assert np.allclose(ud.trajectories[0].q, ref.q, atol=1e-6)
+    throw = make("throw")
+    p1 = tmp_path / "ball.txt"
+    _tracker(p1, throw, multi=False, delim=",")
+    ud1 = load_trajectories(p1)
+    assert ud1.coords == ("mass_ball_x", "mass_ball_y") and ud1.markers.constraints == ()
+    (tmp_path / "junk.txt").write_text("hello\nworld\n1,2\n")
+    with pytest.raises(DataError, match="not a Tracker data table"):
+        load_trajectories(tmp_path / "junk.txt")
+    with pytest.raises(DataError, match="read as Tracker's data table"):
+        load_trajectories(p, markers="none")

@@ -320,7 +320,7 @@ def test_bad_files_and_npz_arrays(tmp_path):
         assert "\n" not in msg and all(p in msg for p in parts), (parts, msg)
 
     raises(tmp_path / "missing.csv", "missing.csv", "file not found")
-    raises(tmp_path / "data.txt", "unsupported file type '.txt'", "expected a .csv or .npz")
+    raises(tmp_path / "data.dat", "unsupported file type '.dat'", "expected a .csv or .npz")
     raises(tmp_path, "unsupported file type")
     (tmp_path / "dir.csv").mkdir()
     raises(tmp_path / "dir.csv", "is a directory")

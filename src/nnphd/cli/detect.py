@@ -39,7 +39,8 @@ class DetectOptions:
 
     files: list[str] = typer.Argument(
         ...,
-        help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot) or NPZ; several files or a "
+        help="CSV (header: t, coordinates, optional traj, <coord>_dot, <coord>_ddot), NPZ, or camera markers (see "
+        "--markers; also Tracker's .txt data table); several files or a "
         "folder: a batch (one report per file in OUT/<name>/, summary.csv/html)",
         show_default=False,
     )
@@ -271,6 +272,8 @@ def _print_report(rep: dict) -> None:
     mk = rep.get("markers")
     if mk:
         console.print(f"  markers: {_r(mk['summary'])}", highlight=False)
+        if mk.get("note"):
+            console.print(f"  [yellow]markers:[/] {_r(mk['note'])}", highlight=False)
         for c in mk["constraints"]:
             console.print(f"    {_r(c['text'])}", highlight=False)
     for r in rep["reasons"]:

@@ -149,7 +149,23 @@ class MarkerModel:
             "assumed": list(self.assumed),
             "dropped_rows": int(self.dropped),
             "summary": self.summary(),
+            "note": self.note(),
         }
+
+    def note(self) -> str | None:
+        """One line when the markers admit no simple constraint set — a constraint that holds only roughly, or
+        several markers and nothing holding them — saying what was found instead; else None."""
+        rough = [c for c in self.constraints if c.kind == "rough"]
+        free = sorted({c.marker for c in self.coordinates if c.kind == "free"})
+        if rough:
+            r = rough[0]
+            return (
+                f"no simple constraint set: {' – '.join(r.markers)} keep their distance only to {100 * r.rel:.2g}% "
+                f"(a flexible rod, a slipping string?); not assumed: {', '.join(free) or 'its markers'} left free"
+            )
+        if len(free) > 1 and not any(c.kind in ("rod", "pivot", "rail") for c in self.constraints):
+            return f"no constraint holds the markers {', '.join(free)}: each is left free (x, y)"
+        return None
 
     def summary(self) -> str:
         held = [c for c in self.constraints if c.kind != "rough"]
@@ -202,6 +218,11 @@ def marker_columns(names: Sequence[str], markers: Sequence[str] | str = "auto") 
 def _name(s: str, n: int = 40) -> str:
     s = str(s)
     return repr(s if len(s) <= n else s[: n - 1] + "…")
+
+
+def _ident(marker: str) -> str:
+    """A marker's name as part of a coordinate's name (Tracker's "mass A" → "mass_A")."""
+    return re.sub(r"[^A-Za-z0-9_]", "_", marker)
 
 
 def marker_times(columns: dict, fps: float | None) -> np.ndarray:
@@ -494,11 +515,11 @@ def _choose(markers, fixed, anchors, rods, rails, P, centre, traj, d):
                     v = pos[m] - pos[p]
                     r = np.linalg.norm(v, axis=1)
                     cols += [_unwrapped_angle(v[:, :2], traj), np.arccos(np.clip(v[:, 2] / r, -1, 1))]
-                    coords += [Coordinate(f"phi_{m}", "angle", m, p, f"rod {p}–{m}: azimuth"),
-                               Coordinate(f"psi_{m}", "angle", m, p, f"rod {p}–{m}: polar angle from +z")]  # fmt: skip
+                    coords += [Coordinate(f"phi_{_ident(m)}", "angle", m, p, f"rod {p}–{m}: azimuth"),
+                               Coordinate(f"psi_{_ident(m)}", "angle", m, p, f"rod {p}–{m}: polar angle from +z")]  # fmt: skip
                 else:
                     cols.append(_unwrapped_angle(pos[m] - pos[p], traj))
-                    coords.append(Coordinate(f"theta_{m}", "angle", m, p, f"rod {p}–{m} of constant length"))
+                    coords.append(Coordinate(f"theta_{_ident(m)}", "angle", m, p, f"rod {p}–{m} of constant length"))
                 todo.remove(m)
                 placed.add(m)
                 progress = True
@@ -511,7 +532,7 @@ def _choose(markers, fixed, anchors, rods, rails, P, centre, traj, d):
         placed.add(m)
         if m in rails:
             cols.append((P[m] - centre[m]) @ rails[m])
-            coords.append(Coordinate(f"s_{m}", "rail", m, None, "on a straight line: the position along it"))
+            coords.append(Coordinate(f"s_{_ident(m)}", "rail", m, None, "on a straight line: the position along it"))
         else:
             o = origin if origin is not None else np.zeros(d)
             why = "no constraint holds it"
@@ -522,7 +543,7 @@ def _choose(markers, fixed, anchors, rods, rails, P, centre, traj, d):
                 )
             for j in range(d):
                 cols.append(P[m][:, j] - o[j])
-                coords.append(Coordinate(f"{m}_{AXES[j]}", "free", m, None, why))
+                coords.append(Coordinate(f"{_ident(m)}_{AXES[j]}", "free", m, None, why))
     if any(c.kind == "angle" for c in coords):
         assumed.append(
             "angles are measured from the image's +x axis (gravity's direction is not assumed: the learned "

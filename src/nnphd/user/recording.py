@@ -174,12 +174,19 @@ def load_trajectories(
     try:
         angles = _angle_names(path, angles)
         ext = os.path.splitext(path)[1].lower()
-        if ext not in (".csv", ".npz"):
+        if ext not in (".csv", ".npz", ".txt"):
             raise DataError(
-                f"{path}: unsupported file type {_q(ext) if ext else '(none)'}; expected a .csv or .npz file"
+                f"{path}: unsupported file type {_q(ext) if ext else '(none)'}; expected a .csv or .npz file (or "
+                "Tracker's .txt data table)"
             )
         fd = _open_regular(path)
-        if ext == ".csv":
+        if ext == ".txt":  # Tracker's exported data table: marker positions
+            if isinstance(markers, str) and markers == "none":
+                raise DataError(f"{path}: a .txt file is read as Tracker's data table of marker positions; "
+                                "expected --markers auto or the markers' names, or a .csv file")  # fmt: skip
+            columns, rows = _read_tracker(path, fd, max_rows, max_cells)
+            markers = "auto" if markers is None else markers
+        elif ext == ".csv":
             columns, rows = _read_csv(path, fd, max_rows, max_cells, markers)
         else:
             columns, rows = _read_npz(path, fd, max_rows, max_cells)
@@ -403,6 +410,74 @@ def _read_csv(path: str, fd: int, max_rows: int, max_cells: int, markers=None) -
         raise DataError(f"{path}: no data rows after the header; expected at least one row of numbers")
     columns = {name: np.concatenate(parts) for name, parts in chunks.items()}
     return columns, _Rows(np.concatenate(lines))
+
+
+def _read_tracker(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[dict[str, np.ndarray], _Rows]:
+    """Tracker's (physlets.org/tracker) exported data table: one track — its name on the first line, then a header
+    ``t x y …`` — or several (``#multi:``, a line of the tracks' names over their first columns, then the header);
+    tab-, comma- or semicolon-delimited; an empty cell where a track has no step. → columns ``t`` and
+    ``<track>_x``, ``<track>_y`` (``_z``) of every track (other columns, such as Tracker's velocities, are left
+    out), read with the CSV reader's bounds (:func:`_bounded_lines`, ``max_rows``, ``max_cells``)."""
+    try:
+        with open(fd, newline="", encoding="utf-8-sig") as fh:
+            record = [0]
+            lines = (ln for ln in _bounded_lines(path, fh, record) if ln.strip())
+            head = [next(lines, "") for _ in range(3)]
+            multi = head[0].strip().lower().startswith("#multi")
+            names_line, header_line = (head[1], head[2]) if multi else (head[0], head[1])
+            delim = next((d for d in ("\t", ";", ",") if d in header_line), None)
+            header = [h.strip() for h in header_line.rstrip("\r\n").split(delim)] if delim else []
+            if not header or header[0] != "t" or not any(h in AXIS_NAMES for h in header):
+                raise DataError(f"{path}: not a Tracker data table; expected a track's name (or #multi: and the "
+                                "tracks' names), then a header t, x, y, then rows")  # fmt: skip
+            tracks = _tracker_tracks(path, names_line.rstrip("\r\n").split(delim), header, multi)
+            body = [] if multi else [head[2]]  # one track: its third line is a row already
+            cells: list[list[str]] = []
+            for rec in csv.reader(_chain(body, lines), delimiter=delim):
+                record[0] = 0
+                if len(cells) >= max_rows or (len(cells) + 1) * len(header) > max_cells:
+                    raise DataError(_too_many(path, max_rows))
+                cells.append((rec + [""] * len(header))[: len(header)])
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not a UTF-8 text file; expected Tracker's data table") from None
+    except csv.Error as e:
+        raise DataError(f"{path}: not readable as a data table ({_err(e)})") from None
+    except OSError as e:
+        raise DataError(f"{path}: cannot read the file ({_err(e)})") from None
+    if not cells:
+        raise DataError(f"{path}: no data rows after the header; expected rows of t, x, y")
+    rows = _Rows(None)
+    cols = {"t": _csv_floats(path, "t", [r[0] for r in cells], rows)}
+    for j, name in tracks:
+        cols[name] = _csv_floats(path, name, [r[j] if r[j].strip() else "nan" for r in cells], rows)
+    return cols, rows
+
+
+AXIS_NAMES = ("x", "y", "z")
+
+
+def _chain(first: list, rest):
+    yield from first
+    yield from rest
+
+
+def _tracker_tracks(path: str, names: list[str], header: list[str], multi: bool) -> list[tuple[int, str]]:
+    """(column, ``<track>_<axis>``) of every x, y, z column of a Tracker table: each column's track is the last
+    name at or before it on the names line (one track: the first line's name)."""
+    out, track = [], None
+    for j, h in enumerate(header):
+        if multi and j < len(names) and names[j].strip():
+            track = names[j].strip()
+        elif not multi:
+            track = names[0].strip()
+        if h in AXIS_NAMES and j > 0:
+            if not track:
+                raise DataError(f"{path}: column {j + 1} ({_q(h)}) has no track name above it; expected the "
+                                "tracks' names over their columns")  # fmt: skip
+            out.append((j, f"{track}_{h}"))
+    if len({n for _, n in out}) != len(out):
+        raise DataError(f"{path}: a track has two {_q(out[0][1].rsplit('_', 1)[1])} columns; expected one per axis")
+    return out
 
 
 def _check_csv_record(

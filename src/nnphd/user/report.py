@@ -400,6 +400,7 @@ def _markers_html(mk: dict | None) -> str:
     return section(
         "Markers → coordinates",
         f"<p>{_e(mk['summary'])}</p>"
+        + (f"<p class='warn'>{_e(mk['note'])}</p>" if mk.get("note") else "")
         + bullets(_e(c["text"]) for c in mk["constraints"])
         + table(["coordinate", "kind", "why"], rows, left=3)
         + "".join(f"<p><small>{_e(a)}</small></p>" for a in mk["assumed"])

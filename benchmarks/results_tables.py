@@ -81,9 +81,10 @@ def stage_times_held_out() -> str:
     d = _load("stage_times_held_out.json")
     rows = sorted(d["records"], key=lambda r: r["warm"]["total_s"])
     base = d.get("baseline", {}).get("warm_s", {})
+    base_other = d.get("baseline", {}).get("other_compile_s", {})
     out = [
         "| record | rows | verdict | law | cold total | warm total (before) | warm: training | warm: law, trajectory "
-        "level | warm compiling | other length: rows, total, compiling |",
+        "level | warm compiling | other length: rows, total, compiling (before) |",
         "|---" * 10 + "|",
     ]
     for r in rows:
@@ -93,7 +94,8 @@ def stage_times_held_out() -> str:
             return f"{by[stage]['s']:.1f} ({by[stage]['compile_s']:.1f})" if stage in by else "—"
 
         o = r.get("other length")
-        other = f"{o['rows']}, {o['total_s']:.1f}, {o['compile_s']:.1f}" if o else "—"
+        was = f" ({base_other[r['file']]:.1f})" if r["file"] in base_other else ""
+        other = f"{o['rows']}, {o['total_s']:.1f}, {o['compile_s']:.1f}{was}" if o else "—"
         before = f" ({base[r['file']]:.1f})" if r["file"] in base else ""
         out.append(
             f"| {r['file']} | {r['rows']} | {r['warm']['status']} | {r['warm']['law']} | {r['cold']['total_s']:.1f} "
@@ -110,15 +112,21 @@ def stage_times_held_out() -> str:
         )
         out.append("")
     if base:
-        out.append(f"before ({d['baseline']['commit']}, another day), warm: median {_median(list(base.values())):.1f} s,"
-                   f" max {max(base.values()):.1f} s")  # fmt: skip
-        out.append("")
-    ab = d.get("ab")
-    if ab:
+        line = (f"before ({d['baseline']['commit']}, another day), warm: median {_median(list(base.values())):.1f} s,"
+                f" max {max(base.values()):.1f} s")  # fmt: skip
+        if base_other:
+            line += (f"; other length, compiling: median {_median(list(base_other.values())):.1f} s, max "
+                     f"{max(base_other.values()):.1f} s")  # fmt: skip
+        out += [line, ""]
+    for ab in d.get("ab") or []:  # same-day runs of the code before and after
         b, a = ab["before"], ab["after"]
+        other = ""
+        if "other_s" in b and "other_s" in a:
+            other = (f", other length {b['other_s']:.1f} → {a['other_s']:.1f} s (compiling {b['other_compile_s']:.1f} → "
+                     f"{a['other_compile_s']:.1f} s)")  # fmt: skip
         out.append(
             f"{ab['record']}, before ({b['commit']}) and after ({a['commit']}) one after the other on the same day: "
-            f"cold {b['cold_s']:.1f} → {a['cold_s']:.1f} s, warm {b['warm_s']:.1f} → {a['warm_s']:.1f} s"
+            f"cold {b['cold_s']:.1f} → {a['cold_s']:.1f} s, warm {b['warm_s']:.1f} → {a['warm_s']:.1f} s{other}"
         )
         out.append("")
     same = sum(r["same_verdict"] for r in rows)

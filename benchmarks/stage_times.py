@@ -11,8 +11,9 @@ report.json (``timings``: wall and JAX-compile seconds per stage, :mod:`nnphd.io
 double pendulum, a 2-D throw under a declared vertical field, the whole real IBM double-pendulum run 6 at 100 Hz,
 real 1-D records with mixed friction); ``--records kind:name,...`` any of them (friction:, laws:, recordings:,
 real:, ibm:RUN). ``--other-length F``: after the warm run, a copy of the file with its first F of rows is run with the
-same cache — what a second file of another length still compiles. Results of the held-out set at 27e3c24:
-results/stage_times_held_out.json.
+same cache — what a second file of another length still compiles. Results of the held-out set:
+results/stage_times_held_out.json (two runs merged: ibm:6, laws:anisotropic-damping and real:servo_sts3250_drop at
+--sr-time 10, the rest at 0).
 
 Cases: the look-alikes of tests/fixtures/friction.py (default: viscous-dry, heavy-damping, jitter-clock,
 linear-quadratic) and the real recordings of benchmarks/results/friction_reference.json (default:

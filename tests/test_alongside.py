@@ -246,7 +246,7 @@ def test_the_conservative_combination_differentiated_per_row_is_jaxs_own(n, angl
     def cols(_, q_, v_):
         return conservative_basis(jnp, q_, v_, angles, fc(q_, v_), center, True)
 
-    K = cols(None, q, v).shape[-1]
+    K = jax.eval_shape(lambda x, y: cols(None, x, y), q, v).shape[-1]
     c = jnp.asarray(rng.normal(size=K))
 
     def plain(c_, x, y):
@@ -255,12 +255,15 @@ def test_the_conservative_combination_differentiated_per_row_is_jaxs_own(n, angl
     rows = rowwise_combination(cols)
     dc = jnp.asarray(rng.normal(size=(9, K)))
     dq, dv = jnp.asarray(rng.normal(size=(9, W, n))), jnp.asarray(rng.normal(size=(9, W, n)))
-    own = jax.vmap(lambda a, b, d: jax.jvp(plain, (c, q, v), (d, a, b)))(dq, dv, dc)
-    per_row = jax.vmap(lambda a, b, d: jax.jvp(lambda c_, x, y: rows(None, c_, x, y), (c, q, v), (d, a, b)))(dq, dv, dc)
+    # compiled, as the shooting Jacobian runs them (op by op: 20 s of the fast tier each)
+    own = jax.jit(jax.vmap(lambda a, b, d: jax.jvp(plain, (c, q, v), (d, a, b))))(dq, dv, dc)
+    per_row = jax.jit(jax.vmap(lambda a, b, d: jax.jvp(lambda c_, x, y: rows(None, c_, x, y), (c, q, v), (d, a, b))))(
+        dq, dv, dc
+    )
     assert own[1].shape == (9, W, n) and K > 10
-    assert np.array_equal(np.asarray(own[0]), np.asarray(per_row[0]))
+    np.testing.assert_allclose(np.asarray(own[0]), np.asarray(per_row[0]), rtol=1e-14, atol=1e-15)
     scale = float(jnp.max(jnp.abs(own[1])))
     assert scale > 1e-3 and float(jnp.max(jnp.abs(per_row[1] - own[1]))) <= 1e-12 * scale
     # a coefficient direction alone moves the output by the columns times it
-    only_c = jax.jvp(lambda c_: rows(None, c_, q, v), (c,), (dc[0],))[1]
-    np.testing.assert_allclose(np.asarray(only_c), np.asarray(plain(dc[0], q, v)), rtol=1e-12, atol=1e-14)
+    only_c, by_c = jax.jit(lambda d: (jax.jvp(lambda c_: rows(None, c_, q, v), (c,), (d,))[1], plain(d, q, v)))(dc[0])
+    np.testing.assert_allclose(np.asarray(only_c), np.asarray(by_c), rtol=1e-12, atol=1e-14)

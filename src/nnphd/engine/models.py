@@ -243,6 +243,16 @@ def init_free(key, cfg: ModelConfig, n_time: int = 1, widths: Sequence[int] | No
     return init_mlp(key, sizes, jnp.dtype(cfg.dtype))
 
 
+def widen_inputs(layers: list, n_extra: int) -> list:
+    """``layers`` of an MLP with ``n_extra`` more inputs after its own, whose first-layer weights are zero: the same
+    function of the inputs it had, whatever the new ones hold (see
+    :func:`nnphd.user.scaling.padded_time_features`)."""
+    if n_extra <= 0:
+        return layers
+    w = layers[0]["w"]
+    return [{**layers[0], "w": jnp.concatenate([w, jnp.zeros((n_extra, w.shape[1]), w.dtype)])}, *layers[1:]]
+
+
 def init_uan(key, cfg: ModelConfig) -> list:
     return init_free(key, cfg)
 

@@ -26,13 +26,15 @@ class ShootingWindows(NamedTuple):
     """The windows to fit, as JAX arrays (a pytree: traced under jax.jit): ``tw`` (W, L) the times from each window's
     start (a padded row repeats the last time: dt = 0), ``t0w`` (W,) the windows' start times (the model's time is
     t0w + tw), ``qw`` (W, L, n) the positions, ``mask`` (W, L) 1 on a recorded row and 0 on padding, ``inv_sigma``
-    (n,) the residuals' weights 1/σ."""
+    (n,) the residuals' weights 1/σ; ``steps`` (optional, an int32 scalar) the steps actually integrated — L − 1 when
+    None; with a number the steps beyond it are padding that costs nothing (:func:`_padded_calls`)."""
 
     tw: jax.Array
     t0w: jax.Array
     qw: jax.Array
     mask: jax.Array
     inv_sigma: jax.Array
+    steps: jax.Array | None = None
 
 
 @dataclass(frozen=True)
@@ -344,7 +346,7 @@ RK4_B = (1.0, 2.0, 2.0, 1.0)
 
 def _simulate(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """Weighted position residuals (W, L, n) of the windows started at states ``s`` under q̈ = rhs(theta, …)."""
-    tw, t0w, qw, mask, inv_sigma = windows
+    tw, t0w, qw, mask, inv_sigma, steps = windows
     rhs, nsub = model.rhs, model.nsub
     n = qw.shape[-1]
     q0, v0 = s[:, :n], s[:, n:]
@@ -373,7 +375,17 @@ def _simulate(s, theta, aux, windows: ShootingWindows, model: Integrator):
         return (q, v, tt), q
 
     dts = jnp.diff(tw, axis=1).T  # (L-1, W)
-    _, qs = jax.lax.scan(step, (q0, v0, t0w + tw[:, 0]), dts)
+    start = (q0, v0, t0w + tw[:, 0])
+    if steps is None:
+        _, qs = jax.lax.scan(step, start, dts)
+    else:  # the first ``steps`` steps, the same operations as the scan's; the buffer's rest (padding) stays zero
+
+        def body(i, c):
+            carry, buf = c
+            carry, q = step(carry, dts[i])
+            return carry, buf.at[i].set(q)
+
+        _, qs = jax.lax.fori_loop(0, steps, body, (start, jnp.zeros((dts.shape[0], *q0.shape), q0.dtype)))
     qs = jnp.concatenate([q0[None], qs], axis=0)
     return (jnp.swapaxes(qs, 0, 1) - qw) * inv_sigma * mask[..., None]
 
@@ -424,12 +436,13 @@ def _model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
 # second file of another length finds the programs of the first in the persistent compilation cache. Windows: to a
 # multiple of 8 up to WINDOW_CHUNK (a padded window costs as much as a real one: powers of two made the damping
 # probe and the law fits a third slower on a 2-D drag); beyond it they run WINDOW_CHUNK at a time and the rest in its
-# own class. One window stays one (a whole record). Steps: windows of the grid (at most MAX_WINDOW steps, set by the
-# period and the clock, so the same in every file of one kind but for a merged remainder) keep their length (padded
-# to a multiple of 8 they cost a fifth more); a single window or a longer one (whole records) to the next of 2^k,
-# 1.5·2^k, at least 128. A padded window is at rest (dt = 0, masked), a padded step repeats the last
-# time (dt = 0, masked): both are cut off before the results are returned, and every real window's numbers are its
-# own (windows are independent), so the padding is inert (tests/test_shape_classes.py).
+# own class. One window stays one (a whole record). Steps: the padded steps are not integrated (the program runs the
+# record's own number of steps, ``ShootingWindows.steps``, and leaves the rest of its buffer at zero), so they cost
+# memory only: windows of the grid (at most MAX_WINDOW steps — set by the period each file and seed estimates, which
+# moved them from 31 to 24 steps on a 2-D drag record cut to 80 %) are all compiled for MAX_WINDOW steps; a single
+# window or a longer one (whole records) for the next of 2^k, 1.5·2^k, at least 128. A padded window is at rest
+# (dt = 0, masked); padded windows and steps are cut off before the results are returned, and every real window's
+# numbers are its own (windows are independent), so the padding is inert (tests/test_shape_classes.py).
 WINDOW_CHUNK = 128
 _LONG_STEPS = 128
 
@@ -440,7 +453,7 @@ def _windows_bucket(W: int) -> int:
 
 def _steps_bucket(L: int, W: int) -> int:
     if L <= MAX_WINDOW and W > 1:
-        return L
+        return MAX_WINDOW
     k = 1 << (max(L, _LONG_STEPS) - 1).bit_length()  # the power of two ≥ L; 3/4 of it where that is enough
     return 3 * k // 4 if 3 * k // 4 >= max(L, _LONG_STEPS) else k
 
@@ -456,12 +469,13 @@ def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator
     """``fn`` (a compiled shooting program) over ``windows`` padded to their shape class and called once per chunk
     of it; the outputs cut back to the real windows and steps (residuals (W, L, n), or with ``jac_axis`` the
     derivatives (P, W, L, n), or both)."""
-    tw, t0w, qw, mask, inv_sigma = windows
+    tw, t0w, qw, mask, inv_sigma, _ = windows
     W, L = int(tw.shape[0]), int(tw.shape[1])
     chunks, Lb = window_shape_class(W, L)
     Wb = sum(chunks)
+    steps = jnp.asarray(L - 1, jnp.int32)  # the padded steps are not integrated
     if (Wb, Lb) == (W, L) and len(chunks) == 1:
-        return fn(s, theta, aux, windows, model)
+        return fn(s, theta, aux, windows._replace(steps=steps), model)
     tw, t0w, qw, mask, s = (np.asarray(a) for a in (tw, t0w, qw, mask, s))
     tw_p = np.empty((Wb, Lb), tw.dtype)
     tw_p[:W, :L] = tw
@@ -475,7 +489,7 @@ def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator
     s_p = np.concatenate([s, np.repeat(s[-1:], Wb - W, axis=0)])
     parts, i = [], 0
     for c in chunks:
-        win = ShootingWindows(tw_p[i : i + c], t0_p[i : i + c], qw_p[i : i + c], mask_p[i : i + c], inv_sigma)
+        win = ShootingWindows(tw_p[i : i + c], t0_p[i : i + c], qw_p[i : i + c], mask_p[i : i + c], inv_sigma, steps)
         parts.append(fn(s_p[i : i + c], theta, aux, win, model))
         i += c
 

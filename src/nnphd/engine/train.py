@@ -21,7 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
-from nnphd.engine.batching import bucket, pad_rows
+from nnphd.engine.batching import pad_rows, train_bucket
 from nnphd.engine.models import ModelConfig, Params, init_nnphd, nnphd_forces
 from nnphd.io.progress import Progress
 
@@ -107,7 +107,7 @@ def as_arrays(data, dtype):
 
 def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None = None):
     """Return ``train(params, arrays, lam, key) -> (params, (L_e history, L_b history))``, jitted (the rows padded to
-    their :func:`nnphd.engine.batching.bucket`, never drawn: a record of another length in the same bucket runs the
+    their :func:`nnphd.engine.batching.train_bucket`, never drawn: a record of another length in the same bucket runs the
     same compiled program with the same numbers as unpadded).
 
     ``arrays`` = (q, q̇, t, q̈) of the training set. The Adam state starts fresh on every call (appendix B restarts
@@ -145,7 +145,7 @@ def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None =
         # the rows padded to their bucket and the row count passed as data: one compiled trainer serves every record
         # of the bucket, and the minibatches (drawn below the true count) are those of the unpadded rows, bit for bit
         n_data = int(arrays[0].shape[0])
-        return train_padded(params, pad_rows(arrays, bucket(n_data)), jnp.asarray(n_data, jnp.int32), lam, key)
+        return train_padded(params, pad_rows(arrays, train_bucket(n_data)), jnp.asarray(n_data, jnp.int32), lam, key)
 
     return train
 

@@ -128,6 +128,7 @@ class _Ranking:
     centre: np.ndarray | None = None  # the centre of the potential's library (:func:`_universal_rhs`'s aux)
     speeds: list | None = None  # the built-in families' rms speeds (:func:`builtin_speeds`, the same aux)
     supports: tuple = ()  # the sparse laws' indices (:func:`sparse_supports`, the same aux)
+    fc_params: object = ()  # the conservative force's parameters (:func:`fc_parts`, the same aux)
 
 
 def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library: bool = True):
@@ -141,15 +142,20 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
 
     from nnphd.engine.shooting import rowwise_combination
 
-    sizes = [(len(f.coef_names), len(f.nl_names)) for f in fams]
+    sizes = [(coef_slots(f), len(f.nl_names)) for f in fams]
 
     # the conservative part Σ α_k column_k — the LNN's f_c among the columns — is differentiated once per row (2n
     # directions), not once per fitted parameter: a shooting Jacobian pushes 2n + P directions through it (53 on a
     # double pendulum), each a (W, n) tangent
     # the centre of the potential's library is data (in aux), not a constant of the program: one compiled program
-    # serves every record with the same families
-    def columns(centre, q, v):
-        return conservative_basis(jnp, q, v, angles, None if fc_fn is None else fc_fn(q, v), centre, library)
+    # serves every record with the same families; so are the trained model's parameters where ``fc_fn`` gives them
+    # (:func:`fc_parts`) — as constants they made every record's program another (11 s of XLA on a 2-D drag record)
+    fc_apply = fc_parts(fc_fn)[0]
+
+    def columns(data, q, v):
+        centre, fc_params = data
+        fc = None if fc_fn is None else fc_apply(fc_params, q, v) if fc_apply is not None else fc_fn(q, v)
+        return conservative_basis(jnp, q, v, angles, fc, centre, library)
 
     conservative = rowwise_combination(columns)
 
@@ -172,7 +178,7 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
         return replace(f, basis=lambda xp, th, q, v, t: sparse_basis(xp, q, v, *index))
 
     def rhs(u, q, v, t, aux):
-        base, D, which, centre, speeds, supports = aux
+        base, D, which, centre, speeds, supports, fc_params = aux
         theta = base + u @ D
         own = {}
         if v_rms is not None:
@@ -185,9 +191,17 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
                 f = sparse_view(f, supports.pop(0))
             branches.append(family_term(f, off, K, m))
             off += K + m + 1
-        return conservative(centre, theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
+        return conservative((centre, fc_params), theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs
+
+
+def fc_parts(fc_fn) -> tuple:
+    """(apply, params) of a conservative force ``fc_fn`` that carries them — ``fc_fn(q, v) = apply(params, q, v)``
+    with ``params`` a pytree of arrays (:class:`nnphd.user.assess.ConservativeFn`) — else (None, ()): a plain
+    function, whose numbers are constants of the programs that call it."""
+    apply, params = getattr(fc_fn, "apply", None), getattr(fc_fn, "params", None)
+    return (apply, params) if callable(apply) and params is not None else (None, ())
 
 
 def _builtin_of(f: Family, v_rms, sign) -> bool:
@@ -199,10 +213,36 @@ def _is_sparse(f: Family) -> bool:
     return (f.spec or {}).get("kind") == "sparse" and f.fixed is None
 
 
+# Shape classes of the universal θ (as :mod:`nnphd.engine.shooting`'s of the windows): a sparse law's coefficients
+# — how many the data keep (6 on a 2-D drag record, 8 on its first 80 %) — take a multiple of SPARSE_SLOTS slots of
+# θ, the rest at zero on a zero column (component −1 in :func:`sparse_supports`); the directions one candidate fits
+# (α and its law: P_dir, each a tangent simulation) are a multiple of DIRECTION_STEP, the rest zero rows of D, never
+# free. Neither changes a number; a record of another length with the same families then runs the programs of the
+# first (it compiled them again: 11 s of XLA).
+SPARSE_SLOTS = 16
+DIRECTION_STEP = 4
+
+
+def coef_slots(f: Family) -> int:
+    """The slots of θ the coefficients of family ``f`` take in the universal right-hand side: its coefficients,
+    a sparse law's padded to a multiple of :data:`SPARSE_SLOTS`."""
+    K = len(f.coef_names)
+    return -(-K // SPARSE_SLOTS) * SPARSE_SLOTS if _is_sparse(f) else K
+
+
 def sparse_supports(fams: Sequence[Family]) -> tuple:
     """The (component, monomial) indices (:func:`nnphd.explain.families.sparse_index`) of the sparse laws among
-    ``fams``, in their order: data of the universal right-hand side."""
-    return tuple(sparse_index(f.spec["support"]) for f in fams if _is_sparse(f))
+    ``fams``, in their order, each padded to :func:`coef_slots` with component −1 (a zero column of
+    :func:`nnphd.explain.families.sparse_basis`): data of the universal right-hand side."""
+    out = []
+    for f in fams:
+        if _is_sparse(f):
+            comp, mono = sparse_index(f.spec["support"])
+            pad = coef_slots(f) - len(comp)
+            out.append(
+                (np.concatenate([comp, np.full(pad, -1, np.int32)]), np.concatenate([mono, np.zeros(pad, np.int32)]))
+            )
+    return tuple(out)
 
 
 def builtin_speeds(fams: Sequence[Family]):
@@ -300,13 +340,14 @@ def _parameter_layout(fams: Sequence[Family], Kc: int, fitted: Sequence[Family] 
     parameters at 1 (within their bounds), all else 0."""
     slots, off = [], Kc  # where each family's (β, θ, gate) sit in the universal θ
     for f in fams:
-        K, m = len(f.coef_names), len(f.nl_names)
+        K, m = coef_slots(f), len(f.nl_names)
         slots.append((off, K, m))
         off += K + m + 1
     P_glob = off
     fitted_ids = None if fitted is None else {id(f) for f in fitted}
-    P_dir = Kc + max([K + m for f, (_, K, m) in zip(fams, slots) if fitted_ids is None or id(f) in fitted_ids],
-                     default=0)  # fmt: skip
+    P_dir = Kc + max([len(f.coef_names) + m for f, (_, _, m) in zip(fams, slots)
+                      if fitted_ids is None or id(f) in fitted_ids], default=0)  # fmt: skip
+    P_dir = -(-P_dir // DIRECTION_STEP) * DIRECTION_STEP
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):
         if m:
@@ -324,9 +365,9 @@ def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: i
     idx = list(range(Kc))
     u0 = list(alpha0[id(row)])
     if fam is not None:
-        o, K, m = slots[ci - 1]
+        o, K, m = slots[ci - 1]  # K: the family's slots; its own coefficients the first of them
         base[o + K + m] = 1.0
-        idx += list(range(o, o + K + m))
+        idx += list(range(o, o + len(fam.coef_names))) + list(range(o + K, o + K + m))
         u0 += list(row.beta) + list(row.theta)
         base[o : o + K + m] = 0.0
     D = np.zeros((P_dir, len(nl_defaults)))
@@ -505,7 +546,7 @@ def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
     centre = None if ranking.centre is None else jnp.asarray(ranking.centre)
     speeds = None if ranking.speeds is None else jnp.asarray(np.asarray(ranking.speeds, float))
     supports = tuple((jnp.asarray(i), jnp.asarray(m)) for i, m in ranking.supports)
-    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32), centre, speeds, supports)  # branch ci
+    aux = (jnp.asarray(base), jnp.asarray(D), jnp.asarray(ci, jnp.int32), centre, speeds, supports, ranking.fc_params)
 
     def res(s_, u_):
         return model_residuals(s_, u_, aux, args, Integrator(rhs, nsub))
@@ -647,6 +688,7 @@ def rank_trajectory(
         table.base.center,
         builtin_speeds(fams)[0],
         sparse_supports(fams),
+        fc_parts(fc_fn)[1],
     )
 
     def fit(ci, row, warm=None):  # the row's branch of the universal right-hand side (0: the zero law)

@@ -47,10 +47,11 @@ status = final status] × the share of window/block bootstrap replicas of that s
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import jax.numpy as jnp
@@ -94,7 +95,7 @@ from nnphd.user.scaling import (
     time_features,
 )
 
-__all__ = ["AssessSettings", "Assessment", "RecordFacts", "assess", "conservative_fn"]
+__all__ = ["AssessSettings", "Assessment", "ConservativeFn", "RecordFacts", "assess", "conservative_fn"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -449,17 +450,37 @@ def _combine(seeds: list[dict], sc: Scaling, data: Dataset, wall: float) -> tupl
     }, (fc, fn)
 
 
-def conservative_fn(cons: ConservativeModel):
-    """The LNN's conservative acceleration f_c(q, q̇) in the file's units as a JAX function (batched), from
-    :attr:`Assessment.conservative` — for fits that integrate the model (the laws' trajectory-level ranking)."""
-    accel = lnn_accel_fn(cons.cfg)
-    lnn, sc = cons.lnn, cons.scaling
-    mu, s_q, s_t = jnp.asarray(sc.mu_q), jnp.asarray(sc.s_q), float(sc.s_t)
+@dataclass(frozen=True, eq=False)
+class ConservativeFn:
+    """A conservative force f_c(q, q̇) = ``apply(params, q, q̇)`` (JAX, batched) whose numbers ``params`` (a pytree
+    of arrays) are given apart from the function: programs that integrate it take them as data, so one compiled
+    program serves every record of a shape (:func:`nnphd.explain.trajectory.fc_parts`). Called as ``fn(q, q̇)``."""
 
-    def fc(q, qd):
+    apply: Callable
+    params: tuple
+
+    def __call__(self, q, qd):
+        return self.apply(self.params, q, qd)
+
+
+@functools.lru_cache(maxsize=64)
+def _scaled_lnn_accel(cfg):
+    """f_c in the file's units from the LNN's in standardised ones: one function object per LNN config."""
+    accel = lnn_accel_fn(cfg)
+
+    def apply(params, q, qd):
+        lnn, mu, s_q, s_t = params
         return accel(lnn, (q - mu) / s_q, qd * s_t / s_q) * s_q / s_t**2
 
-    return fc
+    return apply
+
+
+def conservative_fn(cons: ConservativeModel) -> ConservativeFn:
+    """The LNN's conservative acceleration f_c(q, q̇) in the file's units as a JAX function (batched), from
+    :attr:`Assessment.conservative` — for fits that integrate the model (the laws' trajectory-level ranking)."""
+    sc = cons.scaling
+    params = (cons.lnn, jnp.asarray(sc.mu_q), jnp.asarray(sc.s_q), jnp.asarray(float(sc.s_t)))
+    return ConservativeFn(_scaled_lnn_accel(cons.cfg), params)
 
 
 def _agg(seeds, name, keys):

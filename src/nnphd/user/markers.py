@@ -455,11 +455,7 @@ def _split_at_gaps(t: np.ndarray, traj: np.ndarray) -> np.ndarray:
     """Trajectory ids with a new trajectory wherever many frames are missing (a step over GAP_STEPS median steps;
     a few lost frames are a short gap the derivative estimates bridge)."""
     out = np.zeros(len(t), np.int64)
-    k = 0
-    for i in range(1, len(t)):
-        if traj[i] != traj[i - 1]:
-            k += 1
-        out[i] = k
+    out[1:] = np.cumsum(traj[1:] != traj[:-1])  # a new id wherever the file's trajectory changes
     new = out.copy()
     shift = 0
     for tid in np.unique(out):

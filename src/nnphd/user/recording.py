@@ -47,6 +47,7 @@ values, whole turns), for a report.
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 import numbers
 import os
@@ -433,7 +434,7 @@ def _read_tracker(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[di
             tracks = _tracker_tracks(path, names_line.rstrip("\r\n").split(delim), header, multi)
             body = [] if multi else [head[2]]  # one track: its third line is a row already
             cells: list[list[str]] = []
-            for rec in csv.reader(_chain(body, lines), delimiter=delim):
+            for rec in csv.reader(itertools.chain(body, lines), delimiter=delim):
                 record[0] = 0
                 if len(cells) >= max_rows or (len(cells) + 1) * len(header) > max_cells:
                     raise DataError(_too_many(path, max_rows))
@@ -454,11 +455,6 @@ def _read_tracker(path: str, fd: int, max_rows: int, max_cells: int) -> tuple[di
 
 
 AXIS_NAMES = ("x", "y", "z")
-
-
-def _chain(first: list, rest):
-    yield from first
-    yield from rest
 
 
 def _tracker_tracks(path: str, names: list[str], header: list[str], multi: bool) -> list[tuple[int, str]]:

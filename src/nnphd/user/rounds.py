@@ -24,6 +24,7 @@ from nnphd.engine.models import (
     lnn_accel,
     lnn_derivatives,
     lnn_energy,
+    widen_inputs,
 )
 from nnphd.engine.shooting import ShootingData, ShootingOptions, shooting_fit
 from nnphd.engine.train import (
@@ -53,6 +54,7 @@ from nnphd.user.result import ConservativeModel, Status
 from nnphd.user.scaling import (
     holdout,
     oscillations,
+    padded_time_features,
     shoot_units,
     time_features,
     trend_units,
@@ -242,7 +244,7 @@ def _holdout_split(ctx: dict, seed: int, back) -> _Split:
     rng = np.random.default_rng(seed)
     tr_segs, te_segs = holdout(segs, ctx["holdout_frac"], rng)
     tr, te = np.concatenate(tr_segs), np.concatenate(te_segs)
-    arrays = tuple(jnp.asarray(a) for a in (q, qd, feats, qdd))
+    arrays = tuple(jnp.asarray(a) for a in (q, qd, padded_time_features(feats), qdd))
     A_tr = tuple(a[tr] for a in arrays)
     fnorm = _l1(back(qdd))  # ‖f‖ over all data, original units
     fnorm_te = _l1(back(qdd[te]))
@@ -292,9 +294,11 @@ def _lambda_stage(ctx: dict, tcfg: TrainConfig, d: _Split, keys: _SeedKeys, back
     parameters, the representative λ's (λ, f_c in original units, f_n, power, kinetic term), the sweep's table,
     the optimisation check, the naive verdict)."""
     cfg, width, lambdas = ctx["cfg"], ctx["width"], ctx["lambdas"]
+    k = ctx["feats"].shape[1]  # the record's time features; the networks see them padded (_holdout_split)
+    uan = init_free(keys.uan, cfg, n_time=k, widths=(width, width))
     params = {
         "lnn": init_lnn(keys.lnn, cfg),
-        "uan": init_free(keys.uan, cfg, n_time=ctx["feats"].shape[1], widths=(width, width)),
+        "uan": widen_inputs(uan, padded_time_features(ctx["feats"][:1]).shape[1] - k),
     }
     train = _trainer("nnphd", cfg, tcfg)
     pts, evals, table, opt_check = _sweep(ctx, d, train, params, keys.sweep, back, tick, per_lambda)

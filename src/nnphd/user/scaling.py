@@ -14,10 +14,14 @@ import numpy as np
 
 from nnphd.engine.data import Dataset
 
-__all__ = ["Scaling", "fit_scaling", "time_features", "segments", "holdout", "oscillations"]
+__all__ = ["Scaling", "fit_scaling", "time_features", "padded_time_features", "segments", "holdout", "oscillations"]
 
 OMEGA_MAX = 3.0  # highest feature frequency, in units of 1/s_t
 MAX_FOURIER = 24
+# the width the free networks see the time features at (zero columns beyond the record's own 1 + 2J): the number of
+# frequencies J follows the record's span, and a network of another input width is another compiled trainer — a
+# second file of another length compiled it again (4 s of XLA on a 2-D drag record cut to 80 %)
+TIME_FEATURE_WIDTH = 1 + 2 * MAX_FOURIER
 
 
 # ------------------------------------------------------------------------------------------------------------------
@@ -79,6 +83,18 @@ def time_features(
     J = int(min(max_terms * oversample, max(1, math.floor(omega_max * span / (2 * np.pi)))))
     w = 2 * np.pi * np.arange(1, J + 1) / span
     return np.concatenate([tp[:, None] / sd, np.sin(tp[:, None] * w), np.cos(tp[:, None] * w)], axis=1)
+
+
+def padded_time_features(feats) -> np.ndarray:
+    """``feats`` (N, k) with zero columns appended up to :data:`TIME_FEATURE_WIDTH` (k = 0, no time input, stays 0).
+    A network whose first-layer weights of these columns start at zero (:func:`nnphd.engine.models.widen_inputs`)
+    computes what it computes without them, and learns nothing on them (their gradients are zero, so are Adam's
+    steps): the padding is inert, and every record's time features share one shape."""
+    feats = np.asarray(feats, float)
+    k = feats.shape[1]
+    if k == 0 or k >= TIME_FEATURE_WIDTH:
+        return feats
+    return np.concatenate([feats, np.zeros((feats.shape[0], TIME_FEATURE_WIDTH - k))], axis=1)
 
 
 # ------------------------------------------------------------------------------------------------------------------

@@ -195,7 +195,8 @@ def test_a_cancelled_law_table_stops_before_its_next_stage(tmp_path):
         find_law(data, LawRun(traj, tuple(ud.coords), tuple(bool(a) for a in ud.is_angle), info, rows), cancel=stop)
 
 
-@pytest.mark.parametrize("n, angles", [(1, (True,)), (2, (True, False))])
+# two coordinates, an angle and a length, in the fast tier; one angle alone in the slow tier (a compilation each)
+@pytest.mark.parametrize("n, angles", [pytest.param(1, (True,), marks=pytest.mark.slow), (2, (True, False))])
 def test_the_conservative_columns_differentiated_per_row_are_jaxs_own(n, angles):
     """The trajectory-level law fits differentiate the conservative columns — (W, n, Kc), the LNN's f_c among them
     — once per row (rowwise_jvp over 2n directions) instead of once per direction of the shooting Jacobian (53 on a
@@ -226,7 +227,8 @@ def test_the_conservative_columns_differentiated_per_row_are_jaxs_own(n, angles)
     assert scale > 1e-3 and float(jnp.max(jnp.abs(per_row[1] - own[1]))) <= 1e-12 * scale
 
 
-@pytest.mark.parametrize("n, angles", [(1, (True,)), (2, (True, False))])
+# two coordinates, an angle and a length, in the fast tier; one angle alone in the slow tier (a compilation each)
+@pytest.mark.parametrize("n, angles", [pytest.param(1, (True,), marks=pytest.mark.slow), (2, (True, False))])
 def test_the_conservative_combination_differentiated_per_row_is_jaxs_own(n, angles):
     """The trajectory-level law fits' conservative part Σ α_k column_k (rowwise_combination): its state Jacobian
     per row contracted with α once, each direction of the shooting Jacobian then a (W, n) tangent (the double

@@ -25,13 +25,25 @@ from nnphd.engine.train import TrainConfig, make_trainer, pnorm
 def test_the_classes_of_rows_windows_and_steps():
     assert [bucket(n) for n in (1, 44, 1024, 1025, 4565, 16384)] == [1024, 1024, 1024, 2048, 8192, 16384]
     assert bucket(5, minimum=1) == 8 and bucket(1, minimum=1) == 1
-    # training pads to powers of 4 (its padding is never drawn: memory only), beyond 65536 rows to powers of 2
-    assert [train_bucket(n) for n in (44, 1025, 4096, 4097, 40000, 70000)] == [1024, 4096, 4096, 16384, 65536, 131072]
-    assert window_shape_class(7, 10) == ((8,), 80)  # grid windows: compiled for MAX_WINDOW steps, run for their own
-    assert window_shape_class(1, 58) == ((1,), 128)  # a whole record: one window
-    assert window_shape_class(33, 80) == ((40,), 80)
-    assert window_shape_class(300, 80) == ((128, 128, 48), 80)  # beyond 128 windows: 128 at a time, the rest its own
-    assert window_shape_class(1, 300) == ((1,), 384) and window_shape_class(2, 400) == ((8,), 512)
+    # training pads to one class up to 16384 rows, then 65536 (its padding is never drawn: memory only), then powers of 2
+    assert [train_bucket(n) for n in (44, 1025, 5000, 16384, 16385, 40000, 70000)] == [16384] * 4 + [65536] * 2 + [
+        131072
+    ]
+    assert window_shape_class(7, 10) == ((16,), 80)  # grid windows: compiled for MAX_WINDOW steps, run for their own
+    assert window_shape_class(1, 58) == ((1,), 8192)  # a whole record: one window, up to 8192 steps one class
+    assert window_shape_class(33, 80) == ((16, 16, 16), 80) and window_shape_class(64, 80) == ((16,) * 4, 80)
+    assert window_shape_class(300, 80) == ((16,) * 19, 80)  # 16 at a time, the last call padded
+    assert window_shape_class(1, 9000) == ((1,), 32768) and window_shape_class(2, 600) == (
+        (1, 1),
+        8192,
+    )  # whole records
+    assert (
+        window_shape_class(9, 400) == ((1,) * 9, 8192)
+        and window_shape_class(16, 400) == ((16,), 512)
+        and window_shape_class(1, 1858)[1] == window_shape_class(1, 2322)[1]
+    )
+    # every record of two windows or more runs the same program
+    assert {c for w in range(2, 1000) for c in window_shape_class(w, 30)[0]} == {16}
     # files of one kind and other lengths share a class: a few windows fewer, another period (steps per window)
     assert window_shape_class(40, 21) == window_shape_class(34, 21) == window_shape_class(36, 31)
 
@@ -107,7 +119,12 @@ def _pendulum_windows(n_rows, periods=0.75):
     t = np.cumsum(rng.uniform(0.05, 0.12, n_rows))  # an uneven clock
     q = (0.6 * np.exp(-0.05 * t) * np.cos(2.0 * t))[:, None]
     qd = np.gradient(q[:, 0], t)[:, None]
-    wins = [np.arange(t.size)] if periods is None else shooting_windows([np.arange(t.size)], t, np.pi, periods=periods)
+    if periods == "halves":  # two whole records
+        wins = [np.arange(t.size // 2), np.arange(t.size // 2, t.size)]
+    elif periods is None:
+        wins = [np.arange(t.size)]
+    else:
+        wins = shooting_windows([np.arange(t.size)], t, np.pi, periods=periods)
     tw, qw, mask, s0 = pad_windows(wins, t, q, (q, qd))
     t0w, tw = tw[:, 0].copy(), tw - tw[:, :1]
     windows = ShootingWindows(jnp.asarray(tw), jnp.asarray(t0w), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray([1.0]))
@@ -118,12 +135,15 @@ def _rhs(theta, q_, v_, tt, aux):
     return -aux * jnp.sin(q_) - theta[0] * v_
 
 
-@pytest.mark.parametrize("n_rows, periods", [(120, 0.75), (5000, 0.75), (120, None)])
+@pytest.mark.parametrize("n_rows, periods", [(120, 0.75), (5000, 0.75), (120, None), (300, "halves")])
 def test_shooting_residuals_on_padded_windows_are_those_written_out(n_rows, periods):
-    """7 windows (padded to 8); 130+ (128 at a time, the rest padded); one whole record of 120 steps (to 128)."""
+    """7 windows (padded to 16); 130+ (16 at a time, the last call padded); one whole record of 120 steps
+    (to 8192); two whole records of 150 steps (one a call, to 8192)."""
     windows, tw, qw, mask, s0 = _pendulum_windows(n_rows, periods)
     W, L = tw.shape
     assert window_shape_class(W, L) != ((W,), L) and (n_rows < 1000 or W > 128)
+    if periods == "halves":
+        assert window_shape_class(W, L) == ((1, 1), 8192)
     r = model_residuals(s0, jnp.asarray([0.07]), jnp.asarray(4.0), windows, Integrator(_rhs, 2))
     assert np.shape(r) == (W, L, 1)
     want = _rk4_written_out(s0, tw, qw, 0.07, 4.0, 2) * mask[..., None]
@@ -132,8 +152,8 @@ def test_shooting_residuals_on_padded_windows_are_those_written_out(n_rows, peri
 
 
 def test_shooting_derivatives_do_not_depend_on_the_padding_or_the_chunks():
-    """The derivatives of 130+ windows (128 at a time, the rest padded) are, window for window, those of the same
-    windows fitted in other classes (the first 8 alone; windows 3–5: padded windows),
+    """The derivatives of 130+ windows (16 at a time, the last call padded) are, window for window, those of
+    the same windows fitted in other classes (the first 8 alone; windows 3–5: padded windows),
     and match finite differences."""
     windows, tw, qw, mask, s0 = _pendulum_windows(5000)
     model, th, aux = Integrator(_rhs, 2), jnp.asarray([0.07]), jnp.asarray(4.0)
@@ -189,9 +209,9 @@ def test_time_features_padded_to_one_width_train_as_the_record_s_own():
 
 @pytest.mark.slow
 def test_a_sparse_law_s_slots_and_the_fitted_directions_padded_change_no_number(tmp_path, monkeypatch):
-    # the universal θ of the trajectory-level law fits pads a sparse law's coefficients to a multiple of SPARSE_SLOTS
-    # and the fitted directions to a multiple of DIRECTION_STEP (one compiled program for records whose sparse law
-    # keeps another number of terms): the same law table as with no padding
+    # the universal θ of the trajectory-level law fits pads a sparse law's coefficients to a multiple of SPARSE_SLOTS,
+    # the fitted directions to a multiple of DIRECTION_STEP and θ to a multiple of THETA_STEP (one compiled program
+    # for records whose sparse law keeps another number of terms): the same law table as with no padding
     from nnphd.explain import trajectory as T
     from nnphd.explain.search import LawRun, find_law
     from nnphd.user.derivatives import Derivatives
@@ -203,11 +223,12 @@ def test_a_sparse_law_s_slots_and_the_fitted_directions_padded_change_no_number(
     d = Derivatives().dataset(ud)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(d.info["trajectories"]) for a, b in [tr["kept"]]])
     run = LawRun(traj, tuple(ud.coords), tuple(bool(a) for a in ud.is_angle), d.info, d.row_errors, seed=0)
-    monkeypatch.setattr(T, "SPARSE_SLOTS", 1)
-    monkeypatch.setattr(T, "DIRECTION_STEP", 1)
+    for name in ("SPARSE_SLOTS", "DIRECTION_STEP", "THETA_STEP"):
+        monkeypatch.setattr(T, name, 1)
     plain = find_law(d.data, run).to_dict()
     monkeypatch.setattr(T, "SPARSE_SLOTS", 5)  # the sparse law's 8 coefficients in 10 slots
     monkeypatch.setattr(T, "DIRECTION_STEP", 16)
+    monkeypatch.setattr(T, "THETA_STEP", 64)  # θ with an unused tail
     padded = find_law(d.data, run).to_dict()
     assert padded["settings"]["method"] == plain["settings"]["method"] == "trajectory"
     assert len({c["law"]: c for c in padded["candidates"]}["sparse"]["params"]) == 8  # padding to do

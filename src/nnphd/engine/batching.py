@@ -19,7 +19,8 @@ __all__ = ["ROW_BUCKET_MIN", "ROW_CHUNK", "bucket", "by_rows", "pad_rows", "trai
 
 ROW_CHUNK = 1024  # rows per evaluation: ~3 MB of LNN intermediates at width 64 in float64
 ROW_BUCKET_MIN = 1024  # the smallest row bucket: records shorter than this share one program (and cost little)
-TRAIN_COARSE_MAX = 1 << 16  # up to this many rows training's classes are powers of 4 (see train_bucket)
+TRAIN_ONE_CLASS = 1 << 14  # training's rows up to this many share one class (see train_bucket)
+TRAIN_COARSE_MAX = 1 << 16  # and up to this many one more
 
 
 def bucket(n: int, minimum: int = ROW_BUCKET_MIN) -> int:
@@ -31,18 +32,16 @@ def bucket(n: int, minimum: int = ROW_BUCKET_MIN) -> int:
 
 
 def train_bucket(n: int) -> int:
-    """The shape class of training's ``n`` rows: 1024·4^k up to :data:`TRAIN_COARSE_MAX` rows, then
-    :func:`bucket`'s powers of two. Training draws its minibatches below the true count, so its padding costs memory
-    only (a few MB below TRAIN_COARSE_MAX; beyond it at most twice the rows'): a coarser class than the evaluations'
-    makes a second record of another length one in the same class more often (an 80 % cut crosses a power of four one
-    time in six, a power of two one time in three)."""
+    """The shape class of training's ``n`` rows: one class of :data:`TRAIN_ONE_CLASS` rows for every record up to
+    that many (the command line thins a record to 5000 rows), then 4·TRAIN_ONE_CLASS up to :data:`TRAIN_COARSE_MAX`,
+    then :func:`bucket`'s powers of two. Training draws its minibatches below the true count, so its padding costs
+    memory only (about 1 MB of rows; beyond TRAIN_COARSE_MAX at most twice the rows'): every record of the command
+    line trains with the same compiled programs (with classes 1024·4^k a record and its 80 % copy fell in two one
+    time in six)."""
     b = bucket(n)
     if b > TRAIN_COARSE_MAX:
         return b
-    k = ROW_BUCKET_MIN
-    while k < b:
-        k *= 4
-    return k
+    return TRAIN_ONE_CLASS if b <= TRAIN_ONE_CLASS else TRAIN_COARSE_MAX
 
 
 def pad_rows(rows, size: int):

@@ -433,36 +433,44 @@ def _model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
 
 
 # Shape classes of the windows: one compiled program serves every record whose windows fall in the same class, so a
-# second file of another length finds the programs of the first in the persistent compilation cache. Windows: to a
-# multiple of 8 up to WINDOW_CHUNK (a padded window costs as much as a real one: powers of two made the damping
-# probe and the law fits a third slower on a 2-D drag); beyond it they run WINDOW_CHUNK at a time and the rest in its
-# own class. One window stays one (a whole record). Steps: the padded steps are not integrated (the program runs the
-# record's own number of steps, ``ShootingWindows.steps``, and leaves the rest of its buffer at zero), so they cost
-# memory only: windows of the grid (at most MAX_WINDOW steps — set by the period each file and seed estimates, which
-# moved them from 31 to 24 steps on a 2-D drag record cut to 80 %) are all compiled for MAX_WINDOW steps; a single
-# window or a longer one (whole records) for the next of 2^k, 1.5·2^k, at least 128. A padded window is at rest
-# (dt = 0, masked); padded windows and steps are cut off before the results are returned, and every real window's
-# numbers are its own (windows are independent), so the padding is inert (tests/test_shape_classes.py).
-WINDOW_CHUNK = 128
+# second file of another length finds the programs of the first in the persistent compilation cache. Windows of the
+# grid run WINDOW_CHUNK (16) a call, the last call padded: one program per shooting function for every record (one
+# class per multiple of 8 up to 128 windows made the 1-D records' 80 % copies compile their own, 10–30 s; calls of
+# 32 and 8 served every record of 40 windows or more but made each record trace and lower two programs per
+# function, warm runs included: a video pendulum's warm compiling 12.9 → 23 s). Residuals and derivatives of 100
+# and 300 windows in calls of 16: a cheap formula 7.6 and 13.1 ms (calls of 32 and 8: 8.3 and 13.6; one call of
+# 104 windows: 4.5 ms for 100 — ~0.5 ms a call), a 64×64 MLP force, as the LNN's f_c in the law fits, 104 and 160
+# ms (77 and 150; one call of 104: 128 ms) — timings within ±20 % from run to run. Long windows (whole records, more than MAX_WINDOW
+# steps) of fewer than WINDOW_CHUNK run one window a call (padding 2 whole records to 8 windows integrated 4× the
+# steps). Steps: the padded steps are not integrated (the program runs the record's own number of steps,
+# ``ShootingWindows.steps``, and leaves the rest of its buffer at zero), so they cost memory only: windows of the
+# grid (at most MAX_WINDOW steps — set by the period each file and seed estimates, which moved them from 31 to 24
+# steps on a 2-D drag record cut to 80 %) are all compiled for MAX_WINDOW steps; whole records run one a call are
+# all compiled for 8192 steps (then 4× that, and so on: ~8 MB of derivatives per call), more of them for 128·4^k
+# (with classes 2^k and 1.5·2^k an 80 % copy crossed one two times in three: a video pendulum's copy compiled its
+# whole-record fits again, 3.4 s of XLA). A padded window is at rest (dt = 0, masked); padded windows and steps are
+# cut off before the results are returned, and every real window's numbers are its own (windows are independent),
+# so the padding is inert (tests/test_shape_classes.py).
+WINDOW_CHUNK = 16
 _LONG_STEPS = 128
-
-
-def _windows_bucket(W: int) -> int:
-    return 1 if W <= 1 else -(-W // 8) * 8
+_ONE_WINDOW_STEPS = 8192
 
 
 def _steps_bucket(L: int, W: int) -> int:
     if L <= MAX_WINDOW and W > 1:
         return MAX_WINDOW
-    k = 1 << (max(L, _LONG_STEPS) - 1).bit_length()  # the power of two ≥ L; 3/4 of it where that is enough
-    return 3 * k // 4 if 3 * k // 4 >= max(L, _LONG_STEPS) else k
+    k = _ONE_WINDOW_STEPS if W < WINDOW_CHUNK else _LONG_STEPS  # then powers of 4: padded steps cost memory only
+    while k < L:
+        k *= 4
+    return k
 
 
 def window_shape_class(W: int, L: int) -> tuple[tuple[int, ...], int]:
     """The shape the shooting programs are compiled for, for ``W`` windows of ``L`` steps: (the windows of each
     compiled call, the steps per window) — see the comment above."""
-    full, rest = divmod(W, WINDOW_CHUNK) if W > WINDOW_CHUNK else (0, W)
-    return (WINDOW_CHUNK,) * full + ((_windows_bucket(rest),) if rest else ()), _steps_bucket(L, W)
+    if W <= 1 or (L > MAX_WINDOW and W < WINDOW_CHUNK):  # whole records: one window a call
+        return (1,) * max(W, 1), _steps_bucket(L, W)
+    return (WINDOW_CHUNK,) * -(-W // WINDOW_CHUNK), _steps_bucket(L, W)
 
 
 def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator, jac_axis: bool):

@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from nnphd.explain.conservative import conservative_basis
-from nnphd.explain.families import Family, families, sparse_basis, sparse_index
+from nnphd.explain.families import Family, families, odd_monomials, sparse_basis, sparse_family, sparse_index
 from nnphd.explain.jointfit import N_BOOT, ridge_regularised, solve_or_lstsq, trajectory_segments
 from nnphd.explain.table import (
     LawTable,
@@ -217,17 +217,33 @@ def _is_sparse(f: Family) -> bool:
 # — how many the data keep (6 on a 2-D drag record, 8 on its first 80 %) — take a multiple of SPARSE_SLOTS slots of
 # θ, the rest at zero on a zero column (component −1 in :func:`sparse_supports`); the directions one candidate fits
 # (α and its law: P_dir, each a tangent simulation) are a multiple of DIRECTION_STEP, the rest zero rows of D, never
-# free. Neither changes a number; a record of another length with the same families then runs the programs of the
-# first (it compiled them again: 11 s of XLA).
-SPARSE_SLOTS = 16
+# free; the whole θ is a multiple of THETA_STEP, its tail unused by the right-hand side (zero columns of D). None
+# changes a number; a record of another length with the same families then runs the programs of the first (it
+# compiled them again: 11 s of XLA). Slots of 16 were not enough: a video pendulum's sparse law kept 17–32 terms
+# and its 80 % copy 16 or fewer (θ of 68 against 52), and the whole-record tie fits of two family sets took θ of 21
+# and 27 — the copy's trajectory-level fits compiled 20 s of XLA of their own.
+SPARSE_SLOTS = 32
 DIRECTION_STEP = 4
+THETA_STEP = 16
 
 
 def coef_slots(f: Family) -> int:
     """The slots of θ the coefficients of family ``f`` take in the universal right-hand side: its coefficients,
     a sparse law's padded to a multiple of :data:`SPARSE_SLOTS`."""
     K = len(f.coef_names)
-    return -(-K // SPARSE_SLOTS) * SPARSE_SLOTS if _is_sparse(f) else K
+    return max(1, -(-K // SPARSE_SLOTS)) * SPARSE_SLOTS if _is_sparse(f) else K
+
+
+def with_sparse_slots(fams: Sequence[Family], n: int) -> list[Family]:
+    """``fams`` (sorted by key), with an empty sparse law in its sorted place where none of them is one: its slots
+    in θ, never a branch that is fitted. Whether the pointwise search keeps a sparse law depends on the data (a video
+    pendulum's did, its 80 % copy's did not: θ of 96 against 64, 11 s of XLA of its own); with the slots kept, both
+    run one compiled program (the supports are data, :func:`sparse_supports`)."""
+    fams = list(fams)
+    if not any(_is_sparse(f) for f in fams):
+        empty = sparse_family(n, [f"q{i}" for i in range(n)], np.zeros((n, len(odd_monomials(n))), bool))
+        fams.insert(sum(1 for f in fams if f.key < empty.key), empty)
+    return fams
 
 
 def sparse_supports(fams: Sequence[Family]) -> tuple:
@@ -343,7 +359,7 @@ def _parameter_layout(fams: Sequence[Family], Kc: int, fitted: Sequence[Family] 
         K, m = coef_slots(f), len(f.nl_names)
         slots.append((off, K, m))
         off += K + m + 1
-    P_glob = off
+    P_glob = -(-off // THETA_STEP) * THETA_STEP  # the tail: no family's (see THETA_STEP)
     fitted_ids = None if fitted is None else {id(f) for f in fitted}
     P_dir = Kc + max([len(f.coef_names) + m for f, (_, _, m) in zip(fams, slots)
                       if fitted_ids is None or id(f) in fitted_ids], default=0)  # fmt: skip
@@ -675,8 +691,8 @@ def rank_trajectory(
     # the universal right-hand side holds every family of the table in one fixed order (by key), not the shortlist in
     # the order of this record's pointwise ranking: one compiled program for every record with the same families
     library = sorted((r for r in table.rows if r.key != "none"), key=lambda r: (r.key, r.family.k))
-    branch = {id(r): i for i, r in enumerate(library, 1)}
-    fams = [r.family for r in library]
+    fams = with_sparse_slots([r.family for r in library], n)
+    branch = {id(r): next(i for i, f in enumerate(fams, 1) if f is r.family) for r in library}
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc, [r.family for r in cands])
     rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings.get("library", True))
     ranking = _Ranking(

@@ -440,11 +440,11 @@ def _model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
 # function, warm runs included: a video pendulum's warm compiling 12.9 → 23 s). Residuals and derivatives of 100
 # and 300 windows in calls of 16: a cheap formula 7.6 and 13.1 ms (calls of 32 and 8: 8.3 and 13.6; one call of
 # 104 windows: 4.5 ms for 100 — ~0.5 ms a call), a 64×64 MLP force, as the LNN's f_c in the law fits, 104 and 160
-# ms (77 and 150; one call of 104: 128 ms) — timings within ±20 % from run to run. Long windows (whole records, more than MAX_WINDOW
-# steps) of fewer than WINDOW_CHUNK run one window a call (padding 2 whole records to 8 windows integrated 4× the
-# steps). Steps: the padded steps are not integrated (the program runs the record's own number of steps,
-# ``ShootingWindows.steps``, and leaves the rest of its buffer at zero), so they cost memory only: windows of the
-# grid (at most MAX_WINDOW steps — set by the period each file and seed estimates, which moved them from 31 to 24
+# ms (77 and 150; one call of 104: 128 ms) — timings within ±20 % from run to run. Long windows (whole records,
+# more than MAX_WINDOW steps) of fewer than WINDOW_CHUNK run one window a call (padding 2 whole records to 8 windows
+# integrated 4× the steps). Steps: the padded steps are not integrated (the program runs the record's own number of
+# steps, ``ShootingWindows.steps``, and leaves the rest of its buffer at zero), so they cost memory only: windows of
+# the grid (at most MAX_WINDOW steps — set by the period each file and seed estimates, which moved them from 31 to 24
 # steps on a 2-D drag record cut to 80 %) are all compiled for MAX_WINDOW steps; whole records run one a call are
 # all compiled for 8192 steps (then 4× that, and so on: ~8 MB of derivatives per call), more of them for 128·4^k
 # (with classes 2^k and 1.5·2^k an 80 % copy crossed one two times in three: a video pendulum's copy compiled its

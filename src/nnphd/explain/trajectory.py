@@ -219,9 +219,9 @@ def _is_sparse(f: Family) -> bool:
 # (α and its law: P_dir, each a tangent simulation) are a multiple of DIRECTION_STEP, the rest zero rows of D, never
 # free; the whole θ is a multiple of THETA_STEP, its tail unused by the right-hand side (zero columns of D). None
 # changes a number; a record of another length with the same families then runs the programs of the first (it
-# compiled them again: 11 s of XLA). Slots of 16 were not enough: a video pendulum's sparse law kept 17–32 terms
-# and its 80 % copy 16 or fewer (θ of 68 against 52), and the whole-record tie fits of two family sets took θ of 21
-# and 27 — the copy's trajectory-level fits compiled 20 s of XLA of their own.
+# compiled them again: 11 s of XLA). Slots of 32 hold every sparse law of two coordinates (at most 2 × 16 terms) in
+# one class; θ in multiples of 16 gave the whole-record tie fits of a video pendulum and of its 80 % copy one size
+# (θ of 21 and 27 before). A table that kept no sparse law keeps an empty one's slots (:func:`with_sparse_slots`).
 SPARSE_SLOTS = 32
 DIRECTION_STEP = 4
 THETA_STEP = 16
@@ -237,7 +237,7 @@ def coef_slots(f: Family) -> int:
 def with_sparse_slots(fams: Sequence[Family], n: int) -> list[Family]:
     """``fams`` (sorted by key), with an empty sparse law in its sorted place where none of them is one: its slots
     in θ, never a branch that is fitted. Whether the pointwise search keeps a sparse law depends on the data (a video
-    pendulum's did, its 80 % copy's did not: θ of 96 against 64, 11 s of XLA of its own); with the slots kept, both
+    pendulum's did, its 80 % copy's did not: θ of 96 against 64, 17 s of XLA of its own); with the slots kept, both
     run one compiled program (the supports are data, :func:`sparse_supports`)."""
     fams = list(fams)
     if not any(_is_sparse(f) for f in fams):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import signal
 import threading
+import time
 
 import pytest
 
@@ -124,6 +125,27 @@ def test_a_thread_only_compile_clock_sees_its_own_thread():
     with CompileClock(thread_only=True) as mine:
         compile_elsewhere()
     assert mine.seconds > 0
+
+
+def test_a_compilation_inside_another_counts_once():
+    """JAX reports an event when it ends; one that ran inside another (an inner program traced while the outer one
+    is) is counted once, as the outer one's: the clock never exceeds the wall time. Events recorded here with
+    jax.monitoring, their spans made with sleeps: 0.1 s with 0.05 s inside it, then 0.02 s."""
+    import jax.monitoring
+
+    from nnphd.io.timing import COMPILE_PARTS
+
+    trace, lower = list(COMPILE_PARTS)[:2]
+    with CompileClock(thread_only=True) as clock:
+        t0 = time.perf_counter()
+        time.sleep(0.05)
+        jax.monitoring.record_event_duration_secs(lower, 0.05)  # the inner one ends first
+        time.sleep(0.05)
+        jax.monitoring.record_event_duration_secs(trace, time.perf_counter() - t0)  # the outer one, around it
+        time.sleep(0.02)
+        jax.monitoring.record_event_duration_secs(lower, 0.02)  # after it: counted
+        wall = time.perf_counter() - t0
+    assert clock.seconds == pytest.approx(0.12, abs=0.015) and clock.seconds <= wall
 
 
 def test_argument_checks():

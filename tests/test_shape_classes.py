@@ -276,3 +276,104 @@ def test_a_conservative_base_with_its_numbers_apart_gives_the_table_of_the_closu
         np.testing.assert_allclose(a["ic"], b["ic"], rtol=1e-10)
         for k in a["params"]:
             np.testing.assert_allclose(a["params"][k], b["params"][k], rtol=1e-8, atol=1e-12)
+
+
+def test_one_right_hand_side_per_structure_not_per_record():
+    # the shooting programs take the universal right-hand side as a static argument hashed by identity: records of
+    # other lengths (other speeds, other sparse supports, other trained numbers) with the same structure get the
+    # same function object, so this process traces their programs once; another structure gets another
+    from nnphd.explain.conservative import conservative_basis
+    from nnphd.explain.families import families, odd_monomials, sparse_family
+    from nnphd.explain.trajectory import universal_rhs, with_sparse_slots
+    from nnphd.user.assess import ConservativeFn
+
+    def fams(v_rms, support, sign="tanh"):
+        return with_sparse_slots(
+            [*families(2, ("x", "y"), np.asarray(v_rms), sign), sparse_family(2, ("x", "y"), support)], 2
+        )
+
+    M = len(odd_monomials(2))
+    s1, s2 = np.zeros((2, M), bool), np.zeros((2, M), bool)
+    s1[0, 0] = s2[1, :3] = True
+
+    def apply(params, q, v):
+        return -params[0] * q
+
+    fc1, fc2 = ConservativeFn(apply, (jnp.asarray(1.0),)), ConservativeFn(apply, (jnp.asarray(3.0),))
+    q, v, t = jnp.asarray([[0.3, -0.2], [0.1, 0.4]]), jnp.asarray([[0.5, 0.7], [-0.02, 0.01]]), jnp.zeros(2)
+    Kc = conservative_basis(jnp, q, v, (False, False), fc2(q, v)).shape[-1]
+    a = universal_rhs(fams([1.0, 2.0], s1), Kc, (False, False), fc1)
+    b = universal_rhs(fams([0.3, 5.0], s2), Kc, (False, False), fc2)
+    assert a is b  # speeds, supports and the force's numbers are data of the program
+    others = [
+        universal_rhs(fams([1.0, 2.0], s1, "sqrt"), Kc, (False, False), fc1),  # another smoothed sign
+        universal_rhs(fams([1.0, 2.0], s1), Kc + 1, (False, False), fc1),  # another conservative library
+        universal_rhs(fams([1.0, 2.0], s1), Kc, (True, False), fc1),  # an angle
+        universal_rhs(fams([1.0, 2.0], s1), Kc, (False, False), None),  # no trained force
+        universal_rhs(fams([1.0, 2.0], s1), Kc, (False, False), lambda q, v: -q),  # a force without its numbers
+        universal_rhs(fams([1.0, 2.0], s1)[:-1], Kc, (False, False), fc1),  # a family fewer
+        universal_rhs(fams([1.0, 2.0], s1), Kc, (False, False), fc1, "short"),  # another library
+    ]
+    assert len({id(r) for r in [a, *others]}) == 1 + len(others)
+    # and the shared function computes each record's own law: its speeds and its sparse support from aux
+    from nnphd.explain.trajectory import builtin_speeds, coef_slots, sparse_supports
+
+    F2 = fams([0.3, 5.0], s2)
+    aux_data = (None, jnp.asarray(builtin_speeds(F2)[0]),
+                tuple((jnp.asarray(i), jnp.asarray(m)) for i, m in sparse_supports(F2)), fc2.params)  # fmt: skip
+    sizes = [coef_slots(f) + len(f.nl_names) + 1 for f in F2]
+    for key in ("coulomb", "sparse"):
+        k = next(i for i, f in enumerate(F2) if f.key == key)
+        f, off = F2[k], Kc + sum(sizes[:k])
+        K = len(f.coef_names)
+        theta = np.zeros(Kc + sum(sizes))  # α = 0: the law's term alone
+        theta[off : off + K] = np.linspace(0.5, 1.5, K)
+        theta[off + coef_slots(f) + len(f.nl_names)] = 1.0  # its gate
+        aux = (jnp.asarray(theta), jnp.zeros((0, theta.size)), jnp.asarray(k + 1, jnp.int32), *aux_data)
+        got = np.asarray(b(jnp.zeros(0), q, v, t, aux))
+        want = np.einsum("wnk,k->wn", np.asarray(f.basis(jnp, jnp.zeros(0), q, v, t)), theta[off : off + K])
+        assert np.abs(want).max() > 0.1
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.slow
+def test_every_tie_set_s_whole_record_fit_runs_the_table_s_one_program(tmp_path, monkeypatch):
+    # a tie's whole-record fits hold the pointwise table's whole library in the right-hand side (library_of), so
+    # another tie set runs the same program; the fitted numbers are the tie's own (the other families' slots unused)
+    from dataclasses import replace
+
+    from nnphd.explain import trajectory as T
+    from nnphd.explain import wholerecord as W
+    from nnphd.explain.search import LawRun, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.recording import load_trajectories
+    from tests.fixtures import friction as F
+
+    rec = F.make("heavy-damping", seed=0)
+    ud = load_trajectories(rec.write_csv(tmp_path / "hd.csv"), rec.angles)
+    d = Derivatives().dataset(ud)
+    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(d.info["trajectories"]) for a, b in [tr["kept"]]])
+    ctx = find_law(d.data, LawRun(traj, tuple(ud.coords), (True,), d.info, d.row_errors, seed=0)).whole_record
+    pw = ctx["pointwise"]
+    keys = [r.key for r in pw.rows if r.key != "none"]
+    made = []
+    shared = T.universal_rhs
+    monkeypatch.setattr(T, "universal_rhs", lambda *a, **k: made.append(shared(*a, **k)) or made[-1])
+    fits = [W.whole_record_fits(ctx, ks)[0] for ks in (keys[:2], keys[2:4])]
+    assert all(f is not None and len(f) == 1 for f in fits)
+    assert len(made) == 2 and made[0] is made[1]
+    for ks, ((_, wide),) in zip((keys[:2], keys[2:4]), fits):
+        by_key = {r.key: r for r in pw.rows}
+        sub = replace(pw, rows=[by_key["none"], *(by_key[k] for k in ks)], law=None, ties=[])
+        own = T.rank_trajectory(
+            sub, T.Motion(ctx["q"], ctx["qd"], ctx["t"], ctx["traj"]), sigma=ctx["sigma"], period=ctx["period"],
+            angles=ctx["angles"], windows=T.WindowPlan(window_periods=(0.75,), min_windows=W.ALL_WINDOWS,
+                                                       allow_in_sample=True), settings=T.TrajectorySettings(seed=0),
+        )  # fmt: skip
+        assert made[-1] is not made[0]  # its own program: the tied families alone
+        assert [r.key for r in wide.rows] == [r.key for r in own.rows] and set(ks) <= {r.key for r in own.rows}
+        for a, b in zip(wide.rows, own.rows):
+            np.testing.assert_allclose(a.heldout_mse, b.heldout_mse, rtol=1e-10)
+            assert a.params.keys() == b.params.keys()
+            for k in a.params:
+                np.testing.assert_allclose(a.params[k], b.params[k], rtol=1e-9, atol=1e-12)

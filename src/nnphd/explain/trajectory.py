@@ -6,6 +6,7 @@ noisy or biased for the law (a Coulomb force's jumps are smeared, cubic terms bi
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple
@@ -194,6 +195,48 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
         return conservative((centre, fc_params), theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs
+
+
+# One right-hand side per structure, in this process: the compiled shooting programs take it as a static argument
+# hashed by identity (:class:`nnphd.engine.shooting.Integrator`), so a record of another length, another seed or
+# another call with the same families, libraries and conservative force runs the programs already traced and
+# lowered (~10 s of a video pendulum's 80 % copy run after the full record in one process, every tracing of the
+# shooting programs). The key holds everything :func:`_universal_rhs` builds into the program: each family's
+# place and slots (built-in families by key and smoothed sign — their speeds are data; sparse laws by their slots —
+# their supports are data; any other family, a law of the user's or the perturber, by the object itself, kept
+# alive with its entry), the conservative columns, the angles, the conservative library and the conservative
+# force (its ``apply`` where its numbers are data, else the function itself).
+_RHS_CACHE: dict = {}
+_RHS_CACHE_SIZE = 16
+_RHS_LOCK = threading.Lock()
+
+
+def _rhs_key(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library) -> tuple:
+    v_rms, sign = builtin_speeds(fams)
+
+    def shape(f):
+        if v_rms is not None and _builtin_of(f, v_rms, sign):
+            return ("builtin", f.key, coef_slots(f), len(f.nl_names))
+        if _is_sparse(f):
+            return ("sparse", coef_slots(f), len(f.nl_names))
+        return ("own", id(f))
+
+    apply = fc_parts(fc_fn)[0]
+    force = None if fc_fn is None else ("apply", id(apply)) if apply is not None else ("own", id(fc_fn))
+    return tuple(shape(f) for f in fams), int(Kc), tuple(bool(a) for a in angles), force, library, sign
+
+
+def universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library=True):
+    """:func:`_universal_rhs`, the same function object for the same structure (see the comment above)."""
+    key = _rhs_key(fams, Kc, angles, fc_fn, library)
+    with _RHS_LOCK:
+        hit = _RHS_CACHE.pop(key, None)
+        if hit is None:  # the objects named by identity in the key stay alive with the entry (no id is reused)
+            hit = (_universal_rhs(fams, Kc, angles, fc_fn, library), tuple(fams), fc_fn, fc_parts(fc_fn)[0])
+        _RHS_CACHE[key] = hit  # the most recent last; the oldest dropped
+        while len(_RHS_CACHE) > _RHS_CACHE_SIZE:
+            _RHS_CACHE.pop(next(iter(_RHS_CACHE)))
+    return hit[0]
 
 
 def fc_parts(fc_fn) -> tuple:
@@ -653,6 +696,7 @@ def rank_trajectory(
     fc_fn=None,
     windows: WindowPlan = WindowPlan(),
     settings: TrajectorySettings = TrajectorySettings(),
+    library_of: LawTable | None = None,
 ) -> LawTable:
     """Re-fit the pointwise table's best candidates (and the zero law) to the *positions* of ``motion`` by multiple
     shooting and rank them again — for records whose pointwise q̈ is too noisy or biased for the law (see
@@ -667,6 +711,8 @@ def rank_trajectory(
     ``windows``: how the record is cut (:class:`WindowPlan`); with too few windows and ``allow_in_sample``, a zero
     law that runs away over a whole trajectory is started again from the candidates' conservative fits.
     ``settings``: the shortlist, the bootstrap and the threads (:class:`TrajectorySettings`; :func:`fit_rows`).
+    ``library_of``: a larger table whose rows hold ``table``'s (a sub-table of it): the compiled programs are built
+    for all its families, so every sub-table of it runs the same ones (only ``table``'s candidates are fitted).
     """
     if table.settings.get("conservative_extra", 0):
         raise ValueError("a law table fitted with conservative_cols can only be ranked pointwise")
@@ -690,11 +736,14 @@ def rank_trajectory(
     alpha0 = table.base.alphas
     # the universal right-hand side holds every family of the table in one fixed order (by key), not the shortlist in
     # the order of this record's pointwise ranking: one compiled program for every record with the same families
-    library = sorted((r for r in table.rows if r.key != "none"), key=lambda r: (r.key, r.family.k))
+    # (``library_of``'s, where a sub-table of it is ranked: the whole-record fits of every tie set share one program)
+    held = [r for r in (table if library_of is None else library_of).rows if r.key != "none"]
+    held += [r for r in cands if all(r is not h for h in held)]
+    library = sorted(held, key=lambda r: (r.key, r.family.k))
     fams = with_sparse_slots([r.family for r in library], n)
     branch = {id(r): next(i for i, f in enumerate(fams, 1) if f is r.family) for r in library}
     slots, P_dir, nl_defaults = _parameter_layout(fams, Kc, [r.family for r in cands])
-    rhs = _universal_rhs(fams, Kc, angles, fc_fn, table.settings.get("library", True))
+    rhs = universal_rhs(fams, Kc, angles, fc_fn, table.settings.get("library", True))
     ranking = _Ranking(
         cands,
         _Layout(slots, P_dir, nl_defaults, alpha0, Kc),

@@ -91,6 +91,7 @@ def whole_record_fits(ctx: dict, keys: list[str]):
             fc_fn=None,
             windows=WindowPlan(window_periods=(0.75,), min_windows=ALL_WINDOWS, allow_in_sample=True),
             settings=TrajectorySettings(seed=ctx["seed"]),
+            library_of=pw,  # the program of every tie set: the table's whole library, not the tied families alone
         )
         if ranked is not sub and ranked.settings.get("in_sample"):
             out.append((name, ranked))

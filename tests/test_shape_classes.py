@@ -330,7 +330,7 @@ def test_one_right_hand_side_per_structure_not_per_record():
         theta[off : off + K] = np.linspace(0.5, 1.5, K)
         theta[off + coef_slots(f) + len(f.nl_names)] = 1.0  # its gate
         aux = (jnp.asarray(theta), jnp.zeros((0, theta.size)), jnp.asarray(k + 1, jnp.int32), *aux_data)
-        got = np.asarray(b(jnp.zeros(0), q, v, t, aux))
+        got = np.asarray(jax.jit(b)(jnp.zeros(0), q, v, t, aux))
         want = np.einsum("wnk,k->wn", np.asarray(f.basis(jnp, jnp.zeros(0), q, v, t)), theta[off : off + K])
         assert np.abs(want).max() > 0.1
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)

@@ -140,6 +140,7 @@ def test_an_estimator_of_your_own_makes_the_data_set():
         nnphd.Derivatives(object())
 
 
+@pytest.mark.slow  # a whole fit compiled in its worker (~30 s): the slow tier (CI runs it)
 def test_fit_uses_your_estimator(tmp_path):
     """The pipeline ranks the laws on the oracle's q̈: it says the friction is γ = 0.3 where the positions have
     0.1 — no estimator of the positions could make that number — and the report names the estimator."""

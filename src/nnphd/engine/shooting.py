@@ -13,6 +13,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from nnphd.engine import stored
+
 MIN_WINDOW = 8
 
 
@@ -191,15 +193,19 @@ def rowwise_combination(f):
 
 
 @functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=64)
 def damping_rhs(accel):
     """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
-    object per ``accel``, so the shooting fit compiles once per model)."""
+    object per ``accel``, so the shooting fit compiles once per model: every seed of a record, every record of a
+    shape in this process; stored for the next process where ``accel`` says what it computes, ``export_key``)."""
 
     fc = rowwise_jvp(accel)
 
     def rhs(theta, q, v, t, params):
         return (1.0 + theta[0]) * fc(params, q, v) - theta[1:] * v
 
+    inner = getattr(accel, "export_key", None)
+    rhs.export_key = None if inner is None else f"damping|{inner}"
     return rhs
 
 
@@ -421,8 +427,7 @@ def _model_residuals_and_jac(s, theta, aux, windows: ShootingWindows, model: Int
     """Like :func:`_residuals_and_jac` for any model q̈ = rhs(theta, q, v, t, aux) (batched over windows; t the
     absolute time: window start ``windows.t0w`` plus the window clock ``windows.tw``; ``aux`` any data the model
     needs, not differentiated — so one compiled function serves many models that differ only in data)."""
-    r = _simulate(s, theta, aux, windows, model)
-    return r, _jac(s, theta, aux, windows, model)
+    return _simulate_and_jac(s, theta, aux, windows, model)
 
 
 @functools.partial(jax.jit, static_argnames=("model",))
@@ -430,6 +435,13 @@ def _model_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
     """The forward derivatives of :func:`model_residuals_and_jac` alone: where :func:`lm_windows` has just computed
     the residuals at the point (:func:`model_residuals`, the same numbers), the simulation is not run again."""
     return _jac(s, theta, aux, windows, model)
+
+
+def _simulate_and_jac(s, theta, aux, windows: ShootingWindows, model: Integrator):
+    return _simulate(s, theta, aux, windows, model), _jac(s, theta, aux, windows, model)
+
+
+_RAW = {"_model_residuals": _simulate, "_model_jac": _jac, "_model_residuals_and_jac": _simulate_and_jac}
 
 
 # Shape classes of the windows: one compiled program serves every record whose windows fall in the same class, so a
@@ -473,6 +485,17 @@ def window_shape_class(W: int, L: int) -> tuple[tuple[int, ...], int]:
     return (WINDOW_CHUNK,) * -(-W // WINDOW_CHUNK), _steps_bucket(L, W)
 
 
+def _call(fn, s, theta, aux, windows: ShootingWindows, model: Integrator):
+    """``fn(s, theta, aux, windows, model)``, one of the three compiled shooting programs — from the program stored
+    by an earlier process where the model's right-hand side says what it computes (``export_key``:
+    :mod:`nnphd.engine.stored`), else compiled as usual."""
+    key = getattr(model.rhs, "export_key", None)
+    if key is None:
+        return fn(s, theta, aux, windows, model)
+    raw = _RAW[fn.__name__]
+    return stored.run(fn.__name__, lambda *a: raw(*a, model), f"{key}|nsub={int(model.nsub)}", (s, theta, aux, windows))
+
+
 def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator, jac_axis: bool):
     """``fn`` (a compiled shooting program) over ``windows`` padded to their shape class and called once per chunk
     of it; the outputs cut back to the real windows and steps (residuals (W, L, n), or with ``jac_axis`` the
@@ -483,7 +506,7 @@ def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator
     Wb = sum(chunks)
     steps = jnp.asarray(L - 1, jnp.int32)  # the padded steps are not integrated
     if (Wb, Lb) == (W, L) and len(chunks) == 1:
-        return fn(s, theta, aux, windows._replace(steps=steps), model)
+        return _call(fn, s, theta, aux, windows._replace(steps=steps), model)
     tw, t0w, qw, mask, s = (np.asarray(a) for a in (tw, t0w, qw, mask, s))
     tw_p = np.empty((Wb, Lb), tw.dtype)
     tw_p[:W, :L] = tw
@@ -498,7 +521,7 @@ def _padded_calls(fn, s, theta, aux, windows: ShootingWindows, model: Integrator
     parts, i = [], 0
     for c in chunks:
         win = ShootingWindows(tw_p[i : i + c], t0_p[i : i + c], qw_p[i : i + c], mask_p[i : i + c], inv_sigma, steps)
-        parts.append(fn(s_p[i : i + c], theta, aux, win, model))
+        parts.append(_call(fn, s_p[i : i + c], theta, aux, win, model))
         i += c
 
     def cut(arrays, ax):

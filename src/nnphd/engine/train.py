@@ -21,6 +21,7 @@ import jax.numpy as jnp
 import numpy as np
 import optax
 
+from nnphd.engine import stored
 from nnphd.engine.batching import pad_rows, train_bucket
 from nnphd.engine.models import ModelConfig, Params, init_nnphd, nnphd_forces
 from nnphd.io.progress import Progress
@@ -105,7 +106,7 @@ def as_arrays(data, dtype):
     return tuple(jnp.asarray(a, dtype) for a in (data.q, data.qd, data.t, data.qdd))
 
 
-def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None = None):
+def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None = None, export_key: str | None = None):
     """Return ``train(params, arrays, lam, key) -> (params, (L_e history, L_b history))``, jitted (the rows padded to
     their :func:`nnphd.engine.batching.train_bucket`, never drawn: a record of another length in the same bucket runs the
     same compiled program with the same numbers as unpadded).
@@ -113,11 +114,13 @@ def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None =
     ``arrays`` = (q, q̇, t, q̈) of the training set. The Adam state starts fresh on every call (appendix B restarts
     the learning-rate annealing at each λ); parameters are whatever is passed in (warm start).
     ``loss_fn(params, q, qd, t, qdd) -> (L_e, L_b)`` replaces the NNPhD loss (used for the LNN-only and black-box
-    baselines and constrained Lagrangians).
+    baselines and constrained Lagrangians). ``export_key``: what ``loss_fn`` computes besides ``cfg`` (a text another
+    process gives alike): the trainer is then stored for the next process (:mod:`nnphd.engine.stored`); without
+    ``loss_fn`` the NNPhD loss is described already.
     """
     opt = optax.adam(tcfg.schedule())
     if loss_fn is None:
-        loss_fn = partial(loss_terms, cfg=cfg, p=tcfg.p)
+        loss_fn, export_key = partial(loss_terms, cfg=cfg, p=tcfg.p), "loss_terms"
 
     def objective(params, batch, lam):
         le, lb = loss_fn(params, *batch)
@@ -125,7 +128,8 @@ def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None =
 
     grad_fn = jax.value_and_grad(objective, has_aux=True)
 
-    @jax.jit
+    stored_key = None if export_key is None else f"{export_key}|{cfg!r}|{tcfg!r}"
+
     def train_padded(params, arrays, n_data, lam, key):
         opt_state = opt.init(params)
 
@@ -145,7 +149,12 @@ def make_trainer(cfg: ModelConfig, tcfg: TrainConfig, loss_fn: Callable | None =
         # the rows padded to their bucket and the row count passed as data: one compiled trainer serves every record
         # of the bucket, and the minibatches (drawn below the true count) are those of the unpadded rows, bit for bit
         n_data = int(arrays[0].shape[0])
-        return train_padded(params, pad_rows(arrays, train_bucket(n_data)), jnp.asarray(n_data, jnp.int32), lam, key)
+        args = (params, pad_rows(arrays, train_bucket(n_data)), jnp.asarray(n_data, jnp.int32), lam, key)
+        if stored_key is None:
+            return jitted(*args)
+        return stored.run("train_padded", train_padded, stored_key, args)
+
+    jitted = jax.jit(train_padded)
 
     return train
 

@@ -5,6 +5,7 @@ noisy or biased for the law (a Coulomb force's jumps are smeared, cubic terms bi
 
 from __future__ import annotations
 
+import json
 import math
 import threading
 from collections.abc import Callable, Sequence
@@ -226,13 +227,28 @@ def _rhs_key(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library) -> 
     return tuple(shape(f) for f in fams), int(Kc), tuple(bool(a) for a in angles), force, library, sign
 
 
+def _export_key(key: tuple, fc_fn) -> str | None:
+    """:func:`_rhs_key` as a text another process computes alike (:mod:`nnphd.engine.stored`), or None where it
+    names an object by identity (a law of the user's, a force without a described ``apply``)."""
+    fams, Kc, angles, force, library, sign = key
+    if any(f[0] == "own" for f in fams):
+        return None
+    if force is not None:
+        force = getattr(fc_parts(fc_fn)[0], "export_key", None)
+        if force is None:
+            return None
+    return json.dumps(["universal", fams, Kc, angles, force, library, sign])
+
+
 def universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library=True):
     """:func:`_universal_rhs`, the same function object for the same structure (see the comment above)."""
     key = _rhs_key(fams, Kc, angles, fc_fn, library)
     with _RHS_LOCK:
         hit = _RHS_CACHE.pop(key, None)
         if hit is None:  # the objects named by identity in the key stay alive with the entry (no id is reused)
-            hit = (_universal_rhs(fams, Kc, angles, fc_fn, library), tuple(fams), fc_fn, fc_parts(fc_fn)[0])
+            rhs = _universal_rhs(fams, Kc, angles, fc_fn, library)
+            rhs.export_key = _export_key(key, fc_fn)  # the programs stored for the next process (engine.stored)
+            hit = (rhs, tuple(fams), fc_fn, fc_parts(fc_fn)[0])
         _RHS_CACHE[key] = hit  # the most recent last; the oldest dropped
         while len(_RHS_CACHE) > _RHS_CACHE_SIZE:
             _RHS_CACHE.pop(next(iter(_RHS_CACHE)))

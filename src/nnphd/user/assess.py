@@ -472,6 +472,7 @@ def _scaled_lnn_accel(cfg):
         lnn, mu, s_q, s_t = params
         return accel(lnn, (q - mu) / s_q, qd * s_t / s_q) * s_q / s_t**2
 
+    apply.export_key = f"scaled_lnn_accel|{accel.export_key}"  # what it computes, for stored programs
     return apply
 
 

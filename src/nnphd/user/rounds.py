@@ -83,7 +83,7 @@ def _trainer(kind: str, cfg: ModelConfig, tcfg: TrainConfig):
             return pnorm(free_force(params["mlp"], q, qd, None, cfg) - qdd, p), jnp.zeros((), q.dtype)
     else:  # pragma: no cover
         raise ValueError(kind)
-    return make_trainer(cfg, tcfg, loss)
+    return make_trainer(cfg, tcfg, loss, export_key=f"rounds._trainer|{kind}")
 
 
 @functools.partial(jax.jit, static_argnames=("cfg",))
@@ -115,6 +115,7 @@ def lnn_accel_fn(cfg: ModelConfig):
     def accel(lnn, q, qd):
         return lnn_accel(lnn, q, qd, cfg)
 
+    accel.export_key = f"lnn_accel|{cfg!r}"  # what it computes, for stored programs (nnphd.engine.stored)
     return accel
 
 

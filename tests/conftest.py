@@ -15,6 +15,7 @@ import shutil
 import tempfile
 
 import nnphd
+from nnphd.engine import stored
 
 _OWN_CACHE = _OWN_HOME = None
 if "NNPHD_TEST_CACHE_HOME" not in os.environ:  # the main pytest process; its xdist workers inherit it
@@ -24,6 +25,14 @@ if nnphd.COMPILE_CACHE_ENV not in os.environ:  # set here in the main pytest pro
     _OWN_CACHE = tempfile.mkdtemp(prefix="nnphd-test-jax-cache-")
     os.environ[nnphd.COMPILE_CACHE_ENV] = _OWN_CACHE
 nnphd.configure()
+
+
+def pytest_configure(config):
+    # the fast tier (-m "not slow", the README's test command) compiles hundreds of small programs once each: storing
+    # them for another process (nnphd.engine.stored) would cost it ~30 s and save nothing; tests/test_stored_programs.py
+    # checks the store itself, and the slow tier (CI: every tier shares one cache) runs the end-to-end runs with it
+    if (config.option.markexpr or "").replace(" ", "") == "notslow":
+        os.environ.setdefault(stored.ENV, "0")
 
 
 def pytest_unconfigure(config):

@@ -210,10 +210,13 @@ def test_the_lomb_scargle_grid_is_scipys_periodogram(n, m, uneven):
     y = np.sin(1.7 * t) + 0.3 * rng.normal(size=n)
     y -= y.mean()
     w = np.linspace(2 * np.pi / np.ptp(t), np.pi / np.median(np.diff(t)), m)
-    ref = lombscargle(t, y, w, normalize=False)
     got = lomb_scargle_grid(t, y, w[0], (w[-1] - w[0]) / (m - 1), m)
-    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-12 * ref.max())
-    assert np.argmax(got) == np.argmax(ref)
+    # scipy's reference at <= ~400 of the grid's frequencies, its peak among them (scipy loops over the samples in
+    # Python: the whole 9432-frequency grid costs it 12 s), the grid's own peak included
+    at = np.unique(np.r_[np.arange(0, m, max(1, m // 400)), m - 1, np.argmax(got)])
+    ref = lombscargle(t, y, w[at], normalize=False)
+    np.testing.assert_allclose(got[at], ref, rtol=1e-9, atol=1e-12 * ref.max())
+    assert at[np.argmax(ref)] == np.argmax(got)
 
 
 # ---- units -------------------------------------------------------------------------------------------------------

@@ -318,7 +318,11 @@ def test_one_right_hand_side_per_structure_not_per_record():
     # and the shared function computes each record's own law: its speeds and its sparse support from aux
     from nnphd.explain.trajectory import builtin_speeds, coef_slots, sparse_supports
 
-    F2 = fams([0.3, 5.0], s2)
+    # (two of the families: the program of them all compiles for ~10 s; the switch over families is the same code)
+    F2 = with_sparse_slots(
+        [next(f for f in families(2, ("x", "y"), np.asarray([0.3, 5.0]), "tanh") if f.key == "coulomb"),
+         sparse_family(2, ("x", "y"), s2)], 2)  # fmt: skip
+    b = universal_rhs(F2, Kc, (False, False), fc2)
     aux_data = (None, jnp.asarray(builtin_speeds(F2)[0]),
                 tuple((jnp.asarray(i), jnp.asarray(m)) for i, m in sparse_supports(F2)), fc2.params)  # fmt: skip
     sizes = [coef_slots(f) + len(f.nl_names) + 1 for f in F2]

@@ -120,11 +120,15 @@ def test_the_shooting_programs_of_a_described_model_are_the_plain_ones(store):
     assert len(list(store.iterdir())) == 2  # the residuals' and the derivatives' programs (16 windows a call)
 
 
-def test_the_folder_is_beside_the_compilation_cache():
+def test_the_folder_is_beside_the_compilation_cache(monkeypatch):
     from pathlib import Path
 
     cache = jax.config.jax_compilation_cache_dir  # the test session's (conftest: nnphd.configure)
+    monkeypatch.delenv(stored.ENV, raising=False)
     assert cache and stored.folder() == Path(cache) / "nnphd-exported"
+    for off in ("0", "off"):
+        monkeypatch.setenv(stored.ENV, off)
+        assert stored.folder() is None
 
 
 def test_a_stored_program_under_a_transformation_is_the_jitted_one(store, monkeypatch):

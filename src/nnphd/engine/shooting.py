@@ -193,7 +193,6 @@ def rowwise_combination(f):
 
 
 @functools.lru_cache(maxsize=64)
-@functools.lru_cache(maxsize=64)
 def damping_rhs(accel):
     """q̈ = (1 + θ₀)·f_c(q, q̇) − diag(θ₁…θₙ) q̇ with the conservative model's parameters as ``aux`` (one function
     object per ``accel``, so the shooting fit compiles once per model: every seed of a record, every record of a

@@ -12,8 +12,10 @@ one's programs). A stored file is data, not code (a flatbuffer with StableHLO, p
 one that cannot be read, that is larger than :data:`MAX_BYTES` or whose inputs are not the call's is ignored and
 written again. The folder holds at most :data:`MAX_FILES` programs (the least recently written go first).
 
-Without a compilation cache (``nnphd.configure(compile_cache=False)``, NNPHD_COMPILE_CACHE=0) or without the
-``flatbuffers`` package that serialization needs, every program is compiled as usual. The numbers are the same:
+Without a compilation cache (``nnphd.configure(compile_cache=False)``, NNPHD_COMPILE_CACHE=0), with
+NNPHD_STORED_PROGRAMS=0 or without the ``flatbuffers`` package that serialization needs, every program is compiled
+as usual. Storing costs a process that compiles a program ~0.1–0.5 s more (the stored program is lowered once more
+to be run): the fast test tier, whose processes compile hundreds of small programs once each, turns it off. The numbers are the same:
 the exported program is the one :func:`jax.jit` lowers (tests/test_stored_programs.py).
 """
 
@@ -29,6 +31,7 @@ from pathlib import Path
 
 import jax
 
+ENV = "NNPHD_STORED_PROGRAMS"  # 0/off: compile every program as usual (the fast test tier: tests/conftest.py)
 MAX_BYTES = 64 * 2**20  # a stored program larger than this is not read (the largest here: ~0.1 MB)
 MAX_FILES = 2000
 FOLDER = "nnphd-exported"
@@ -56,9 +59,9 @@ def source_fingerprint() -> str:
 
 def folder() -> Path | None:
     """Where the programs are stored: ``nnphd-exported`` inside JAX's persistent compilation cache folder (None:
-    no cache configured, or no ``flatbuffers``)."""
+    no cache configured, NNPHD_STORED_PROGRAMS=0, or no ``flatbuffers``)."""
     cache = jax.config.jax_compilation_cache_dir
-    if not cache:
+    if not cache or os.environ.get(ENV, "").strip().lower() in ("0", "off", "no", "false"):
         return None
     try:
         import flatbuffers  # noqa: F401 — what jax.export's serialization needs

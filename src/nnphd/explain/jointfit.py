@@ -194,35 +194,43 @@ def linear_stats(J, R, folds, segs, tau, n_boot, seed, P_law_idx):
     """Held-out MSE by one Gauss–Newton step per fold, bootstrap and model covariance of the law parameters."""
     N, rows2, P = J.shape
     n = rows2 // 2
-    Jt = J.transpose(0, 2, 1)
-    Gs = np.matmul(Jt, J)  # per row J_sᵀJ_s, J_sᵀR_s — batched BLAS (einsum's loops took 14 s of a 4509-row table)
-    hs = np.matmul(Jt, R[..., None])[..., 0]
-    G, h = Gs.sum(0), hs.sum(0)
+    # sums of the rows' J_sᵀJ_s over a fold or a bootstrap block are products of the stacked rows (BLAS), never the
+    # (N, P, P) stack of per-row products: that is P² numbers a row (150 MB for a 704-row, 163-parameter table of a
+    # 3-D orbit), and fresh memory of that size took 1–5 s to touch on these machines
+    J2, R2 = J.reshape(N * rows2, P), R.reshape(-1)
+    G, h = J2.T @ J2, J2.T @ R2
     sse = 0.0
     m = 0
     for f in folds:
-        Gf, hf = Gs[f].sum(0), hs[f].sum(0)
-        d = solve_or_lstsq(ridge_regularised(G - Gf), h - hf)
+        Jf = J[f].reshape(-1, P)
+        d = solve_or_lstsq(ridge_regularised(G - Jf.T @ Jf), h - Jf.T @ R[f].reshape(-1))
         pred = R[f, :n] - J[f, :n] @ d
         sse += float(np.sum(pred**2))
         m += pred.size
     mse = sse / max(m, 1)
-    # moving-block bootstrap over rows within trajectories: each block's sums at once (np.add.reduceat), every
-    # replicate's as its blocks' counts times them (one product; the same draws as one replicate after another)
+    # moving-block bootstrap over rows within trajectories: each block's sums at once (its rows padded with zero rows
+    # to the block length, one batched product), every replicate's as its blocks' counts times them (the same draws
+    # as one replicate after another)
     L = max(1, math.ceil(2 * tau))
     blocks = [s[i : i + L] for s in segs for i in range(0, len(s), L)] if n_boot > 0 else []
     reps = []
     if blocks:
         B = len(blocks)
-        starts = np.concatenate([[0], np.cumsum([len(b) for b in blocks])[:-1]]).astype(np.intp)
-        order = np.concatenate(blocks).astype(np.intp)
-        Gb = np.add.reduceat(Gs[order], starts, axis=0).reshape(B, -1)
-        hb = np.add.reduceat(hs[order], starts, axis=0)
+        idx = np.full((B, L), N, np.intp)  # row N: the zero row
+        for i, blk in enumerate(blocks):
+            idx[i, : len(blk)] = blk
+        Jb = np.concatenate([J, np.zeros((1, rows2, P))])[idx].reshape(B, L * rows2, P)
+        Rb = np.concatenate([R, np.zeros((1, rows2))])[idx].reshape(B, L * rows2)
+        Gb = np.matmul(Jb.transpose(0, 2, 1), Jb).reshape(B, P * P)
+        hb = np.matmul(Jb.transpose(0, 2, 1), Rb[..., None])[..., 0]
+        del Jb
         draws = np.random.default_rng(seed).integers(0, B, (n_boot, B))
         counts = np.zeros((n_boot, B))
         np.add.at(counts, (np.repeat(np.arange(n_boot), B), draws.ravel()), 1.0)
-        Grep, hrep = (counts @ Gb).reshape(n_boot, P, P), counts @ hb
-        reps = [solve_or_lstsq(ridge_regularised(Grep[k]), hrep[k]) for k in range(n_boot)]
+        hrep = counts @ hb
+        for k0 in range(0, n_boot, 32):  # 32 replicates' P×P sums at a time
+            Grep = (counts[k0 : k0 + 32] @ Gb).reshape(-1, P, P)
+            reps += [solve_or_lstsq(ridge_regularised(g), hrep[k0 + k]) for k, g in enumerate(Grep)]
     reps = np.asarray(reps)[:, P_law_idx] if len(P_law_idx) else np.zeros((n_boot, 0))
     se_boot = reps.std(axis=0) if n_boot > 1 else np.full(len(P_law_idx), np.inf)
     dof = max(N * n - P, 1)

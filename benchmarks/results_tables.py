@@ -97,8 +97,9 @@ def stage_times_held_out() -> str:
         was = f" ({base_other[r['file']]:.1f})" if r["file"] in base_other else ""
         other = f"{o['rows']}, {o['total_s']:.1f}, {o['compile_s']:.1f}{was}" if o else "—"
         before = f" ({base[r['file']]:.1f})" if r["file"] in base else ""
+        at = f" [{r['measured_at']}]" if "measured_at" in r else ""  # a table measured in parts: which part
         out.append(
-            f"| {r['file']} | {r['rows']} | {r['warm']['status']} | {r['warm']['law']} | {r['cold']['total_s']:.1f} "
+            f"| {r['file']}{at} | {r['rows']} | {r['warm']['status']} | {r['warm']['law']} | {r['cold']['total_s']:.1f} "
             f"| {r['warm']['total_s']:.1f}{before} | {cell('training and trust checks')} "
             f"| {cell('law table: trajectory-level fits')} | {r['warm']['compile_s']:.1f} | {other} |"
         )

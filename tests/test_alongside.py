@@ -164,6 +164,9 @@ def test_the_library_base_fitted_beside_the_training_is_the_one_fitted_after_it(
         beside = job[0].result(timeout=600)
     plain = find_law(data, LawRun(traj, tuple(ud.coords), tuple(angles), info, rows, level="auto", seed=0))
     assert plain.settings["method"] == "trajectory"  # the trajectory-level fits ran, both times
+    # one coordinate: no funnel (the amplitude envelope ranks after the windows) — the whole shortlist was fitted
+    assert plain.settings["funnel"]["reach"] is None and not plain.settings["funnel"]["cut"]
+    assert plain.settings["funnel"]["shortlist"] == min(16, plain.settings["funnel"]["pointwise"])
     assert json.dumps(beside.to_dict(), sort_keys=True, default=str) == json.dumps(
         plain.to_dict(), sort_keys=True, default=str
     )

@@ -212,6 +212,8 @@ def test_a_sparse_law_s_slots_and_the_fitted_directions_padded_change_no_number(
     # the universal θ of the trajectory-level law fits pads a sparse law's coefficients to a multiple of SPARSE_SLOTS,
     # the fitted directions to a multiple of DIRECTION_STEP and θ to a multiple of THETA_STEP (one compiled program
     # for records whose sparse law keeps another number of terms): the same law table as with no padding
+    import math
+
     from nnphd.explain import trajectory as T
     from nnphd.explain.search import LawRun, find_law
     from nnphd.user.derivatives import Derivatives
@@ -223,6 +225,7 @@ def test_a_sparse_law_s_slots_and_the_fitted_directions_padded_change_no_number(
     d = Derivatives().dataset(ud)
     traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(d.info["trajectories"]) for a, b in [tr["kept"]]])
     run = LawRun(traj, tuple(ud.coords), tuple(bool(a) for a in ud.is_angle), d.info, d.row_errors, seed=0)
+    monkeypatch.setattr(T, "FUNNEL_REACH", math.inf)  # every shortlisted family fitted: the sparse law among them
     for name in ("SPARSE_SLOTS", "DIRECTION_STEP", "THETA_STEP"):
         monkeypatch.setattr(T, name, 1)
     plain = find_law(d.data, run).to_dict()

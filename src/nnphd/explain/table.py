@@ -14,7 +14,7 @@ sum of terms) a term carrying
 less than :data:`MIN_TERM_SHARE` of the law's force, or a drive whose force over the record is a force of the state
 (R² ≥ :data:`DRIVE_STATE_R2` against 1, q, q̇, or a frequency within half a beat of the motion's over the record:
 phase-locked to the motion, e.g. a few periods of a free decay) is not eligible. The winner is the
-lowest IC; among the candidates within :data:`IC_TIE` of it that are special cases of it (:func:`_nested`: no law, a
+lowest IC; among the candidates within :data:`IC_TIE` of it that are special cases of it (:func:`nested`: no law, a
 subset of its terms) the one with the fewest parameters. Other families within :data:`IC_TIE` that are not special
 cases of the winner, nor it of them, are a tie
 (:attr:`LawTable.ties`, :attr:`LawTable.status` "tie"): the record cannot tell them apart, no family is claimed
@@ -403,8 +403,8 @@ def select_law(rows: list[Candidate], n_eff, tau, folds, settings, judge: bool =
     # parsimony within the margin: the simplest candidate that is a special case of the best (no law, a term of a
     # sum, linear or quadratic drag of the power law) — a simpler family that is *not* one is a rival, not a winner
     # (a servo look-alike's viscous + dry law lost to "quadratic drag" this way, 72 % off)
-    nested = [r for r in tied if _nested(r, best)]
-    win = min(nested, key=lambda r: (r.k, r.key == "sparse", r.ic, order[id(r)]))
+    simpler = [r for r in tied if nested(r, best)]
+    win = min(simpler, key=lambda r: (r.k, r.key == "sparse", r.ic, order[id(r)]))
     rows.remove(win)
     rows.insert(0, win)
     ties: list[Candidate] = []
@@ -427,7 +427,7 @@ def select_law(rows: list[Candidate], n_eff, tau, folds, settings, judge: bool =
         ties = [
             r
             for r in tied
-            if r is not win and r.key not in (win.key, "sparse") and not _nested(win, r) and not _nested(r, win)
+            if r is not win and r.key not in (win.key, "sparse") and not nested(win, r) and not nested(r, win)
         ]
         if ties:
             reason = _tie_reason(win, ties)
@@ -456,7 +456,7 @@ INELIGIBLE = (
 NESTS = {key: tuple(fam for _, fam in specials) for key, (_, specials) in SPECIAL_VALUES.items()}
 
 
-def _nested(a: Candidate, b: Candidate) -> bool:
+def nested(a: Candidate, b: Candidate) -> bool:
     """Whether ``a`` is a special case of ``b``: the same, no law, its terms a subset of b's, or listed in NESTS."""
     if a is b or a.key == "none" or a.key == b.key:
         return True

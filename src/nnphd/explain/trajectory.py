@@ -18,8 +18,10 @@ from nnphd.explain.conservative import conservative_basis
 from nnphd.explain.families import Family, families, odd_monomials, sparse_basis, sparse_family, sparse_index
 from nnphd.explain.jointfit import N_BOOT, ridge_regularised, solve_or_lstsq, trajectory_segments
 from nnphd.explain.table import (
+    IC_TIE,
     LawTable,
     law_row,
+    nested,
     overdispersion_c_hat,
     overdispersion_ratio,
     relative_to_zero,
@@ -31,6 +33,12 @@ __all__ = ["Motion", "TrajectorySettings", "WindowPlan", "rank_trajectory"]
 
 MIN_WINDOWS = 6  # fewer shooting windows: the pointwise table stands (or, allowed, whole trajectories in-sample)
 IN_SAMPLE_MAX_ROWS = 4000  # whole-trajectory fits only for short records (one window per trajectory)
+# the funnel (:class:`Funnel`): the shortlist is fitted by shooting in rounds of FUNNEL_BATCH candidates, in the
+# pointwise table's order; a round none of whose fits lands within FUNNEL_REACH of the best eligible IC (IC_TIE: a
+# tie or better) ends it — the rest of the shortlist is out of reach. benchmarks/funnel_audit.py compares the
+# verdicts, laws and ties with those of the whole shortlist (FUNNEL_REACH = inf) on records of every kind
+FUNNEL_BATCH = 4
+FUNNEL_REACH = IC_TIE
 
 
 @dataclass(frozen=True, eq=False)
@@ -66,13 +74,16 @@ class WindowPlan:
 @dataclass(frozen=True)
 class TrajectorySettings:
     """How the trajectory-level ranking measures: the first ``shortlist`` candidates of the pointwise table are
-    re-fitted, with ``n_boot`` window-bootstrap replicates drawn with ``seed``, side by side on ``threads`` threads
-    (None: :func:`default_threads`; the same numbers whatever the number)."""
+    re-fitted — on held-out windows in rounds while a round still lands within ``reach`` of the best IC (None:
+    :data:`FUNNEL_REACH`; inf: the whole shortlist; :class:`Funnel`), on whole trajectories in-sample all of them —,
+    with ``n_boot`` window-bootstrap replicates drawn with ``seed``, side by side on ``threads`` threads (None:
+    :func:`default_threads`; the same numbers whatever the number)."""
 
     shortlist: int = 16
     n_boot: int = N_BOOT
     seed: int = 0
     threads: int | None = None
+    reach: float | None = None
 
 
 class _Layout(NamedTuple):
@@ -687,19 +698,58 @@ def map_in_threads(fn, items: list, threads: int | None = None) -> list:
             raise
 
 
-def fit_rows(fit, zero, cands, threads: int | None) -> list | None:
+def fit_rows(fit, zero, cands, threads: int | None, choose=None) -> list | None:
     """The ranking entries of the zero law and ``cands`` (``fit(ci, row, warm=…)`` → (entry, warm):
     :func:`_fit_row`; a candidate without an entry left out), or None when the zero law has none — nothing is
     ranked against it then, and the candidates are not fitted. The zero law is fitted first; the candidates start
     from its fit (``warm``; None where it did not converge), side by side on ``threads`` threads (None:
     :func:`default_threads`) — their time is spent in compiled XLA programs, which run outside Python's global lock.
     Each fit runs the same programs on the same data as one after another: the numbers do not depend on the
-    threads."""
+    threads.
+
+    The candidates are fitted in rounds, the first :data:`FUNNEL_BATCH` of them first; after each round
+    ``choose(entries, new, rest)`` (the entries so far, this round's, the candidates not fitted yet as (branch, row)
+    in their order) gives the next round, [] to stop (None: the next :data:`FUNNEL_BATCH` until all are fitted).
+    The entries are in the order the candidates were fitted."""
     first, warm = fit(0, zero)
     if first is None:
         return None
-    rest = map_in_threads(lambda item: fit(*item, warm=warm)[0], list(enumerate(cands, 1)), threads)
-    return [first, *(x for x in rest if x is not None)]
+    out = [first]
+    rest = list(enumerate(cands, 1))
+    batch = rest[:FUNNEL_BATCH]
+    while batch:
+        new = map_in_threads(lambda item: fit(*item, warm=warm)[0], batch, threads)
+        new = [x for x in new if x is not None]
+        out += new
+        done = {i for i, _ in batch}
+        rest = [x for x in rest if x[0] not in done]
+        batch = rest[:FUNNEL_BATCH] if choose is None else list(choose(out, new, rest))
+    return out
+
+
+class Funnel:
+    """``choose`` of :func:`fit_rows` for the funnel: ``rank(entries)`` → the table's rows, one per entry in their
+    order, judged (:func:`nnphd.explain.table.select_law`). The next :data:`FUNNEL_BATCH` candidates are fitted
+    while one of the last round's rows lands within ``reach`` of the lowest IC of an eligible row — eligible or not
+    (a row below the winner is named in the verdict's reason); then one last round: the candidates not fitted that
+    are special cases of a row within reach (the parsimony rule of :func:`nnphd.explain.table.select_law` may
+    prefer one). ``cut``: whether it ended the fits before the shortlist's end."""
+
+    def __init__(self, rank, reach: float) -> None:
+        self.rank, self.reach, self.cut = rank, reach, False
+
+    def __call__(self, entries, new, rest) -> list:
+        if self.cut or not rest:
+            return []
+        if not new:
+            return rest[:FUNNEL_BATCH]  # nothing in this round could be fitted: it says nothing about the next
+        rows = self.rank(entries)
+        best = min((r.ic for r in rows if r.significant), default=-math.inf)
+        near = [r for r in rows if r.ic <= best + self.reach]
+        if any(r.ic <= best + self.reach for r in rows[len(entries) - len(new) :]):
+            return rest[:FUNNEL_BATCH]
+        self.cut = True
+        return [(i, c) for i, c in rest if any(nested(c, r) for r in near)]
 
 
 def rank_trajectory(
@@ -726,7 +776,8 @@ def rank_trajectory(
 
     ``windows``: how the record is cut (:class:`WindowPlan`); with too few windows and ``allow_in_sample``, a zero
     law that runs away over a whole trajectory is started again from the candidates' conservative fits.
-    ``settings``: the shortlist, the bootstrap and the threads (:class:`TrajectorySettings`; :func:`fit_rows`).
+    ``settings``: the shortlist, the funnel's reach, the bootstrap and the threads (:class:`TrajectorySettings`;
+    :func:`fit_rows`, :class:`Funnel`); the table's note and ``settings["funnel"]`` say how many families were fitted.
     ``library_of``: a larger table whose rows hold ``table``'s (a sub-table of it): the compiled programs are built
     for all its families, so every sub-table of it runs the same ones (only ``table``'s candidates are fitted).
     """
@@ -775,10 +826,29 @@ def rank_trajectory(
     def fit(ci, row, warm=None):  # the row's branch of the universal right-hand side (0: the zero law)
         return _fit_row(branch[id(row)] if ci else 0, row, ranking=ranking, warm=warm)
 
-    results = fit_rows(fit, zero, cands, settings.threads)
+    def judged(results):  # the table's rows of these entries, judged (select_law marks the eligible ones)
+        rows = _trajectory_rows(results, table.settings, table.base.y_rms, q_pos, qd, t, n_res)[0]
+        select_law(rows, 1.0, 1.0, "", {}, base=table.base)
+        return rows
+
+    reach = FUNNEL_REACH if settings.reach is None else float(settings.reach)
+    # whole trajectories in-sample (a throw, a short drop): the pointwise order of such a record says little about
+    # the trajectory-level one (on a 2-D throw the funnel claimed linear drag where the whole shortlist ties it
+    # with the true quadratic drag: benchmarks/funnel_audit.py) — every family is fitted
+    funnel = None if math.isinf(reach) or in_sample else Funnel(judged, reach)
+    results = fit_rows(fit, zero, cands, settings.threads, funnel)
     if results is None or len(results) < 2:  # no zero law, or nothing beside it: the table stands
         return table
     rows, n_eff, tau = _trajectory_rows(results, table.settings, table.base.y_rms, q_pos, qd, t, n_res)
+    n_pw, n_fit = sum(r.key != "none" for r in table.rows), len(results) - 1
+    kept = f"{n_fit} of the {n_pw} families fitted by shooting" + (
+        f" (in the pointwise ranking's order, rounds of {FUNNEL_BATCH} while a round came within ΔIC {reach:g} of"
+        " the best eligible, then the special cases of the rows within it; the others out of reach)"
+        if funnel is not None and funnel.cut
+        else f" (the pointwise ranking's first {len(cands)})"
+        if len(cands) < n_pw
+        else ""
+    )
     return select_law(
         rows,
         n_eff,
@@ -787,7 +857,8 @@ def rank_trajectory(
             f"in-sample fits of {W} whole trajectories (too short for held-out windows; IC with the fit's own error)"
             if in_sample
             else f"{G} held-out groups of shooting windows ({W} windows)"
-        ),
+        )
+        + f"; {kept}",
         {
             **table.settings,
             "method": "trajectory",
@@ -795,6 +866,13 @@ def rank_trajectory(
             "in_sample": in_sample,
             "substeps": nsub,
             "pointwise_candidates": [r.to_dict() for r in table.rows],
+            "funnel": {
+                "pointwise": n_pw,
+                "shortlist": len(cands),
+                "trajectory": n_fit,
+                "reach": None if funnel is None else reach,  # None: every shortlisted family
+                "cut": bool(funnel is not None and funnel.cut),
+            },
         },
         base=table.base,
     )

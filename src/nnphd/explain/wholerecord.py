@@ -28,6 +28,7 @@ saying what the whole record said (or why it was not asked).
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -90,7 +91,7 @@ def whole_record_fits(ctx: dict, keys: list[str]):
             angles=ctx["angles"],
             fc_fn=None,
             windows=WindowPlan(window_periods=(0.75,), min_windows=ALL_WINDOWS, allow_in_sample=True),
-            settings=TrajectorySettings(seed=ctx["seed"]),
+            settings=TrajectorySettings(seed=ctx["seed"], reach=math.inf),  # every tied family, no funnel
             library_of=pw,  # the program of every tie set: the table's whole library, not the tied families alone
         )
         if ranked is not sub and ranked.settings.get("in_sample"):

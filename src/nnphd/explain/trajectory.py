@@ -744,11 +744,11 @@ class Funnel:
         if not new:
             return rest[:FUNNEL_BATCH]  # nothing in this round could be fitted: it says nothing about the next
         rows = self.rank(entries)
-        best = min((r.ic for r in rows if r.significant), default=-math.inf)
-        near = [r for r in rows if r.ic <= best + self.reach]
-        if any(r.ic <= best + self.reach for r in rows[len(entries) - len(new) :]):
+        edge = min((r.ic for r in rows if r.significant), default=-math.inf) + self.reach
+        if any(r.ic <= edge for r in rows[len(entries) - len(new) :]):
             return rest[:FUNNEL_BATCH]
         self.cut = True
+        near = [r for r in rows if r.ic <= edge]
         return [(i, c) for i, c in rest if any(nested(c, r) for r in near)]
 
 

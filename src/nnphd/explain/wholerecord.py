@@ -28,7 +28,6 @@ saying what the whole record said (or why it was not asked).
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -91,7 +90,7 @@ def whole_record_fits(ctx: dict, keys: list[str]):
             angles=ctx["angles"],
             fc_fn=None,
             windows=WindowPlan(window_periods=(0.75,), min_windows=ALL_WINDOWS, allow_in_sample=True),
-            settings=TrajectorySettings(seed=ctx["seed"], reach=math.inf),  # every tied family, no funnel
+            settings=TrajectorySettings(seed=ctx["seed"]),  # in-sample: every tied family is fitted (no funnel)
             library_of=pw,  # the program of every tie set: the table's whole library, not the tied families alone
         )
         if ranked is not sub and ranked.settings.get("in_sample"):

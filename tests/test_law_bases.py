@@ -61,6 +61,11 @@ def test_both_bases_pointing_to_one_family_claim_it_with_the_first_eligible_fit(
     out = combine_bases([("lib", _table([lib_row], law=lib_row)), ("lnn", _table([lnn_row], law=lnn_row))])
     assert out.status == "claimed" and out.law is lib_row and out.ties == []
     assert [b["families"] for b in out.settings["bases"]] == [["linear"], ["linear"]]
+    # how many families each base's trajectory-level table fitted rides along (the LNN's funnel is not the home's)
+    lnn = _table([lnn_row], law=lnn_row)
+    lnn.settings["funnel"] = {"trajectory": 8, "cut": True}
+    out = combine_bases([("lib", _table([lib_row], law=lib_row)), ("lnn", lnn)])
+    assert [b.get("funnel") for b in out.settings["bases"]] == [None, {"trajectory": 8, "cut": True}]
     # the library's best candidate barred (its two fits disagree), the LNN's windows and envelope agree on it
     barred = _row("linear+coulomb", [0.21, 2.07], -70.0, significant=False, barred_only_by_disagreement=True)
     fit = _row("linear+coulomb", [0.21, 2.06], -68.0)

@@ -506,6 +506,7 @@ def combine_bases(tables: list[tuple[str, LawTable]]) -> LawTable:
             "families": [r.key for r in p],
             "law": t.law.to_dict() if t.law is not None else None,
             "reason": t.reason,
+            **({"funnel": t.settings["funnel"]} if "funnel" in t.settings else {}),  # how many families it fitted
         }
         for name, t, p in views
     ]

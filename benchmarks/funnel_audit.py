@@ -1,15 +1,19 @@
 """Does the law search's funnel drop a family that could have won? (issue 57.) Each record is run through
 ``detect_file`` twice in one process at its default settings (no genetic symbolic regression), with the same seed:
-once with the funnel off (``nnphd.explain.trajectory.FUNNEL_REACH = inf``: every shortlisted family fitted by shooting,
-as before the funnel) and once at its default; prints per record the verdict, the claimed law (or the best candidate)
+once with the funnel at its default and once off (``nnphd.explain.trajectory.FUNNEL_REACH = inf``: every shortlisted
+family fitted by shooting, as before the funnel) — where the funnel cut nothing the second run would fit the same
+families from the same starts, and is not run; prints per record the verdict, the claimed law (or the best candidate)
 with its coefficients, the ties, how many families each trajectory-level table fitted, and whether the two runs agree:
 the same verdict, the same claimed law and ties, each coefficient within the larger of the two stated standard errors.
 
     .venv/bin/python benchmarks/funnel_audit.py [--records kind:name,...] [--seeds 0] [--json out.json]
 
 ``--records``: as benchmarks/stage_times.py (friction:, laws:, recordings:, real:, ibm:RUN; ``all``: every look-alike
-of tests/fixtures with two or more coordinates and the real IBM double-pendulum runs 6 and 13 at 100 Hz — the funnel
-runs only where there are two or more coordinates). Results: results/funnel_audit.json.
+of tests/fixtures with two or more coordinates and the real IBM double-pendulum runs 6 and 13 at 100 Hz; ``all1d``:
+every look-alike of one coordinate and the real 1-D recordings of results/friction_reference.json — the funnel does
+not run on one coordinate; results/funnel_audit_1d.json is the run of a one-coordinate funnel that was not kept, as
+it changed a claim). Results: results/funnel_audit.json. Each base's table of a combined one is read from the law
+table's ``settings.bases``.
 """
 
 from __future__ import annotations
@@ -37,21 +41,43 @@ def _all() -> list[str]:
     amplitude envelope ranks after the windows): the 2-D look-alikes of tests/fixtures and two real IBM runs."""
     return [
         "friction:throw-2d",
-        *(f"laws:{n}" for n in ("quadratic-drag-2d", "anisotropic-damping", "henon-heiles", "gyroscopic")),
+        *(f"laws:{n}" for n in TWO_D_LAWS),
         *(f"recordings:{n}" for n in recordings.NAMES if recordings.make(n, 0).q.shape[1] > 1),
         "ibm:6",
         "ibm:13",
     ]
 
 
+def _all1d() -> list[str]:
+    """The records of one coordinate (the funnel's with the amplitude envelope counted): every 1-D look-alike of
+    tests/fixtures and the real 1-D recordings of results/friction_reference.json."""
+    from tests.fixtures import friction, laws
+
+    with open(os.path.join(ROOT, "benchmarks", "results", "friction_reference.json")) as f:
+        real = [os.path.splitext(os.path.basename(r["file"]))[0] for r in json.load(f)["recordings"]]
+    return [
+        *(f"friction:{n}" for n in friction.NAMES if n != "throw-2d"),
+        *(f"laws:{n}" for n in laws.NAMES if n not in TWO_D_LAWS),
+        *(f"recordings:{n}" for n in recordings.NAMES if recordings.make(n, 0).q.shape[1] == 1),
+        *(f"real:{n}" for n in real),
+    ]
+
+
+TWO_D_LAWS = ("quadratic-drag-2d", "anisotropic-damping", "henon-heiles", "gyroscopic")
+
+
 def _tables(rep: dict) -> list[dict]:
-    """The law tables of a report that a trajectory-level ranking made (the claimed one; the library base's)."""
+    """The law tables of a report that a trajectory-level ranking made (the claimed one; the library base's; each
+    base's of a combined table, as {"settings": {"funnel": …}})."""
     out = []
 
     def walk(d):
         if isinstance(d, dict):
             if "funnel" in d.get("settings", {}) and "candidates" in d:
                 out.append(d)
+            for base in d.get("settings", {}).get("bases", []) if "candidates" in d else []:
+                if isinstance(base, dict) and "funnel" in base:
+                    out.append({"settings": {"funnel": base["funnel"]}})
             for v in d.values():
                 walk(v)
         elif isinstance(d, list):
@@ -67,7 +93,11 @@ def _summary(rep: dict) -> dict:
     win = law.get("law")
     best = win or next((c for c in law.get("candidates", []) if c.get("law") != "none"), None)
     fits = [
-        {"pointwise": t["settings"]["funnel"]["pointwise"], "trajectory": t["settings"]["funnel"]["trajectory"]}
+        {
+            "pointwise": t["settings"]["funnel"]["pointwise"],
+            "trajectory": t["settings"]["funnel"]["trajectory"],
+            "cut": bool(t["settings"]["funnel"].get("cut")),
+        }
         for t in _tables(rep)
     ]
     stages = {s["stage"]: s["s"] for s in rep.get("timings", {}).get("stages", [])}
@@ -111,7 +141,7 @@ def main() -> None:
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     nnphd.configure()  # float64 and the XLA:CPU setting, as the CLI
-    specs = _all() if a.records == "all" else [s for s in a.records.split(",") if s]
+    specs = {"all": _all, "all1d": _all1d}.get(a.records, lambda: [s for s in a.records.split(",") if s])()
     import nnphd.explain.trajectory as trajectory
     from nnphd.user.detect import detect_file
 
@@ -123,7 +153,12 @@ def main() -> None:
                 name, path, angles, _, extra = record(spec, work, seed)
                 settings = {"field": extra[1]} if extra else {}
                 got = {}
-                for label, reach in (("all", math.inf), ("funnel", default)):
+                for label, reach in (("funnel", default), ("all", math.inf)):
+                    if label == "all" and not any(x["cut"] for x in got["funnel"]["fits"]):
+                        # the funnel fitted the whole shortlist: the same fits as without it (each candidate's fit
+                        # starts from the zero law's and its own pointwise one, whatever the order)
+                        got[label] = {**got["funnel"], "not_run": "the funnel cut nothing: the same fits"}
+                        continue
                     trajectory.FUNNEL_REACH = reach
                     t0 = time.perf_counter()
                     rep = detect_file(path, out=None, angles=angles, seed=seed, sr_time=0, **settings)

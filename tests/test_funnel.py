@@ -91,3 +91,30 @@ def test_a_round_without_any_fit_does_not_end_the_funnel():
     cands += [_row(f"bad{i}", None) for i in range(4)] + [_row("late", -9.0, ["late"])]
     keys, funnel = _run(cands, 6.0)
     assert keys[-1] == "late" and not funnel.cut
+
+
+@pytest.mark.slow  # ~10 s: the law table of a pendulum look-alike at trajectory level
+def test_one_coordinate_fits_every_family_and_keeps_a_tie_the_pointwise_order_hides(tmp_path):
+    """A damped pendulum look-alike (one coordinate, held-out windows, the library base): every family is fitted.
+    The windows and the amplitude envelope tie linear and Coulomb friction, where the pointwise fits put dry friction
+    far down (a Coulomb force's smoothed q̈): a funnel in the pointwise order dropped it and claimed linear friction
+    (benchmarks/funnel_audit.py, docs/scaling.md)."""
+    import numpy as np
+
+    from nnphd.explain.search import LawRun, find_law
+    from nnphd.user.derivatives import Derivatives
+    from nnphd.user.recording import load_trajectories
+    from tests.fixtures import recordings
+
+    rec = recordings.make("pendulum-damped", 0)
+    ud = load_trajectories(rec.write_csv(tmp_path / "p.csv"), list(rec.angles))
+    d = Derivatives().dataset(ud)
+    traj = np.concatenate([np.full(b - a, i) for i, tr in enumerate(d.info["trajectories"]) for a, b in [tr["kept"]]])
+    run = LawRun(traj, tuple(ud.coords), tuple(bool(a) for a in ud.is_angle), d.info, d.row_errors, seed=0)
+    table = find_law(d.data, run)
+    f = table.settings["funnel"]
+    assert not table.settings["in_sample"] and f["reach"] is None and not f["cut"], f
+    assert f["trajectory"] == f["shortlist"] == f["pointwise"], f
+    pointwise = [r["law"] for r in table.settings["pointwise_candidates"]]
+    assert pointwise.index("coulomb") >= 8, pointwise  # far down the pointwise order
+    assert table.law.key == "linear" and [r.key for r in table.ties] == ["coulomb"], table.reason

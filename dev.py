@@ -82,7 +82,8 @@ def main() -> None:
         # one pytest process per core (pytest-xdist; a module's tests stay together): nnphd holds XLA to one
         # thread per process (nnphd.configure), so the cores are filled by processes
         # the slowest tests are listed at the end: where a tier's time goes (budgets: 5 min fast, 30 min in all)
-        xdist = ["-n", "auto", "--dist", "loadfile", "--durations", "30"]
+        # in the order tests/conftest.py gives (the longest modules first), not xdist's by number of tests
+        xdist = ["-n", "auto", "--dist", "loadfile", "--no-loadscope-reorder", "--durations", "30"]
         extra = sys.argv[2:]
         # the tests marked slow (end-to-end runs at realistic sizes) only with --slow, unless -m chooses otherwise
         tier = ["-m", "slow"] if "--slow" in extra else [] if "-m" in extra else ["-m", "not slow"]

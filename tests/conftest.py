@@ -35,6 +35,26 @@ def pytest_configure(config):
         os.environ.setdefault(stored.ENV, "0")
 
 
+# pytest-xdist hands out whole modules (``--dist loadfile``) in the order of the collection (dev.py turns off its
+# reordering by number of tests, which sent a module of one long test — the README's commands, 210 s — last, to run
+# while the other worker sat idle): the longest modules first, so the last ones to start are short. Seconds per
+# module of each tier, as dev.py's durations showed them on 2 cores (a rough order is all it needs; the modules not
+# named follow in their usual order).
+LONGEST = {
+    "slow": ("test_law_verdict", "test_unlike", "test_readme", "test_detect_recordings", "test_reproduce",
+             "test_predict", "test_adaptive", "test_batch", "test_detect_file", "test_declared_field", "test_markers",
+             "test_studies", "test_parallel", "test_api", "test_shape_classes", "test_symbolic", "test_trust"),
+    "not slow": ("test_models", "test_train", "test_periodic", "test_shape_classes", "test_systems",
+                 "test_alongside", "test_strategy_objects", "test_model_files", "test_laws", "test_api"),
+}  # fmt: skip
+
+
+def pytest_collection_modifyitems(config, items):
+    longest = LONGEST.get(" ".join((config.option.markexpr or "").split()), ())
+    rank = {m: i for i, m in enumerate(longest)}
+    items.sort(key=lambda it: rank.get(it.nodeid.split("::")[0].rsplit("/", 1)[-1].removesuffix(".py"), len(rank)))
+
+
 def pytest_unconfigure(config):
     if not hasattr(config, "workerinput"):
         for own in (_OWN_CACHE, _OWN_HOME):

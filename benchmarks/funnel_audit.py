@@ -35,6 +35,8 @@ from stage_times import record  # noqa: E402
 import nnphd  # noqa: E402
 from tests.fixtures import recordings  # noqa: E402
 
+TWO_D_LAWS = ("quadratic-drag-2d", "anisotropic-damping", "henon-heiles", "gyroscopic")
+
 
 def _all() -> list[str]:
     """The records with two or more coordinates (the funnel's; on one coordinate every family is fitted, as the
@@ -49,8 +51,8 @@ def _all() -> list[str]:
 
 
 def _all1d() -> list[str]:
-    """The records of one coordinate (the funnel's with the amplitude envelope counted): every 1-D look-alike of
-    tests/fixtures and the real 1-D recordings of results/friction_reference.json."""
+    """The records of one coordinate (where the funnel does not run: a funnel tried there is audited on them): every
+    1-D look-alike of tests/fixtures and the real 1-D recordings of results/friction_reference.json."""
     from tests.fixtures import friction, laws
 
     with open(os.path.join(ROOT, "benchmarks", "results", "friction_reference.json")) as f:
@@ -61,9 +63,6 @@ def _all1d() -> list[str]:
         *(f"recordings:{n}" for n in recordings.NAMES if recordings.make(n, 0).q.shape[1] == 1),
         *(f"real:{n}" for n in real),
     ]
-
-
-TWO_D_LAWS = ("quadratic-drag-2d", "anisotropic-damping", "henon-heiles", "gyroscopic")
 
 
 def _tables(rep: dict) -> list[dict]:

@@ -37,9 +37,9 @@ def pytest_configure(config):
 
 # pytest-xdist hands out whole modules (``--dist loadfile``) in the order of the collection (dev.py turns off its
 # reordering by number of tests, which sent a module of one long test — the README's commands, 210 s — last, to run
-# while the other worker sat idle): the longest modules first, so the last ones to start are short. Seconds per
-# module of each tier, as dev.py's durations showed them on 2 cores (a rough order is all it needs; the modules not
-# named follow in their usual order).
+# while the other worker sat idle): the longest modules first, so the last ones to start are short. The longest
+# modules of each tier, longest first, as dev.py's durations showed them on 2 cores (a rough order is all it needs;
+# the modules not named follow in their usual order).
 LONGEST = {
     "slow": ("test_law_verdict", "test_unlike", "test_readme", "test_detect_recordings", "test_reproduce",
              "test_predict", "test_adaptive", "test_batch", "test_detect_file", "test_declared_field", "test_markers",

@@ -281,6 +281,44 @@ def test_a_conservative_base_with_its_numbers_apart_gives_the_table_of_the_closu
             np.testing.assert_allclose(a["params"][k], b["params"][k], rtol=1e-8, atol=1e-12)
 
 
+def test_the_fitted_directions_are_two_classes_whatever_the_data_keep():
+    # a candidate's directions (α and its law's parameters, each a tangent simulation) are padded to one number for
+    # every family but the sparse law and one for the sparse law: whether a record's sparse law is fitted, and how
+    # many terms it keeps, no longer changes the other candidates' programs (a 2-D drag record: 48 directions each
+    # with its 25-term sparse law among the fitted, 32 on its 80 % copy without it — two programs compiled again)
+    from nnphd.explain.families import families, odd_monomials, sparse_family
+    from nnphd.explain.trajectory import DIRECTION_STEP, SPARSE_SLOTS, Directions, parameter_layout, with_sparse_slots
+
+    def up(p):
+        return -(-p // DIRECTION_STEP) * DIRECTION_STEP
+
+    def directions(n, Kc, support=None):
+        names = [f"q{i}" for i in range(n)]
+        fams = families(n, names, np.ones(n)) + ([] if support is None else [sparse_family(n, names, support)])
+        return parameter_layout(with_sparse_slots(sorted(fams, key=lambda f: f.key), n), Kc)[1]
+
+    for n, Kc in ((1, 5), (2, 23)):
+        M = len(odd_monomials(n))
+        few, many = np.zeros((n, M), bool), np.ones((n, M), bool)
+        few[0, :3] = True
+        many[0, 0] = False
+        dirs = {directions(n, Kc), directions(n, Kc, few), directions(n, Kc, many)}
+        largest = max(len(f.coef_names) + len(f.nl_names) for f in families(n, ["q"] * n, np.ones(n)))
+        # the sparse class: its largest possible support (n × the odd monomials; 4 and 32 here)
+        assert dirs == {Directions(up(Kc + largest), up(Kc + n * M))}, (n, dirs)
+    assert directions(2, 23) == (32, 56)  # 23 + the largest built-in family's 6 → 32; 23 + 2 × 16 → 56
+    # three coordinates (120 possible terms): a sparse law's class follows its slots (multiples of SPARSE_SLOTS)
+    M3 = len(odd_monomials(3))
+    few, many = np.zeros((3, M3), bool), np.ones((3, M3), bool)
+    many[0, :20] = False
+    few[0, :3] = True
+    assert directions(3, 40).sparse == directions(3, 40, few).sparse == up(40 + SPARSE_SLOTS)
+    assert directions(3, 40, many).sparse == up(40 + 3 * M3)  # 100 terms: 128 slots, at most the 120 possible
+    d = directions(2, 23)
+    sparse = sparse_family(2, ["x", "y"], np.ones((2, 16), bool))
+    assert d.of(None) == d.of(families(2, ["x", "y"], np.ones(2))[0]) == 32 and d.of(sparse) == 56
+
+
 def test_one_right_hand_side_per_structure_not_per_record():
     # the shooting programs take the universal right-hand side as a static argument hashed by identity: records of
     # other lengths (other speeds, other sparse supports, other trained numbers) with the same structure get the

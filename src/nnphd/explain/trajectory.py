@@ -86,13 +86,31 @@ class TrajectorySettings:
     reach: float | None = None
 
 
+class Directions(NamedTuple):
+    """The parameters one candidate of the trajectory-level law fits fits — its directions of the shooting Jacobian,
+    each a tangent simulation: α and its law's, padded with zero directions (never free) to one number for every
+    family but the sparse law (``small``: the table's largest other family, whether fitted or not) and one for the
+    sparse law (``sparse``: its largest possible support, n × the odd monomials, or its slots where fewer), each a
+    multiple of :data:`DIRECTION_STEP`. Two classes, not one: a sparse law among the fitted candidates (a 2-D drag
+    record's, 25 coefficients) gave every candidate its directions (48 against 32 — a third more work on every
+    Jacobian), and a copy of the record whose sparse law was not fitted, or had fewer terms, compiled the candidates'
+    programs again (4 s of XLA of a 2-D drag record's 80 % copy). Now every record with the same families and
+    conservative columns runs the same two."""
+
+    small: int
+    sparse: int
+
+    def of(self, fam: Family | None) -> int:
+        return self.sparse if fam is not None and _is_sparse(fam) else self.small
+
+
 class _Layout(NamedTuple):
-    """The universal θ of one ranking (:func:`_parameter_layout`): each family's ``slots`` (offset, K, m), the
-    parameters one candidate fits ``P_dir``, the default θ ``nl_defaults``, the pointwise α of every row ``alpha0``
-    (by ``id(row)``) and the conservative columns ``Kc``."""
+    """The universal θ of one ranking (:func:`parameter_layout`): each family's ``slots`` (offset, K, m), the
+    parameters one candidate fits ``P_dir`` (:class:`Directions`), the default θ ``nl_defaults``, the pointwise α of
+    every row ``alpha0`` (by ``id(row)``) and the conservative columns ``Kc``."""
 
     slots: list
-    P_dir: int
+    P_dir: Directions
     nl_defaults: np.ndarray
     alpha0: dict
     Kc: int
@@ -286,8 +304,8 @@ def _is_sparse(f: Family) -> bool:
 # Shape classes of the universal θ (as :mod:`nnphd.engine.shooting`'s of the windows): a sparse law's coefficients
 # — how many the data keep (6 on a 2-D drag record, 8 on its first 80 %) — take a multiple of SPARSE_SLOTS slots of
 # θ, the rest at zero on a zero column (component −1 in :func:`sparse_supports`); the directions one candidate fits
-# (α and its law: P_dir, each a tangent simulation) are a multiple of DIRECTION_STEP, the rest zero rows of D, never
-# free; the whole θ is a multiple of THETA_STEP, its tail unused by the right-hand side (zero columns of D). None
+# (α and its law: P_dir, each a tangent simulation) are one of two numbers (:class:`Directions`), each a multiple of
+# DIRECTION_STEP, the rest zero rows of D, never free; the whole θ is a multiple of THETA_STEP, its tail unused by the right-hand side (zero columns of D). None
 # changes a number; a record of another length with the same families then runs the programs of the first (it
 # compiled them again: 11 s of XLA). Slots of 32 hold every sparse law of two coordinates (at most 2 × 16 terms) in
 # one class; θ in multiples of 16 gave the whole-record tie fits of a video pendulum and of its 80 % copy one size
@@ -418,22 +436,21 @@ def _window_arrays(wins, t, q_pos, qd, sigma, period: float):
     return args, s0, mask, nsub
 
 
-def _parameter_layout(fams: Sequence[Family], Kc: int, fitted: Sequence[Family] | None = None):
+def parameter_layout(fams: Sequence[Family], Kc: int):
     """The universal θ = (α, [β_f, θ_f, gate_f]…) of :func:`_universal_rhs`. Returns (slots, P_dir, nl_defaults):
-    each family's (offset, K, m) in θ, the number of parameters one candidate fits (α and the largest family of
-    ``fitted``, default all: every one of them is a direction of the shooting Jacobian, so a large family that is
-    not fitted — a 2-D sparse law's 30 — would only slow the others), and the default θ — each family's nonlinear
-    parameters at 1 (within their bounds), all else 0."""
+    each family's (offset, K, m) in θ, the numbers of parameters one candidate fits (:class:`Directions`: every one
+    of them is a direction of the shooting Jacobian), and the default θ — each family's nonlinear parameters at 1
+    (within their bounds), all else 0."""
     slots, off = [], Kc  # where each family's (β, θ, gate) sit in the universal θ
     for f in fams:
         K, m = coef_slots(f), len(f.nl_names)
         slots.append((off, K, m))
         off += K + m + 1
     P_glob = -(-off // THETA_STEP) * THETA_STEP  # the tail: no family's (see THETA_STEP)
-    fitted_ids = None if fitted is None else {id(f) for f in fitted}
-    P_dir = Kc + max([len(f.coef_names) + m for f, (_, _, m) in zip(fams, slots)
-                      if fitted_ids is None or id(f) in fitted_ids], default=0)  # fmt: skip
-    P_dir = -(-P_dir // DIRECTION_STEP) * DIRECTION_STEP
+    step = lambda p: -(-p // DIRECTION_STEP) * DIRECTION_STEP  # noqa: E731
+    small = [len(f.coef_names) + m for f, (_, _, m) in zip(fams, slots) if not _is_sparse(f)]
+    sparse = [min(K, np.size(f.spec["support"])) + m for f, (_, K, m) in zip(fams, slots) if _is_sparse(f)]
+    P_dir = Directions(step(Kc + max(small, default=0)), step(Kc + max(sparse, default=0)))
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):
         if m:
@@ -442,7 +459,7 @@ def _parameter_layout(fams: Sequence[Family], Kc: int, fitted: Sequence[Family] 
     return slots, P_dir, nl_defaults
 
 
-def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: int):
+def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: Directions):
     """One row's parametrisation θ = base + u·D of the universal θ: u = its α, then (a family) its β and θ — that
     family's gate at 1, the others' at 0. Returns (base, D, u0, n_fit): u0 the row's pointwise fit (padded with zeros
     to P_dir), n_fit the number of its parameters."""
@@ -456,9 +473,10 @@ def _candidate_start(row, ci: int, slots, nl_defaults, alpha0, Kc: int, P_dir: i
         idx += list(range(o, o + len(fam.coef_names))) + list(range(o + K, o + K + m))
         u0 += list(row.beta) + list(row.theta)
         base[o : o + K + m] = 0.0
-    D = np.zeros((P_dir, len(nl_defaults)))
+    P = P_dir.of(fam)
+    D = np.zeros((P, len(nl_defaults)))
     D[np.arange(len(idx)), idx] = 1.0
-    u0 = np.concatenate([u0, np.zeros(P_dir - len(idx))])
+    u0 = np.concatenate([u0, np.zeros(P - len(idx))])
     return base, D, u0, len(idx)
 
 
@@ -640,7 +658,7 @@ def _fit_row(ci: int, row, *, ranking: _Ranking, warm=None):
     def jac(s_, u_):
         return model_jac(s_, u_, aux, args, Integrator(rhs, nsub))
 
-    free = np.zeros(P_dir, bool)
+    free = np.zeros(P_dir.of(fam), bool)
     free[:n_fit] = True
     # the conservative starts: this row's own, then (the zero law, whole trajectories) the other rows' — the
     # zero law's pointwise f_c soaks up what it can of the friction and can run away over a long window
@@ -809,7 +827,7 @@ def rank_trajectory(
     library = sorted(held, key=lambda r: (r.key, r.family.k))
     fams = with_sparse_slots([r.family for r in library], n)
     branch = {id(r): next(i for i, f in enumerate(fams, 1) if f is r.family) for r in library}
-    slots, P_dir, nl_defaults = _parameter_layout(fams, Kc, [r.family for r in cands])
+    slots, P_dir, nl_defaults = parameter_layout(fams, Kc)
     rhs = universal_rhs(fams, Kc, angles, fc_fn, table.settings.get("library", True))
     ranking = _Ranking(
         cands,

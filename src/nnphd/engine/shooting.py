@@ -607,10 +607,8 @@ def collapsed(d, se_d_mean: float, d_start, period: float) -> str | None:
 
 def _device_windows(tw, qw, mask, inv_sigma) -> ShootingWindows:
     """The padded windows as JAX arrays, every window's clock starting at 0 (the damping probe is autonomous)."""
-    tw = jnp.asarray(tw)
-    return ShootingWindows(
-        tw, jnp.zeros(tw.shape[0], tw.dtype), jnp.asarray(qw), jnp.asarray(mask), jnp.asarray(inv_sigma)
-    )
+    tw = np.asarray(tw)  # device_put, not jnp.asarray: no small program compiled per number of windows
+    return ShootingWindows(*jax.device_put((tw, np.zeros(tw.shape[0], tw.dtype), qw, mask, inv_sigma)))
 
 
 def shooting_fit_on_windows(

@@ -113,7 +113,8 @@ def stage_times_held_out() -> str:
         )
         out.append("")
     if base:
-        line = (f"before ({d['baseline']['commit']}, another day), warm: median {_median(list(base.values())):.1f} s,"
+        when = d["baseline"].get("when", "another day")
+        line = (f"before ({d['baseline']['commit']}, {when}), warm: median {_median(list(base.values())):.1f} s,"
                 f" max {max(base.values()):.1f} s")  # fmt: skip
         if base_other:
             line += (f"; other length, compiling: median {_median(list(base_other.values())):.1f} s, max "

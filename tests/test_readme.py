@@ -245,6 +245,10 @@ def _check_time_and_scale_out(text):
     m = _find(r"takes (\d+)–(\d+) s a file warm \(median (\d+);", text)
     warm = [r["warm"]["total_s"] for r in _json("stage_times.json")]
     assert [int(x) for x in m.groups()] == [round(min(warm)), round(max(warm)), round(statistics.median(warm))]
+    h = _find(r"\(median (\d+) s, max (\d+\.\d) s on (\w+) held-out ones of other kinds", text)
+    held = [r["warm"]["total_s"] for r in _json("stage_times_held_out.json")["records"]]  # stage_times.py --records
+    assert (f"{statistics.median(held):.0f}", f"{max(held):.1f}") == (h[1], h[2])
+    assert (h[3], len(held)) == ("eleven", 11)
     w = _find(r"on Dask the same numbers with (\d+) or (\d+) workers", text)
     workers = _json("workers_detect.json")  # benchmarks/bench_workers.py detect: the same files, 1 and 2 workers
     assert workers["identical_numbers"] and sorted(map(int, workers["wall_s"])) == [int(w[1]), int(w[2])]
@@ -253,7 +257,7 @@ def _check_time_and_scale_out(text):
     batch = next(s for k, s in sets.items() if k.endswith(f"= {c[1]} files"))
     row = next(r for r in batch["rows"] if r["workers"] == int(c[2]))
     assert f"{row['efficiency']:.2f}" == c[3]
-    return [m, w, c]
+    return [m, h, w, c]
 
 
 def _check_speed(text):
@@ -393,6 +397,8 @@ def test_every_number_at_a_glance_is_one_a_test_checks():
         ("(four sources)", "(five sources)"),
         ("laws within 9 %", "laws within 5 %"),
         ("(median 27;", "(median 26;"),
+        ("max 68.5 s on eleven", "max 67.5 s on eleven"),
+        ("(median 17 s,", "(median 18 s,"),
         ("efficiency 0.98", "efficiency 0.97"),
         ("6.0× a plain", "5.0× a plain"),
         ("all eight systems", "all seven systems"),

@@ -92,10 +92,10 @@ class Directions(NamedTuple):
     family but the sparse law (``small``: the table's largest other family, whether fitted or not) and one for the
     sparse law (``sparse``: its largest possible support, n × the odd monomials, or its slots where fewer), each a
     multiple of :data:`DIRECTION_STEP`. Two classes, not one: a sparse law among the fitted candidates (a 2-D drag
-    record's, 25 coefficients) gave every candidate its directions (48 against 32 — a third more work on every
-    Jacobian), and a copy of the record whose sparse law was not fitted, or had fewer terms, compiled the candidates'
-    programs again (4 s of XLA of a 2-D drag record's 80 % copy). Now every record with the same families and
-    conservative columns runs the same two."""
+    record's, 25 coefficients) gave every candidate its directions (48 where 32 would do), and a copy of the record
+    whose sparse law was not fitted, or had fewer terms, compiled the candidates' programs again (4 s of XLA of a
+    2-D drag record's 80 % copy). Now every record with the same families and conservative columns runs the same
+    two (the sparse law, where it is fitted, with more zero directions than before: 56 against 48 there)."""
 
     small: int
     sparse: int
@@ -305,11 +305,12 @@ def _is_sparse(f: Family) -> bool:
 # — how many the data keep (6 on a 2-D drag record, 8 on its first 80 %) — take a multiple of SPARSE_SLOTS slots of
 # θ, the rest at zero on a zero column (component −1 in :func:`sparse_supports`); the directions one candidate fits
 # (α and its law: P_dir, each a tangent simulation) are one of two numbers (:class:`Directions`), each a multiple of
-# DIRECTION_STEP, the rest zero rows of D, never free; the whole θ is a multiple of THETA_STEP, its tail unused by the right-hand side (zero columns of D). None
-# changes a number; a record of another length with the same families then runs the programs of the first (it
-# compiled them again: 11 s of XLA). Slots of 32 hold every sparse law of two coordinates (at most 2 × 16 terms) in
-# one class; θ in multiples of 16 gave the whole-record tie fits of a video pendulum and of its 80 % copy one size
-# (θ of 21 and 27 before). A table that kept no sparse law keeps an empty one's slots (:func:`with_sparse_slots`).
+# DIRECTION_STEP, the rest zero rows of D, never free; the whole θ is a multiple of THETA_STEP, its tail unused by
+# the right-hand side (zero columns of D). None changes a number; a record of another length with the same families
+# then runs the programs of the first (it compiled them again: 11 s of XLA). Slots of 32 hold every sparse law of
+# two coordinates (at most 2 × 16 terms) in one class; θ in multiples of 16 gave the whole-record tie fits of a video
+# pendulum and of its 80 % copy one size (θ of 21 and 27 before). A table that kept no sparse law keeps an empty
+# one's slots (:func:`with_sparse_slots`).
 SPARSE_SLOTS = 32
 DIRECTION_STEP = 4
 THETA_STEP = 16

@@ -175,6 +175,29 @@ def test_a_swing_that_stops_for_good_contradicts_the_laws_that_cannot_stop_it():
     assert _stop(_table([vague, dry]), data, traj, final, period) == {}
 
 
+def test_a_sparse_law_and_a_built_in_one_with_the_same_force_predict_the_same_swing():
+    """The stop check integrates each candidate with its numbers as data of one compiled program (the built-in
+    families rebuilt from their speeds, a sparse law from its support's indices): a sparse law holding only the
+    viscous term, −2 θ̇, predicts the swing of the viscous family with γ = 2 and is contradicted alike."""
+    from nnphd.explain.families import odd_monomials, sparse_family
+
+    data, traj, info, period = _swing(0.3, 0.8)
+    final = _final_rest(data, traj, info, period)
+    support = np.zeros((1, len(odd_monomials(1))), bool)
+    support[0, odd_monomials(1).index(((0,), (1,)))] = True  # θ̇ alone
+    sparse = law_row(sparse_family(1, ["th"], support), np.array([-2.0]), np.zeros(0), 0.01 * np.ones(1), ["th"],
+                     1.0, "trajectory")  # fmt: skip
+    sparse.ic = sparse.delta_ic = -20.0
+    sparse.conservative, sparse.conservative_cov = np.array([0.0, A]), 0.01**2 * np.eye(2)
+    dry = _row("linear+coulomb", [0.3, 0.8], -18.0)
+    by_sparse = _stop(_table([sparse, dry]), data, traj, final, period)
+    by_linear = _stop(_table([_row("linear", [2.0], -20.0), dry]), data, traj, final, period)
+    assert set(by_sparse) == {"sparse"} and set(by_linear) == {"linear"}
+    # the same force; the coefficient draws alike but for their sign (β = −2 against γ = 2)
+    np.testing.assert_allclose(by_sparse["sparse"]["predicted_std"], by_linear["linear"]["predicted_std"], rtol=0.02)
+    assert by_sparse["sparse"]["predicted_std"] > 10 * by_sparse["sparse"]["measured_std"]
+
+
 def test_a_viscous_swing_fading_below_the_encoder_steps_is_no_stop():
     """The true viscous law of a swing that fades below the encoder's resolution (0.0015 rad) predicts what the record
     shows: no contradiction, though the rest detector calls the tail a rest."""

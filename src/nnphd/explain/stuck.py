@@ -154,51 +154,80 @@ def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
     joint fit, with its coefficient draws ``A`` (conservative) and ``B`` (law), integrated from rest at q0 (time t0)
     by ``steps`` RK4 steps of h — all draws of all candidates as one batch, the whole integration one compiled
     program (compiled once for all the rests of a record: ``steps`` is data). In numpy, step by step, it was most
-    of the stage: 8.9 s of a dry-friction look-alike's 43 s."""
+    of the stage: 8.9 s of a dry-friction look-alike's 43 s. The record's numbers — the draws, the families'
+    parameters and speeds, the sparse laws' supports, the conservative centre and the trained force's parameters —
+    are arguments of the program, not constants of it, and its steps are compiled for a power of two: a second
+    record with the same candidates runs the program the first compiled (a servo drop's 80 % copy compiled it
+    again, 1.6 s of XLA)."""
     import jax
     import jax.numpy as jnp
 
     from nnphd.explain.conservative import conservative_basis
+    from nnphd.explain.families import families, sparse_basis, sparse_index
+    from nnphd.explain.trajectory import _builtin_of, _is_sparse, builtin_speeds, fc_parts
 
     fams = [r.family for r in rows]
-    thetas = [jnp.asarray(np.asarray(r.theta, float)) for r in rows]
-    A_j = [jnp.asarray(a) for a in A]
-    B_j = [jnp.asarray(b) for b in B]
     M = len(rows) * N_DRAWS
+    cap = max(64, 1 << (int(max_steps) - 1).bit_length())  # the steps' class: a power of two, at least 64
+    v_rms, sign = builtin_speeds(fams)
+    apply, fc_params = fc_parts(fc_fn)
+    fc_plain = None if apply is not None else _compiled(fc_fn)  # a plain function: its numbers stay constants
+    supports = [tuple(jnp.asarray(a) for a in sparse_index(f.spec["support"])) for f in fams if _is_sparse(f)]
+    data = (
+        [jnp.asarray(np.asarray(r.theta, float)) for r in rows],
+        [jnp.asarray(a) for a in A],
+        [jnp.asarray(b) for b in B],
+        None if center is None else jnp.asarray(np.asarray(center, float)),
+        None if v_rms is None else jnp.asarray(np.asarray(v_rms, float)),
+        supports,
+        fc_params,
+    )
 
-    def force(x, v, tt):
-        fc = None if fc_fn is None else jnp.reshape(fc_fn(x, v), x.shape)
-        C = conservative_basis(jnp, x, v, angles, fc, center, library)
-        out = []
+    def force(x, v, tt, data):
+        thetas, A_j, B_j, centre, speeds, sparse, params = data
+        fc = None
+        if apply is not None:
+            fc = jnp.reshape(apply(params, x, v), x.shape)
+        elif fc_plain is not None:
+            fc = jnp.reshape(fc_plain(x, v), x.shape)
+        C = conservative_basis(jnp, x, v, angles, fc, centre, library)
+        own = {} if speeds is None else {f.key: f for f in families(1, ["q0"], speeds, sign)}
+        sparse, out = list(sparse), []
         for i, fam in enumerate(fams):
+            basis = fam.basis
+            if v_rms is not None and _builtin_of(fam, v_rms, sign):
+                basis = own[fam.key].basis
+            elif _is_sparse(fam):
+                index = sparse.pop(0)
+                basis = lambda xp, th, q, v, t, index=index: sparse_basis(xp, q, v, *index)  # noqa: E731
             sl = slice(i * N_DRAWS, (i + 1) * N_DRAWS)
             f = jnp.einsum("dk,dk->d", C[sl, 0], A_j[i])[:, None]
-            f = f + jnp.einsum("dnk,dk->dn", fam.basis(jnp, thetas[i], x[sl], v[sl], tt[sl]), B_j[i])
+            f = f + jnp.einsum("dnk,dk->dn", basis(jnp, thetas[i], x[sl], v[sl], tt[sl]), B_j[i])
             if fam.fixed is not None:
                 f = f + fam.fixed(jnp, thetas[i], x[sl], v[sl], tt[sl])
             out.append(f)
         return jnp.concatenate(out, axis=0)
 
     @jax.jit
-    def run(q0, t0, h, steps):
+    def run(q0, t0, h, steps, data):
         x = jnp.full((M, 1), q0)
         v = jnp.zeros((M, 1), x.dtype)
-        xs = jnp.full((max_steps + 1, M), jnp.nan, x.dtype).at[0].set(x[:, 0])
+        xs = jnp.full((cap + 1, M), jnp.nan, x.dtype).at[0].set(x[:, 0])
 
         def step(k, c):
             x, v, xs = c
             tt = jnp.full(M, t0 + k * h)
-            k1v, k1x = force(x, v, tt), v
-            k2v, k2x = force(x + h / 2 * k1x, v + h / 2 * k1v, tt + h / 2), v + h / 2 * k1v
-            k3v, k3x = force(x + h / 2 * k2x, v + h / 2 * k2v, tt + h / 2), v + h / 2 * k2v
-            k4v, k4x = force(x + h * k3x, v + h * k3v, tt + h), v + h * k3v
+            k1v, k1x = force(x, v, tt, data), v
+            k2v, k2x = force(x + h / 2 * k1x, v + h / 2 * k1v, tt + h / 2, data), v + h / 2 * k1v
+            k3v, k3x = force(x + h / 2 * k2x, v + h / 2 * k2v, tt + h / 2, data), v + h / 2 * k2v
+            k4v, k4x = force(x + h * k3x, v + h * k3v, tt + h, data), v + h * k3v
             x = x + h / 6 * (k1x + 2 * k2x + 2 * k3x + k4x)
             v = v + h / 6 * (k1v + 2 * k2v + 2 * k3v + k4v)
             return x, v, xs.at[k + 1].set(x[:, 0])
 
         return jax.lax.fori_loop(0, steps, step, (x, v, xs))[2]
 
-    return run
+    return lambda q0, t0, h, steps: run(q0, t0, h, steps, data)
 
 
 def _steps(t0: float, t1: float, period: float) -> int:
@@ -269,7 +298,6 @@ def stop_contradictions(
     N = len(motion.t)
     q, qd, t, traj = (np.asarray(a, float).reshape(N, -1) for a in (motion.q, motion.qd, motion.t, motion.traj))
     t, traj, q, qd = t[:, 0], traj[:, 0], q[:, 0], qd[:, 0]
-    fc_fn = _compiled(fc_fn)
     rng = np.random.default_rng(seed)
     A = [_draws(r.conservative, r.conservative_cov, rng, N_DRAWS) for r in rows]
     B = [_draws(r.beta, r.cov, rng, N_DRAWS) for r in rows]

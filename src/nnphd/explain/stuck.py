@@ -164,7 +164,7 @@ def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
 
     from nnphd.explain.conservative import conservative_basis
     from nnphd.explain.families import families, sparse_basis, sparse_index
-    from nnphd.explain.trajectory import _builtin_of, _is_sparse, builtin_speeds, fc_parts
+    from nnphd.explain.trajectory import builtin_of, builtin_speeds, fc_parts, is_sparse
 
     fams = [r.family for r in rows]
     M = len(rows) * N_DRAWS
@@ -172,7 +172,7 @@ def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
     v_rms, sign = builtin_speeds(fams)
     apply, fc_params = fc_parts(fc_fn)
     fc_plain = None if apply is not None else _compiled(fc_fn)  # a plain function: its numbers stay constants
-    supports = [tuple(jnp.asarray(a) for a in sparse_index(f.spec["support"])) for f in fams if _is_sparse(f)]
+    supports = [tuple(jnp.asarray(a) for a in sparse_index(f.spec["support"])) for f in fams if is_sparse(f)]
     data = (
         [jnp.asarray(np.asarray(r.theta, float)) for r in rows],
         [jnp.asarray(a) for a in A],
@@ -195,9 +195,9 @@ def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
         sparse, out = list(sparse), []
         for i, fam in enumerate(fams):
             basis = fam.basis
-            if v_rms is not None and _builtin_of(fam, v_rms, sign):
+            if v_rms is not None and builtin_of(fam, v_rms, sign):
                 basis = own[fam.key].basis
-            elif _is_sparse(fam):
+            elif is_sparse(fam):
                 index = sparse.pop(0)
                 basis = lambda xp, th, q, v, t, index=index: sparse_basis(xp, q, v, *index)  # noqa: E731
             sl = slice(i * N_DRAWS, (i + 1) * N_DRAWS)

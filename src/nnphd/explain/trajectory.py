@@ -101,7 +101,7 @@ class Directions(NamedTuple):
     sparse: int
 
     def of(self, fam: Family | None) -> int:
-        return self.sparse if fam is not None and _is_sparse(fam) else self.small
+        return self.sparse if fam is not None and is_sparse(fam) else self.small
 
 
 class _Layout(NamedTuple):
@@ -216,9 +216,9 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
             own = {f.key: f for f in families(q.shape[-1], [f"q{i}" for i in range(q.shape[-1])], speeds, sign)}
         branches, off, supports = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc, list(supports)
         for f, (K, m) in zip(fams, sizes):
-            if v_rms is not None and _builtin_of(f, v_rms, sign):
+            if v_rms is not None and builtin_of(f, v_rms, sign):
                 f = own[f.key]
-            elif _is_sparse(f):
+            elif is_sparse(f):
                 f = sparse_view(f, supports.pop(0))
             branches.append(family_term(f, off, K, m))
             off += K + m + 1
@@ -245,9 +245,9 @@ def _rhs_key(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, library) -> 
     v_rms, sign = builtin_speeds(fams)
 
     def shape(f):
-        if v_rms is not None and _builtin_of(f, v_rms, sign):
+        if v_rms is not None and builtin_of(f, v_rms, sign):
             return ("builtin", f.key, coef_slots(f), len(f.nl_names))
-        if _is_sparse(f):
+        if is_sparse(f):
             return ("sparse", coef_slots(f), len(f.nl_names))
         return ("own", id(f))
 
@@ -292,12 +292,15 @@ def fc_parts(fc_fn) -> tuple:
     return (apply, params) if callable(apply) and params is not None else (None, ())
 
 
-def _builtin_of(f: Family, v_rms, sign) -> bool:
+def builtin_of(f: Family, v_rms, sign) -> bool:
+    """Whether ``f`` is a built-in family (:func:`nnphd.explain.families.families`) of these speeds and smoothed
+    sign: a program may then build it again from the speeds given as data."""
     spec = f.spec or {}
     return spec.get("kind") == "builtin" and spec.get("v_rms") == v_rms and spec.get("sign") == sign
 
 
-def _is_sparse(f: Family) -> bool:
+def is_sparse(f: Family) -> bool:
+    """Whether ``f`` is a fitted sparse polynomial law (:func:`nnphd.explain.families.sparse_family`)."""
     return (f.spec or {}).get("kind") == "sparse" and f.fixed is None
 
 
@@ -320,7 +323,7 @@ def coef_slots(f: Family) -> int:
     """The slots of θ the coefficients of family ``f`` take in the universal right-hand side: its coefficients,
     a sparse law's padded to a multiple of :data:`SPARSE_SLOTS`."""
     K = len(f.coef_names)
-    return max(1, -(-K // SPARSE_SLOTS)) * SPARSE_SLOTS if _is_sparse(f) else K
+    return max(1, -(-K // SPARSE_SLOTS)) * SPARSE_SLOTS if is_sparse(f) else K
 
 
 def with_sparse_slots(fams: Sequence[Family], n: int) -> list[Family]:
@@ -329,7 +332,7 @@ def with_sparse_slots(fams: Sequence[Family], n: int) -> list[Family]:
     pendulum's did, its 80 % copy's did not: θ of 96 against 64, 17 s of XLA of its own); with the slots kept, both
     run one compiled program (the supports are data, :func:`sparse_supports`)."""
     fams = list(fams)
-    if not any(_is_sparse(f) for f in fams):
+    if not any(is_sparse(f) for f in fams):
         empty = sparse_family(n, [f"q{i}" for i in range(n)], np.zeros((n, len(odd_monomials(n))), bool))
         fams.insert(sum(1 for f in fams if f.key < empty.key), empty)
     return fams
@@ -341,7 +344,7 @@ def sparse_supports(fams: Sequence[Family]) -> tuple:
     :func:`nnphd.explain.families.sparse_basis`): data of the universal right-hand side."""
     out = []
     for f in fams:
-        if _is_sparse(f):
+        if is_sparse(f):
             comp, mono = sparse_index(f.spec["support"])
             pad = coef_slots(f) - len(comp)
             out.append(
@@ -449,8 +452,8 @@ def parameter_layout(fams: Sequence[Family], Kc: int):
         off += K + m + 1
     P_glob = -(-off // THETA_STEP) * THETA_STEP  # the tail: no family's (see THETA_STEP)
     step = lambda p: -(-p // DIRECTION_STEP) * DIRECTION_STEP  # noqa: E731
-    small = [len(f.coef_names) + m for f, (_, _, m) in zip(fams, slots) if not _is_sparse(f)]
-    sparse = [min(K, np.size(f.spec["support"])) + m for f, (_, K, m) in zip(fams, slots) if _is_sparse(f)]
+    small = [len(f.coef_names) + m for f, (_, _, m) in zip(fams, slots) if not is_sparse(f)]
+    sparse = [min(K, np.size(f.spec["support"])) + m for f, (_, K, m) in zip(fams, slots) if is_sparse(f)]
     P_dir = Directions(step(Kc + max(small, default=0)), step(Kc + max(sparse, default=0)))
     nl_defaults = np.zeros(P_glob)
     for f, (o, K, m) in zip(fams, slots):

@@ -163,13 +163,13 @@ def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
     import jax.numpy as jnp
 
     from nnphd.explain.conservative import conservative_basis
-    from nnphd.explain.families import families, sparse_basis, sparse_index
-    from nnphd.explain.trajectory import builtin_of, builtin_speeds, fc_parts, is_sparse
+    from nnphd.explain.families import sparse_index
+    from nnphd.explain.trajectory import builtin_speeds, families_of_data, fc_parts, is_sparse
 
     fams = [r.family for r in rows]
     M = len(rows) * N_DRAWS
     cap = max(64, 1 << (int(max_steps) - 1).bit_length())  # the steps' class: a power of two, at least 64
-    v_rms, sign = builtin_speeds(fams)
+    v_rms = builtin_speeds(fams)[0]
     apply, fc_params = fc_parts(fc_fn)
     fc_plain = None if apply is not None else _compiled(fc_fn)  # a plain function: its numbers stay constants
     supports = [tuple(jnp.asarray(a) for a in sparse_index(f.spec["support"])) for f in fams if is_sparse(f)]
@@ -191,18 +191,11 @@ def _integrator(rows, A, B, fc_fn, angles, center, library, max_steps: int):
         elif fc_plain is not None:
             fc = jnp.reshape(fc_plain(x, v), x.shape)
         C = conservative_basis(jnp, x, v, angles, fc, centre, library)
-        own = {} if speeds is None else {f.key: f for f in families(1, ["q0"], speeds, sign)}
-        sparse, out = list(sparse), []
-        for i, fam in enumerate(fams):
-            basis = fam.basis
-            if v_rms is not None and builtin_of(fam, v_rms, sign):
-                basis = own[fam.key].basis
-            elif is_sparse(fam):
-                index = sparse.pop(0)
-                basis = lambda xp, th, q, v, t, index=index: sparse_basis(xp, q, v, *index)  # noqa: E731
+        out = []
+        for i, fam in enumerate(families_of_data(fams, 1, speeds, sparse)):
             sl = slice(i * N_DRAWS, (i + 1) * N_DRAWS)
             f = jnp.einsum("dk,dk->d", C[sl, 0], A_j[i])[:, None]
-            f = f + jnp.einsum("dnk,dk->dn", basis(jnp, thetas[i], x[sl], v[sl], tt[sl]), B_j[i])
+            f = f + jnp.einsum("dnk,dk->dn", fam.basis(jnp, thetas[i], x[sl], v[sl], tt[sl]), B_j[i])
             if fam.fixed is not None:
                 f = f + fam.fixed(jnp, thetas[i], x[sl], v[sl], tt[sl])
             out.append(f)

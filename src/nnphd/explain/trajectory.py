@@ -200,31 +200,35 @@ def _universal_rhs(fams: Sequence[Family], Kc: int, angles: tuple, fc_fn, librar
 
         return term
 
-    # the built-in families' speeds (their smoothed signs' ε) are data too: the families are built again inside the
-    # program from the speeds in aux — the same bases, with the speeds as arguments and not as constants
-    v_rms, sign = builtin_speeds(fams)
-
-    # and so are the sparse laws' supports (which monomial in which component), given as indices in aux
-    def sparse_view(f, index):
-        return replace(f, basis=lambda xp, th, q, v, t: sparse_basis(xp, q, v, *index))
-
     def rhs(u, q, v, t, aux):
         base, D, which, centre, speeds, supports, fc_params = aux
         theta = base + u @ D
-        own = {}
-        if v_rms is not None:
-            own = {f.key: f for f in families(q.shape[-1], [f"q{i}" for i in range(q.shape[-1])], speeds, sign)}
-        branches, off, supports = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc, list(supports)
-        for f, (K, m) in zip(fams, sizes):
-            if v_rms is not None and builtin_of(f, v_rms, sign):
-                f = own[f.key]
-            elif is_sparse(f):
-                f = sparse_view(f, supports.pop(0))
+        branches, off = [lambda theta, q, v, t: jnp.zeros_like(v)], Kc
+        for f, (K, m) in zip(families_of_data(fams, q.shape[-1], speeds, supports), sizes):
             branches.append(family_term(f, off, K, m))
             off += K + m + 1
         return conservative((centre, fc_params), theta[:Kc], q, v) + jax.lax.switch(which, branches, theta, q, v, t)
 
     return rhs
+
+
+def families_of_data(fams: Sequence[Family], n: int, speeds, supports) -> list[Family]:
+    """``fams`` with their record's numbers as data of a compiled program, not constants of it: the built-in families
+    (:func:`builtin_of` the speeds of :func:`builtin_speeds`) built again from ``speeds`` (their smoothed signs' ε;
+    traced), each sparse law's basis from its entry of ``supports`` (the (component, monomial) indices of
+    :func:`nnphd.explain.families.sparse_index`, in the order of the sparse laws among ``fams``), the others as they
+    are. For programs traced inside (the law fits' right-hand side, the stop check's integration)."""
+    v_rms, sign = builtin_speeds(fams)
+    own = {} if v_rms is None else {f.key: f for f in families(n, [f"q{i}" for i in range(n)], speeds, sign)}
+    supports, out = list(supports), []
+    for f in fams:
+        if v_rms is not None and builtin_of(f, v_rms, sign):
+            f = own[f.key]
+        elif is_sparse(f):
+            index = supports.pop(0)
+            f = replace(f, basis=lambda xp, th, q, v, t, index=index: sparse_basis(xp, q, v, *index))
+        out.append(f)
+    return out
 
 
 # One right-hand side per structure, in this process: the compiled shooting programs take it as a static argument
